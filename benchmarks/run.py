@@ -1,0 +1,65 @@
+"""Run every benchmark and write the results as markdown (``make bench`` -> BENCHMARKS.md)."""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import os
+import platform
+import sys
+from pathlib import Path
+
+from benchmarks import bench_envs
+from benchmarks.common import Result
+
+SUITES = {"envs": bench_envs.run_all}
+
+HEADER = """# Benchmarks
+
+Measured by `make bench` (`python -m benchmarks.run --output BENCHMARKS.md`), which rewrites this
+file. Each figure is the median of 5 repeats (min-max beside it), wall clock, one process.
+Targets come from the issues; they are measured here, never asserted in tests.
+"""
+
+
+def to_markdown(results: list[Result]) -> str:
+    lines = [
+        HEADER,
+        f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"{platform.system()} {platform.release()}; measured {datetime.date.today().isoformat()}.",
+        "",
+    ]
+    for group in dict.fromkeys(r.group for r in results):
+        lines += [f"## {group}", "", "| what | median | range | target | met |", "|---|---:|---:|---:|:---:|"]
+        for r in (r for r in results if r.group == group):
+            met = "" if r.passed is None else ("yes" if r.passed else "**no**")
+            lines.append(f"| {r.name} | {_fmt(r.value)} {r.unit} | {r.spread} | {r.target} | {met} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _fmt(value: float) -> str:
+    return f"{value:,.0f}" if value >= 100 else f"{value:.3g}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--output", type=Path, help="write the markdown here (default: print only)")
+    parser.add_argument("--quick", action="store_true", help="fewer steps (a smoke run, figures are noisier)")
+    parser.add_argument("--only", choices=sorted(SUITES), action="append", help="run only these suites")
+    args = parser.parse_args(argv)
+    results: list[Result] = []
+    for name in args.only or SUITES:
+        print(f"running {name} benchmarks ...", file=sys.stderr)
+        results += SUITES[name](quick=args.quick)
+    for r in results:
+        print(f"{r.group:10s} {r.name:62s} {_fmt(r.value):>10s} {r.unit:8s} {r.target}")
+    text = to_markdown(results)
+    if args.output:
+        args.output.write_text(text)
+        print(f"wrote {args.output}", file=sys.stderr)
+    return 0 if all(r.passed is not False for r in results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

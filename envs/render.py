@@ -1,0 +1,464 @@
+"""Drawing a :class:`~envs.localization_env.LocalizationEnv` as ``rgb_array`` frames or a window.
+
+The frame shows the floor, walls, landmarks (coloured while the camera really sees them,
+grey otherwise), the crowd and ball, the true robot pose, sight lines to the visible
+landmarks, LIDAR hit points and a one-line caption. Wrappers add their own drawing through
+``env.add_overlay(draw)``: every frame calls ``draw(canvas)`` with a :class:`Canvas` whose
+methods take world coordinates (metres, y up).
+
+The frame size is fixed per world (:func:`frame_shape`): about 600 px on the long side,
+with even width and height so that video encoders accept it. Everything static (floor,
+field outline, walls, landmark labels) is drawn once; a frame blits that background and
+draws the moving parts. Large point sets (particles, candidates, scans) are written into
+the pixel array with numpy instead of one pygame call per mark.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any
+
+# before pygame initializes anything: without a display server (Linux servers, CI) the
+# window-less "dummy" video driver lets "human" mode run headless; a desktop keeps its real
+# driver, and an SDL_VIDEODRIVER set by the user always wins. Nothing here plays sound.
+if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+import numpy as np  # noqa: E402
+import pygame  # noqa: E402
+import pygame.surfarray  # noqa: E402
+from numpy.typing import ArrayLike, NDArray  # noqa: E402
+
+from envs.config import WorldConfig  # noqa: E402
+from localizers.base import Overlay  # noqa: E402
+
+if TYPE_CHECKING:
+    from envs.localization_env import LocalizationEnv
+
+Color = tuple[int, int, int]
+
+FRAME_LONG_SIDE_PX = 600
+MARGIN_PX = 16
+CAPTION_PX = 20
+_FONT_PX = 16
+_LABEL_FONT_PX = 14
+_MIN_LANDMARK_PX = 5  # landmark discs are at least this radius so that thin poles show
+_DRAW_CALL_LIMIT = 200  # above this many marks, write pixels with numpy instead of pygame.draw
+_COORD_LIMIT_PX = 100_000  # pygame.draw takes C ints: clip far-away coordinates to this
+
+BACKGROUND: Color = (40, 40, 40)
+FIELD_FLOOR: Color = (46, 120, 60)
+FIELD_LINE: Color = (235, 235, 235)
+ROOM_FLOOR: Color = (215, 210, 200)
+ROOM_OUTLINE: Color = (170, 165, 155)
+WALL: Color = (20, 20, 20)
+CAPTION_BACKGROUND: Color = (20, 20, 20)
+CAPTION_TEXT: Color = (230, 230, 230)
+HIDDEN_LANDMARK: Color = (128, 128, 128)
+LANDMARK_PALETTE: tuple[Color, ...] = (
+    (255, 215, 0),
+    (0, 170, 255),
+    (255, 100, 180),
+    (255, 140, 0),
+    (150, 90, 255),
+    (0, 220, 200),
+    (255, 60, 60),
+    (190, 255, 80),
+)
+CROWD_FILL: dict[str, Color] = {"soccer": (30, 30, 70), "queues": (200, 120, 60)}
+CROWD_OUTLINE: Color = (10, 10, 10)
+BALL: Color = (255, 120, 0)
+ROBOT_FILL: Color = (250, 250, 250)
+ROBOT_OUTLINE: Color = (220, 0, 0)
+SIGHT_LINE: Color = (255, 255, 160)
+LIDAR_HIT: Color = (255, 20, 20)
+
+
+def landmark_color(index: int) -> Color:
+    """Colour of landmark ``index`` while it is visible."""
+    return LANDMARK_PALETTE[index % len(LANDMARK_PALETTE)]
+
+
+def _world_bounds(config: WorldConfig) -> tuple[float, float, float, float]:
+    """``(xmin, ymin, xmax, ymax)`` covering the arena, extra walls and landmarks."""
+    xs = [config.arena_m[0], config.arena_m[2]]
+    ys = [config.arena_m[1], config.arena_m[3]]
+    for x1, y1, x2, y2 in config.walls:
+        xs += [x1, x2]
+        ys += [y1, y2]
+    for lm in config.landmarks:
+        xs.append(lm.x_m)
+        ys.append(lm.y_m)
+    return (min(xs), min(ys), max(xs), max(ys))
+
+
+def _layout(config: WorldConfig) -> tuple[float, tuple[float, float, float, float], int, int, float, float]:
+    """Scale (px/m), world bounds, frame width and height, and the pixel origin of ``(xmin, ymax)``."""
+    bounds = _world_bounds(config)
+    xmin, ymin, xmax, ymax = bounds
+    span_x, span_y = xmax - xmin, ymax - ymin
+    scale = min(
+        (FRAME_LONG_SIDE_PX - 2 * MARGIN_PX) / span_x,
+        (FRAME_LONG_SIDE_PX - 2 * MARGIN_PX - CAPTION_PX) / span_y,
+    )
+    # even sizes: H.264 in yuv420p (what RecordVideo writes) rejects odd ones
+    width = 2 * math.ceil((span_x * scale + 2 * MARGIN_PX) / 2)
+    height = 2 * math.ceil((span_y * scale + 2 * MARGIN_PX + CAPTION_PX) / 2)
+    left = (width - span_x * scale) / 2
+    top = CAPTION_PX + (height - CAPTION_PX - span_y * scale) / 2
+    return scale, bounds, width, height, left, top
+
+
+def frame_shape(config: WorldConfig) -> tuple[int, int, int]:
+    """``(H, W, 3)`` of every ``rgb_array`` frame rendered for ``config``."""
+    _, _, width, height, _, _ = _layout(config)
+    return (height, width, 3)
+
+
+def _font(size_px: int) -> pygame.font.Font:
+    if not pygame.font.get_init():
+        pygame.font.init()
+    return pygame.font.Font(None, size_px)
+
+
+class Canvas:
+    """World-coordinate drawing on one frame, handed to every overlay callable.
+
+    Coordinates are metres in the world frame (y up), angles radians counter-clockwise
+    from +x, colours RGB tuples. Rows with a non-finite coordinate (an invalid estimate)
+    are not drawn.
+
+    Args:
+        surface: the frame being drawn.
+        scale_px_per_m: pixels per metre.
+        origin_px: pixel position of ``top_left_m``.
+        top_left_m: ``(xmin, ymax)``, the top left corner of the drawn world region.
+        floor: floor colour, used to shade weighted marks drawn with pygame.
+        default_radius_m: radius of :meth:`pose` marks when none is given (the robot's).
+    """
+
+    def __init__(
+        self,
+        surface: pygame.Surface,
+        scale_px_per_m: float,
+        origin_px: tuple[float, float],
+        top_left_m: tuple[float, float],
+        floor: Color,
+        default_radius_m: float,
+    ) -> None:
+        self.surface = surface
+        self.scale = scale_px_per_m
+        self._ox, self._oy = origin_px
+        self._xmin, self._ymax = top_left_m
+        self.floor = floor
+        self.default_radius_m = default_radius_m
+        self.captions: list[tuple[str, Color]] = []
+
+    # ------------------------------------------------------------------ mapping
+    def to_pixel(self, xy: ArrayLike) -> NDArray[np.int64]:
+        """Pixel ``(column, row)`` of world points: ``(2,)`` -> ``(2,)``, ``(n, 2)`` -> ``(n, 2)``."""
+        p = np.asarray(xy, dtype=np.float64)
+        col = self._ox + (p[..., 0] - self._xmin) * self.scale
+        row = self._oy + (self._ymax - p[..., 1]) * self.scale
+        out = np.stack([col, row], axis=-1)
+        return np.floor(np.clip(out, -_COORD_LIMIT_PX, _COORD_LIMIT_PX)).astype(np.int64)
+
+    def _pt(self, xy: Sequence[float] | NDArray[np.float64]) -> tuple[int, int]:
+        """:meth:`to_pixel` of one point, without numpy's per-call overhead (the frame's many small calls)."""
+        col = self._ox + (float(xy[0]) - self._xmin) * self.scale
+        row = self._oy + (self._ymax - float(xy[1])) * self.scale
+        return (
+            math.floor(min(max(col, -_COORD_LIMIT_PX), _COORD_LIMIT_PX)),
+            math.floor(min(max(row, -_COORD_LIMIT_PX), _COORD_LIMIT_PX)),
+        )
+
+    # ------------------------------------------------------------------ primitives
+    def line(self, p: ArrayLike, q: ArrayLike, color: Color, width_px: int = 1) -> None:
+        """Segment from world point ``p`` to ``q``."""
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(q))):
+            return
+        pygame.draw.line(self.surface, color, self._pt(p), self._pt(q), width_px)
+
+    def circle(self, x: float, y: float, radius_m: float, color: Color, width_px: int = 1) -> None:
+        """Circle of ``radius_m`` (at least 1 px) around ``(x, y)``; ``width_px=0`` fills it."""
+        if not all(math.isfinite(v) for v in (x, y, radius_m)):
+            return
+        radius_px = max(1, round(radius_m * self.scale))
+        pygame.draw.circle(self.surface, color, self._pt((x, y)), min(radius_px, _COORD_LIMIT_PX), width_px)
+
+    def pose(self, x: float, y: float, theta: float, color: Color, radius_m: float | None = None, width_px: int = 2) -> None:
+        """A pose as a circle outline with a heading line from its centre past the rim."""
+        if not all(math.isfinite(v) for v in (x, y, theta)):
+            return
+        r = self.default_radius_m if radius_m is None else radius_m
+        self.circle(x, y, r, color, width_px)
+        tip = (x + 1.4 * r * math.cos(theta), y + 1.4 * r * math.sin(theta))
+        self.line((x, y), tip, color, width_px)
+
+    def points(self, xy: ArrayLike, color: Color, size_px: int = 2) -> None:
+        """Square dots of ``size_px`` at world points ``(n, 2)``."""
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        p = p[np.all(np.isfinite(p), axis=1)]
+        if p.shape[0] == 0:
+            return
+        px = self.to_pixel(p)
+        offsets = np.arange(size_px) - (size_px - 1) // 2
+        dc, dr = np.meshgrid(offsets, offsets, indexing="ij")
+        cols = (px[:, 0:1] + dc.reshape(1, -1)).reshape(-1)
+        rows = (px[:, 1:2] + dr.reshape(1, -1)).reshape(-1)
+        self._write(cols, rows, color, None)
+
+    def poses(self, poses: ArrayLike, weights: ArrayLike | None, color: Color, length_px: int = 6) -> None:
+        """Many small pose marks (particles, candidates): a dot and a heading tick of ``length_px`` each.
+
+        Up to a few hundred marks are drawn with pygame; more are written into the pixel
+        array in one vectorized step (about 0.6 ms per 1000 marks), blended over the frame by weight.
+
+        Args:
+            poses: ``(n, 3)`` world poses.
+            weights: ``(n,)`` importances (shading, normalized by their maximum) or ``None``.
+            color: full-weight colour.
+            length_px: heading tick length.
+        """
+        q = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+        w = None if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
+        if w is not None and w.shape[0] != q.shape[0]:
+            raise ValueError(f"poses: {q.shape[0]} poses but {w.shape[0]} weights")
+        keep = np.all(np.isfinite(q), axis=1)
+        q = q[keep]
+        if q.shape[0] == 0:
+            return
+        alpha = None
+        if w is not None:
+            w = np.nan_to_num(w[keep], nan=0.0, posinf=0.0, neginf=0.0).clip(min=0.0)
+            top = w.max()
+            alpha = 0.15 + 0.85 * (w / top if top > 0 else np.ones_like(w))
+        px = self.to_pixel(q[:, :2])
+        if q.shape[0] <= _DRAW_CALL_LIMIT:
+            self._poses_with_pygame(px, q[:, 2], alpha, color, length_px)
+            return
+        steps = np.arange(length_px + 1)
+        cols = np.rint(px[:, 0:1] + np.cos(q[:, 2:3]) * steps).astype(np.int64)
+        rows = np.rint(px[:, 1:2] - np.sin(q[:, 2:3]) * steps).astype(np.int64)
+        # a 2x2 dot at the position on top of the tick
+        dot_c = px[:, 0:1] + np.array([[0, 1, 0, 1]])
+        dot_r = px[:, 1:2] + np.array([[0, 0, 1, 1]])
+        cols = np.concatenate([cols, dot_c], axis=1)
+        rows = np.concatenate([rows, dot_r], axis=1)
+        a = None if alpha is None else np.repeat(alpha, cols.shape[1])
+        self._write(cols.reshape(-1), rows.reshape(-1), color, a)
+
+    def text(self, text: str, color: Color = CAPTION_TEXT) -> None:
+        """Append ``text`` to the frame's caption line."""
+        self.captions.append((text, color))
+
+    def overlay(self, overlay: Overlay, color: Color) -> None:
+        """Draw a localizer's :class:`~localizers.base.Overlay`: poses shaded by weight, points, label."""
+        # empty weights mean unweighted; any other count than one per pose is an error in poses()
+        weights = overlay.weights if np.asarray(overlay.weights).size else None
+        self.poses(overlay.poses, weights, color)
+        self.points(overlay.points_xy, color, size_px=2)
+        if overlay.label:
+            self.text(overlay.label, color)
+
+    # ------------------------------------------------------------------ internals
+    def _poses_with_pygame(
+        self, px: NDArray[np.int64], theta: NDArray[np.float64], alpha: NDArray[np.float64] | None, color: Color, length_px: int
+    ) -> None:
+        base = np.asarray(color, dtype=np.float64)
+        floor = np.asarray(self.floor, dtype=np.float64)
+        for i in range(px.shape[0]):
+            c = color if alpha is None else tuple(int(v) for v in np.rint(floor + (base - floor) * alpha[i]))
+            start = (int(px[i, 0]), int(px[i, 1]))
+            tip = (round(start[0] + length_px * math.cos(theta[i])), round(start[1] - length_px * math.sin(theta[i])))
+            pygame.draw.line(self.surface, c, start, tip, 1)
+            pygame.draw.circle(self.surface, c, start, 2)
+
+    def _write(self, cols: NDArray[np.int64], rows: NDArray[np.int64], color: Color, alpha: NDArray[np.float64] | None) -> None:
+        """Set pixels (blended over what is there by ``alpha`` where given) in one vectorized write."""
+        width, height = self.surface.get_size()
+        inside = (cols >= 0) & (cols < width) & (rows >= 0) & (rows < height)
+        cols, rows = cols[inside], rows[inside]
+        if cols.size == 0:
+            return
+        pixels = pygame.surfarray.pixels2d(self.surface)  # (W, H) packed pixels; a view that locks the surface
+        try:
+            if alpha is None:
+                pixels[cols, rows] = self.surface.map_rgb(color)
+                return
+            a = alpha[inside].astype(np.float32)
+            old = pixels[cols, rows]
+            kind = old.dtype.type
+            rgb_mask = kind(sum(self.surface.get_masks()[:3]))
+            packed = old & ~rgb_mask  # keep whatever else the pixel format stores
+            for shift, value in zip(self.surface.get_shifts()[:3], color):
+                channel = ((old >> kind(shift)) & kind(0xFF)).astype(np.float32)
+                packed |= np.rint(channel + (value - channel) * a).astype(old.dtype) << kind(shift)
+            pixels[cols, rows] = packed
+        finally:
+            del pixels
+
+
+class Renderer:
+    """Draws an env; one per env, created by ``LocalizationEnv.render()``.
+
+    Args:
+        config: the world (fixes the frame size and the static background).
+        render_mode: ``"rgb_array"`` (frames returned) or ``"human"`` (a pygame window).
+        fps: frame rate the ``"human"`` window is held to.
+
+    Raises:
+        ValueError: for another ``render_mode`` or a non-positive ``fps``.
+    """
+
+    def __init__(self, config: WorldConfig, render_mode: str, fps: int) -> None:
+        if render_mode not in ("rgb_array", "human"):
+            raise ValueError(f"render_mode must be 'rgb_array' or 'human', got {render_mode!r}")
+        if fps <= 0:
+            raise ValueError(f"fps must be > 0, got {fps!r}")
+        self.config = config
+        self.render_mode = render_mode
+        self.fps = fps
+        self.scale, bounds, self.width, self.height, left, top = _layout(config)
+        xmin, _, _, ymax = bounds
+        self.is_field = config.crowd.kind == "soccer"
+        self.floor = FIELD_FLOOR if self.is_field else ROOM_FLOOR
+        self.crowd_fill = CROWD_FILL.get(config.crowd.kind, (60, 60, 60))
+        self.surface = pygame.Surface((self.width, self.height), 0, 32)
+        self._canvas_args = ((left, top), (xmin, ymax), self.floor, config.robot.radius_m)
+        self._font = _font(_FONT_PX)
+        self._background: pygame.Surface | None = None  # drawn on the first frame, from the env's walls
+        self._window: pygame.Surface | None = None
+        self._clock: pygame.time.Clock | None = None
+
+    @property
+    def frame_shape(self) -> tuple[int, int, int]:
+        """``(H, W, 3)`` of the frames."""
+        return (self.height, self.width, 3)
+
+    def canvas(self) -> Canvas:
+        """A :class:`Canvas` on this renderer's frame (also the world -> pixel mapping)."""
+        return Canvas(self.surface, self.scale, *self._canvas_args)
+
+    def to_pixel(self, xy: ArrayLike) -> NDArray[np.int64]:
+        """Pixel ``(column, row)`` of world points (see :meth:`Canvas.to_pixel`)."""
+        return self.canvas().to_pixel(xy)
+
+    # ------------------------------------------------------------------ frames
+    def draw(self, env: LocalizationEnv, overlays: Iterable[Callable[[Canvas], Any]] = ()) -> NDArray[np.uint8] | None:
+        """Draw the env's current state and the overlays.
+
+        Returns:
+            ``(H, W, 3)`` uint8 frame in ``"rgb_array"`` mode, ``None`` in ``"human"`` mode.
+        """
+        world = env.world
+        if self._background is None:
+            self._background = self._draw_background(world.seg_a, world.seg_b)
+        self.surface.blit(self._background, (0, 0))
+        canvas = self.canvas()
+        pose = world.robot_pose
+        visible = np.asarray(env.last_info.get("visible_landmarks", ()), dtype=np.int64)
+
+        for j in visible:
+            canvas.line(pose[:2], world.landmark_xy[j], SIGHT_LINE, 1)
+        for xy, r in zip(world.positions[world.crowd_rows], world.radii_m[world.crowd_rows]):
+            canvas.circle(xy[0], xy[1], r, self.crowd_fill, 0)
+            canvas.circle(xy[0], xy[1], r, CROWD_OUTLINE, 1)
+        if world.ball_row >= 0:
+            bx, by = world.positions[world.ball_row]
+            canvas.circle(bx, by, world.radii_m[world.ball_row], BALL, 0)
+        self._draw_landmarks(canvas, world.landmark_xy, world.landmark_radius_m, visible)
+        canvas.circle(pose[0], pose[1], world.radii_m[0], ROBOT_FILL, 0)
+        canvas.pose(pose[0], pose[1], pose[2], ROBOT_OUTLINE, world.radii_m[0], 2)
+        scan = env.last_observation.get("lidar")
+        if env.lidar is not None and scan is not None:
+            ranges = np.asarray(scan, dtype=np.float64)
+            hit = ranges < env.lidar.config.max_range_m
+            angles = env.lidar.relative_angles[hit] + pose[2]
+            r = ranges[hit]
+            canvas.points(pose[:2] + np.stack([r * np.cos(angles), r * np.sin(angles)], axis=1), LIDAR_HIT, 2)
+
+        for draw in overlays:
+            draw(canvas)
+        self._draw_caption(env, canvas.captions)
+
+        if self.render_mode == "human":
+            self._show()
+            return None
+        # a bytearray keeps the frame writable (users annotate frames) and owned by the caller
+        frame = np.frombuffer(bytearray(pygame.image.tobytes(self.surface, "RGB")), dtype=np.uint8)
+        return frame.reshape(self.height, self.width, 3)
+
+    def close(self) -> None:
+        """Close the ``"human"`` window (pygame has one display per process: other windows close too)."""
+        if self._window is not None:
+            pygame.display.quit()
+            self._window = None
+            self._clock = None
+
+    # ------------------------------------------------------------------ internals
+    def _draw_background(self, seg_a: NDArray[np.float64], seg_b: NDArray[np.float64]) -> pygame.Surface:
+        """Floor, field or room outline, walls ``(S, 2)`` to ``(S, 2)`` and landmark labels."""
+        bg = pygame.Surface((self.width, self.height), 0, 32)
+        bg.fill(BACKGROUND)
+        canvas = Canvas(bg, self.scale, *self._canvas_args)
+        cfg = self.config
+        xmin, ymin, xmax, ymax = cfg.arena_m
+        corner = canvas.to_pixel([[xmin, ymax], [xmax, ymin]])
+        pygame.draw.rect(bg, self.floor, pygame.Rect(*corner[0], *(corner[1] - corner[0])))
+        w, h = cfg.size_m
+        outline = [(0.0, 0.0), (w, 0.0), (w, h), (0.0, h)]
+        pygame.draw.lines(bg, FIELD_LINE if self.is_field else ROOM_OUTLINE, True, [canvas._pt(p) for p in outline], 2)
+        for a, b in zip(seg_a, seg_b):
+            canvas.line(a, b, WALL, 3)
+        label_font = _font(_LABEL_FONT_PX)
+        for lm in cfg.landmarks:
+            label = label_font.render(lm.name, True, FIELD_LINE if self.is_field else WALL)
+            c, r = canvas._pt((lm.x_m, lm.y_m))
+            # labels sit toward the frame's centre so that edge landmarks keep theirs on screen
+            dx = 8 if c < self.width / 2 else -8 - label.get_width()
+            dy = 6 if r < self.height / 2 else -6 - label.get_height()
+            bg.blit(label, (c + dx, r + dy))
+        return bg
+
+    def _draw_landmarks(
+        self, canvas: Canvas, xy: NDArray[np.float64], radius_m: NDArray[np.float64], visible: NDArray[np.int64]
+    ) -> None:
+        seen = np.zeros(xy.shape[0], dtype=bool)
+        seen[visible] = True
+        for j in range(xy.shape[0]):
+            color = landmark_color(j) if seen[j] else HIDDEN_LANDMARK
+            radius_px = max(_MIN_LANDMARK_PX, round(radius_m[j] * self.scale))
+            center = canvas._pt(xy[j])
+            pygame.draw.circle(self.surface, color, center, radius_px)
+            pygame.draw.circle(self.surface, WALL, center, radius_px, 1)
+
+    def _draw_caption(self, env: LocalizationEnv, extra: Sequence[tuple[str, Color]]) -> None:
+        self.surface.fill(CAPTION_BACKGROUND, pygame.Rect(0, 0, self.width, CAPTION_PX))
+        world = env.world
+        parts = [(f"{self.config.name}  t={world.time_s:.2f} s  crowd={world.crowd.count}", CAPTION_TEXT), *extra]
+        x = 6
+        for i, (text, color) in enumerate(parts):
+            if x >= self.width:
+                break
+            label = self._font.render(("   " if i else "") + text, True, color)
+            self.surface.blit(label, (x, (CAPTION_PX - label.get_height()) // 2))
+            x += label.get_width()
+
+    def _show(self) -> None:
+        if self._window is None:
+            pygame.display.init()
+            pygame.display.set_caption(f"crowdloc: {self.config.name}")
+            self._window = pygame.display.set_mode((self.width, self.height))
+            self._clock = pygame.time.Clock()
+        assert self._clock is not None
+        pygame.event.pump()
+        self._window.blit(self.surface, (0, 0))
+        pygame.display.flip()
+        self._clock.tick(self.fps)
+

@@ -1,0 +1,169 @@
+"""The localizer interface: measurements in, a pose estimate out.
+
+Localizers import nothing from ``envs``: they work on the plain dataclasses below, so the
+same code runs on simulated and on recorded data. Units are metres and radians; bearings
+are counter-clockwise from the robot's heading, in ``[-pi, pi)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+class MeasurementError(ValueError):
+    """A measurement handed to a localizer is malformed (NaN, out of range, wrong shape)."""
+
+
+@dataclass(frozen=True)
+class LandmarkMap:
+    """Known landmark positions and the field they live on.
+
+    Attributes:
+        positions_xy_m: ``(L, 2)`` landmark positions in the world frame.
+        names: ``L`` landmark names (for reports).
+        bounds_m: ``(xmin, ymin, xmax, ymax)`` of the region the robot can be in.
+    """
+
+    positions_xy_m: NDArray[np.float64]
+    names: tuple[str, ...]
+    bounds_m: tuple[float, float, float, float]
+
+    def __post_init__(self) -> None:
+        pos = np.asarray(self.positions_xy_m, dtype=np.float64)
+        if pos.ndim != 2 or pos.shape[1] != 2:
+            raise ValueError(f"LandmarkMap.positions_xy_m must have shape (L, 2), got {pos.shape}")
+        if len(self.names) != pos.shape[0]:
+            raise ValueError(f"LandmarkMap has {pos.shape[0]} positions but {len(self.names)} names")
+        xmin, ymin, xmax, ymax = self.bounds_m
+        if not (xmax > xmin and ymax > ymin):
+            raise ValueError(f"LandmarkMap.bounds_m must be (xmin, ymin, xmax, ymax) with max > min, got {self.bounds_m}")
+        pos.setflags(write=False)
+        object.__setattr__(self, "positions_xy_m", pos)
+
+    @property
+    def count(self) -> int:
+        return int(self.positions_xy_m.shape[0])
+
+
+@dataclass(frozen=True)
+class OdometryDelta:
+    """Motion since the previous step, in the frame of the previous (odometry) pose."""
+
+    dx_m: float
+    dy_m: float
+    dtheta_rad: float
+
+    def as_array(self) -> NDArray[np.float64]:
+        return np.array([self.dx_m, self.dy_m, self.dtheta_rad], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class BearingMeasurement:
+    """Bearings to identified landmarks seen in one frame.
+
+    Attributes:
+        landmark_ids: ``(n,)`` indices into the :class:`LandmarkMap` (unique).
+        bearings_rad: ``(n,)`` bearings in the robot frame, in ``[-pi, pi]``.
+    """
+
+    landmark_ids: NDArray[np.int64]
+    bearings_rad: NDArray[np.float64]
+
+    @staticmethod
+    def empty() -> BearingMeasurement:
+        return BearingMeasurement(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64))
+
+    def validated(self, landmark_count: int, source: str = "bearing measurement") -> BearingMeasurement:
+        """Return a copy with checked dtypes, or raise :class:`MeasurementError` naming the bad value."""
+        ids = np.asarray(self.landmark_ids)
+        bearings = np.asarray(self.bearings_rad, dtype=np.float64)
+        if ids.ndim != 1 or bearings.ndim != 1 or ids.shape != bearings.shape:
+            raise MeasurementError(
+                f"{source}: landmark_ids and bearings_rad must be 1-D of equal length, got {ids.shape} and {bearings.shape}"
+            )
+        if ids.size and (not np.issubdtype(ids.dtype, np.integer) or ids.min() < 0 or ids.max() >= landmark_count):
+            raise MeasurementError(f"{source}: landmark id out of range 0..{landmark_count - 1}: {ids.tolist()}")
+        if np.unique(ids).size != ids.size:
+            raise MeasurementError(f"{source}: repeated landmark id in {ids.tolist()}")
+        bad = ~np.isfinite(bearings) | (np.abs(bearings) > np.pi + 1e-9)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise MeasurementError(
+                f"{source}: bearing {bearings[i]!r} rad to landmark {int(ids[i])} is not a finite angle in [-pi, pi]"
+            )
+        return BearingMeasurement(ids.astype(np.int64), bearings)
+
+
+@dataclass(frozen=True)
+class PoseEstimate:
+    """A localizer's answer.
+
+    Attributes:
+        x_m, y_m, theta_rad: the pose (heading in ``[-pi, pi)``); meaningless when not ``valid``.
+        covariance: ``(3, 3)`` covariance of (x, y, theta), or a spread-equivalent diagonal.
+        valid: whether the localizer currently claims a pose at all.
+    """
+
+    x_m: float
+    y_m: float
+    theta_rad: float
+    covariance: NDArray[np.float64] = field(default_factory=lambda: np.full((3, 3), np.nan))
+    valid: bool = True
+
+    @staticmethod
+    def invalid() -> PoseEstimate:
+        return PoseEstimate(np.nan, np.nan, np.nan, np.full((3, 3), np.nan), False)
+
+    def as_array(self) -> NDArray[np.float64]:
+        return np.array([self.x_m, self.y_m, self.theta_rad], dtype=np.float64)
+
+    @property
+    def position_spread_m(self) -> float:
+        """sqrt of the trace of the position covariance (nan when unknown)."""
+        return float(np.sqrt(self.covariance[0, 0] + self.covariance[1, 1]))
+
+    @property
+    def heading_spread_rad(self) -> float:
+        return float(np.sqrt(self.covariance[2, 2]))
+
+
+@dataclass(frozen=True)
+class Overlay:
+    """What a renderer may draw for a localizer (all arrays may be empty).
+
+    Attributes:
+        poses: ``(n, 3)`` hypotheses (particles, candidates) in the world frame.
+        weights: ``(n,)`` relative importance in ``[0, 1]`` for shading.
+        points_xy: ``(m, 2)`` extra points (accumulated scan points, for example).
+        label: a short caption.
+    """
+
+    poses: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    weights: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    points_xy: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
+    label: str = ""
+
+
+@runtime_checkable
+class Localizer(Protocol):
+    """Every localizer: ``reset`` once per episode, then ``predict`` and ``update`` each step."""
+
+    def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
+        """Forget everything; ``prior`` is a known initial pose where the method needs one."""
+
+    def predict(self, odometry: OdometryDelta) -> None:
+        """Propagate by one odometry increment."""
+
+    def update(self, measurement: Any) -> None:
+        """Incorporate one frame's measurement (an empty one is legal)."""
+
+    @property
+    def estimate(self) -> PoseEstimate:
+        """The current pose estimate (``valid=False`` when there is none)."""
+
+    def overlay(self) -> Overlay:
+        """Hypotheses to draw."""

@@ -1,0 +1,132 @@
+"""Baseline (1) of the two-landmark bearings paper: dead reckoning from a known initial pose.
+
+The pose is the running SE(2) product of the odometry increments. Its covariance grows
+with a random-walk drift model (ours; the paper gives none): every increment of length
+``s`` metres and turn ``|dtheta|`` radians adds, in the robot frame,
+
+    var(along-track) = var(cross-track) = position_var_m2_per_m * s
+    var(heading)     = heading_var_rad2_per_m * s + heading_var_rad2_per_rad * |dtheta|
+
+so the position standard deviation grows like the square root of the distance travelled
+(independent of how finely the path is cut into steps), and heading uncertainty leaks into
+cross-track error through the linearized motion model.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
+from localizers.geometry import compose, wrap_angle
+from localizers.schema import check
+
+
+@dataclass(frozen=True)
+class DeadReckoningParams:
+    """Drift rates of the covariance model (defaults: ``configs/localizers/dead_reckoning.yaml``).
+
+    Attributes:
+        position_var_m2_per_m: position variance added per metre, along and across track.
+        heading_var_rad2_per_m: heading variance added per metre travelled.
+        heading_var_rad2_per_rad: heading variance added per radian turned.
+        initial_position_std_m: prior position std when the prior has no finite covariance.
+        initial_heading_std_rad: prior heading std when the prior has no finite covariance.
+    """
+
+    position_var_m2_per_m: float = 1e-3
+    heading_var_rad2_per_m: float = 1e-3
+    heading_var_rad2_per_rad: float = 1e-3
+    initial_position_std_m: float = 0.0
+    initial_heading_std_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in (
+            "position_var_m2_per_m",
+            "heading_var_rad2_per_m",
+            "heading_var_rad2_per_rad",
+            "initial_position_std_m",
+            "initial_heading_std_rad",
+        ):
+            value = getattr(self, name)
+            check(math.isfinite(value) and value >= 0.0, f"DeadReckoningParams.{name} must be >= 0, got {value!r}")
+
+
+class DeadReckoningLocalizer:
+    """Integrates odometry from the prior pose; bearings are validated and ignored."""
+
+    name: ClassVar[str] = "dead_reckoning"
+
+    def __init__(self, landmarks: LandmarkMap, params: DeadReckoningParams, *, dt_s: float) -> None:
+        if not (math.isfinite(dt_s) and dt_s > 0.0):
+            raise ValueError(f"DeadReckoningLocalizer: dt_s must be a positive number of seconds, got {dt_s!r}")
+        self._map = landmarks
+        self._params = params
+        self._dt = float(dt_s)
+        self._pose: NDArray[np.float64] | None = None
+        self._cov = np.zeros((3, 3))
+
+    def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
+        """Start from ``prior`` (required: dead reckoning cannot find a pose by itself).
+
+        Raises:
+            ValueError: when ``prior`` is missing or not valid.
+        """
+        del rng  # deterministic
+        if prior is None or not prior.valid or not np.isfinite(prior.as_array()).all():
+            raise ValueError(
+                f"DeadReckoningLocalizer.reset needs a valid initial pose (prior), got {prior!r}: "
+                "dead reckoning only integrates odometry from a known start"
+            )
+        self._pose = np.array([prior.x_m, prior.y_m, wrap_angle(prior.theta_rad)])
+        cov = np.asarray(prior.covariance, dtype=np.float64)
+        if cov.shape == (3, 3) and np.isfinite(cov).all():
+            self._cov = 0.5 * (cov + cov.T)
+        else:
+            p = self._params
+            self._cov = np.diag([p.initial_position_std_m**2] * 2 + [p.initial_heading_std_rad**2])
+
+    def _require_reset(self) -> NDArray[np.float64]:
+        if self._pose is None:
+            raise RuntimeError("DeadReckoningLocalizer: call reset() before predict() or update()")
+        return self._pose
+
+    def predict(self, odometry: OdometryDelta) -> None:
+        """Compose the increment and propagate the covariance ``F P F^T + G Q G^T``."""
+        pose = self._require_reset()
+        d = odometry.as_array()
+        if not np.isfinite(d).all():
+            raise MeasurementError(f"dead_reckoning: odometry increment {d.tolist()} is not finite")
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        # Jacobians of compose(pose, d): F w.r.t. the pose, G w.r.t. the increment.
+        F = np.array([[1.0, 0.0, -s * d[0] - c * d[1]], [0.0, 1.0, c * d[0] - s * d[1]], [0.0, 0.0, 1.0]])
+        G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        p = self._params
+        dist = math.hypot(d[0], d[1])
+        q_pos = p.position_var_m2_per_m * dist
+        Q = np.diag([q_pos, q_pos, p.heading_var_rad2_per_m * dist + p.heading_var_rad2_per_rad * abs(d[2])])
+        self._cov = F @ self._cov @ F.T + G @ Q @ G.T
+        self._pose = compose(pose, d)
+
+    def update(self, measurement: BearingMeasurement) -> None:
+        """Validate (bad bearings still raise) and otherwise ignore the measurement."""
+        self._require_reset()
+        if not isinstance(measurement, BearingMeasurement):
+            raise MeasurementError(f"dead_reckoning: expected a BearingMeasurement, got {type(measurement).__name__}")
+        measurement.validated(self._map.count, source="dead_reckoning")
+
+    @property
+    def estimate(self) -> PoseEstimate:
+        if self._pose is None:
+            return PoseEstimate.invalid()
+        x, y, th = self._pose
+        return PoseEstimate(float(x), float(y), float(th), self._cov.copy(), True)
+
+    def overlay(self) -> Overlay:
+        if self._pose is None:
+            return Overlay(label="dead reckoning: not started")
+        return Overlay(poses=self._pose[None, :].copy(), weights=np.ones(1), label="dead reckoning")

@@ -1,0 +1,365 @@
+"""Bearing-only resection: Cassini's three-point method, the two-landmark arc, and baseline (2).
+
+Candidate-set paper (PAPERS.md A): baseline (2) solves the pose by Cassini's method whenever
+>= 3 landmark bearings are seen and gives no output otherwise; the proposed method seeds its
+candidate sets from the inscribed-angle arc (2 landmarks) or from every Cassini triple
+(>= 3 landmarks). The pure functions here serve both and the other localizers.
+
+Conventions: bearings are robot-frame, counter-clockwise from the heading, in radians.
+
+**Cassini's construction.** Let the robot R see L1, L2, L3 at bearings b1, b2, b3 and put
+``a12 = b2 - b1``, ``a23 = b3 - b2``. R lies on the circle C1 through L1, L2 (chord L1L2
+subtends a12) and on C3 through L2, L3 (chord L2L3 subtends a23). Let P1 and P3 be the
+points of C1 and C3 diametrically opposite L2. Thales gives ``angle(L2 R P1) = 90 deg`` and
+``angle(L2 R P3) = 90 deg``, so R is on the line P1P3 and is the foot of the perpendicular
+from L2 to it. With ``J`` the +90 deg rotation, the directed-angle form of the inscribed-
+angle theorem (angles between lines, mod pi) gives
+
+    P1 = L1 - cot(a12) J (L1 - L2),    P3 = L3 + cot(a23) J (L3 - L2).
+
+Because the construction works with lines, not rays, a solution may reproduce a bearing
+only up to pi; such solutions are rejected by a residual check.
+
+**Conditioning.** With ``F_i(R, theta) = atan2(L_i - R) - theta - b_i = 0``, the solution's
+sensitivity to the bearings is ``d(R, theta)/db = A^-1`` where row i of ``A`` is
+``((L_iy - R_y) / r_i^2, -(L_ix - R_x) / r_i^2, -1)``. ``det A = 0`` exactly on the danger
+circle (through the three landmarks; a line for collinear landmarks). The scale-free
+conditioning is
+
+    c = d_rms / ||(A^-1)[:2, :]||_F
+
+with ``d_rms`` the RMS robot-landmark distance: for independent bearing errors of standard
+deviation ``s`` the RMS position error is ``s d_rms / c`` (linearized). ``c`` is 0 on the
+danger circle and, when the robot is inside a landmark triangle whose angles are all
+>= 10 deg, it is above 0.1 (checked on 100k random cases); the default
+``min_conditioning = 0.1`` (ours) therefore accepts such geometries and rejects e.g. a robot
+within ~1 % of the circle's radius from it, where a 1 deg bearing error would move the
+solution by more than ~17 % of the distance to the landmarks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from itertools import combinations
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
+from localizers.geometry import circular_mean, wrap_angle
+from localizers.schema import check
+
+DEFAULT_MIN_CONDITIONING = 0.1
+"""Default lower bound on the conditioning ``c`` (ours; see the module docstring)."""
+
+RESIDUAL_TOL_RAD = 1e-6
+"""A Cassini solution must reproduce all three bearings to this tolerance (rejects the
+solutions that match a bearing only up to pi). Exact solutions do so to ~1e-12 rad."""
+
+# Landmark order putting the pivot in the middle, indexed by the excluded pair
+# (0: pair (0, 1) -> pivot 2, 1: pair (1, 2) -> pivot 0, 2: pair (0, 2) -> pivot 1).
+_PIVOT_ORDER = np.array([[0, 2, 1], [1, 0, 2], [0, 1, 2]], dtype=np.intp)
+
+
+def _rot90(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``J v``: rotate ``(..., 2)`` vectors by +90 degrees."""
+    return np.stack([-v[..., 1], v[..., 0]], axis=-1)
+
+
+def _cassini(
+    landmarks_xy: NDArray[np.float64], bearings_rad: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Raw Cassini solve: ``(poses (..., 3), conditioning (...,), rms_distance_m (...,))``.
+
+    Degenerate inputs give NaN poses or conditioning (never an exception); a pose whose
+    bearings do not reproduce the measurement gets conditioning NaN.
+    """
+    # Pivot (the construction's L2) on the landmark outside the pair seen most nearly
+    # (anti)parallel: a robot on the line through two landmarks makes their angle 0 or pi
+    # and cot() infinite, but the pose is still defined unless all three are on one line.
+    b = bearings_rad
+    pair_sin = np.abs(np.sin(np.stack([b[..., 1] - b[..., 0], b[..., 2] - b[..., 1], b[..., 2] - b[..., 0]], -1)))
+    order = _PIVOT_ORDER[np.argmin(pair_sin, axis=-1)]  # (..., 3)
+    landmarks_xy = np.take_along_axis(landmarks_xy, order[..., None], axis=-2)
+    bearings_rad = np.take_along_axis(b, order, axis=-1)
+    l1, l2, l3 = landmarks_xy[..., 0, :], landmarks_xy[..., 1, :], landmarks_xy[..., 2, :]
+    a12 = bearings_rad[..., 1] - bearings_rad[..., 0]
+    a23 = bearings_rad[..., 2] - bearings_rad[..., 1]
+    with np.errstate(all="ignore"):
+        cot12 = np.cos(a12) / np.sin(a12)
+        cot23 = np.cos(a23) / np.sin(a23)
+        p1 = l1 - cot12[..., None] * _rot90(l1 - l2)
+        p3 = l3 + cot23[..., None] * _rot90(l3 - l2)
+        # Foot of the perpendicular from L2 on the line P1P3.
+        e = p3 - p1
+        t = np.sum((l2 - p1) * e, axis=-1) / np.sum(e * e, axis=-1)
+        robot = p1 + t[..., None] * e
+
+        d = landmarks_xy - robot[..., None, :]  # (..., 3, 2) robot -> landmark
+        world_dir = np.arctan2(d[..., 1], d[..., 0])  # (..., 3)
+        heading = np.asarray(circular_mean(world_dir - bearings_rad, axis=-1))
+        residual = np.max(np.abs(wrap_angle(world_dir - heading[..., None] - bearings_rad)), axis=-1)
+
+        # Conditioning from the adjugate of A (rows a0, a1, a2): A^-1 = [a1 x a2, a2 x a0, a0 x a1] / det.
+        r2 = np.sum(d * d, axis=-1)
+        rows = np.stack([d[..., 1] / r2, -d[..., 0] / r2, -np.ones_like(r2)], axis=-1)  # (..., 3, 3)
+        a0, a1, a2 = rows[..., 0, :], rows[..., 1, :], rows[..., 2, :]
+        cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)], axis=-2)  # (..., 3 cols, 3)
+        det = np.sum(a0 * cof[..., 0, :], axis=-1)
+        sens_num = np.sqrt(np.sum(cof[..., :2] ** 2, axis=(-2, -1)))  # ||adj[:2, :]||_F
+        d_rms = np.sqrt(np.mean(r2, axis=-1))
+        conditioning = d_rms * np.abs(det) / sens_num
+        conditioning = np.where(residual <= RESIDUAL_TOL_RAD, conditioning, np.nan)
+    poses = np.concatenate([robot, heading[..., None]], axis=-1)
+    return poses, conditioning, d_rms
+
+
+def cassini_resection(
+    landmarks_xy: ArrayLike, bearings_rad: ArrayLike, min_conditioning: float = DEFAULT_MIN_CONDITIONING
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Cassini's three-point resection, vectorized over leading axes.
+
+    Args:
+        landmarks_xy: ``(..., 3, 2)`` world positions of the three landmarks.
+        bearings_rad: ``(..., 3)`` robot-frame bearings to them.
+        min_conditioning: smallest accepted conditioning ``c`` (module docstring), > 0.
+
+    Returns:
+        ``poses (..., 3)`` as ``(x, y, theta)`` with theta in ``[-pi, pi)``, NaN where not ok;
+        ``ok (...,)`` False near the danger circle, for degenerate geometry (robot on the
+        line of collinear landmarks, on a landmark) or inconsistent bearings.
+    """
+    lm = np.asarray(landmarks_xy, dtype=np.float64)
+    b = np.asarray(bearings_rad, dtype=np.float64)
+    if lm.shape[-2:] != (3, 2) or b.shape[-1:] != (3,) or lm.shape[:-2] != b.shape[:-1]:
+        raise ValueError(
+            f"cassini_resection: need landmarks_xy (..., 3, 2) and bearings_rad (..., 3), got {lm.shape} and {b.shape}"
+        )
+    if not min_conditioning > 0.0:
+        raise ValueError(f"cassini_resection: min_conditioning must be > 0, got {min_conditioning!r}")
+    poses, cond, _ = _cassini(lm, b)
+    ok = np.isfinite(poses).all(axis=-1) & (cond >= min_conditioning)  # NaN compares False
+    poses = np.where(ok[..., None], poses, np.nan)
+    return poses, ok
+
+
+def inscribed_arc_poses(
+    l1_xy: ArrayLike, l2_xy: ArrayLike, bearing1_rad: float, bearing2_rad: float, n: int
+) -> NDArray[np.float64]:
+    """Poses from which L1 and L2 appear at the given bearings (inscribed-angle arc).
+
+    The chord L1L2 subtends ``psi = wrap(bearing2 - bearing1)``; the positions seeing it
+    under that directed angle form one circular arc (on the left of L1->L2 for psi > 0, on
+    the right for psi < 0). Its circle has centre ``m + cot(psi)/2 J (L2 - L1)`` (m the
+    chord midpoint) and the arc spans ``2 pi - 2 |psi|`` of it. Heading:
+    ``theta = atan2(L1 - p) - bearing1`` (candidate-set paper, sec. 2).
+
+    Args:
+        l1_xy, l2_xy: ``(2,)`` landmark positions.
+        bearing1_rad, bearing2_rad: their robot-frame bearings.
+        n: number of positions, evenly spaced along the arc, endpoints L1 and L2 excluded.
+
+    Returns:
+        ``(n, 3)`` poses. All NaN when the arc degenerates (|sin psi| < 1e-9: the robot is
+        on the line through L1, L2) or the landmarks coincide.
+    """
+    if n < 1:
+        raise ValueError(f"inscribed_arc_poses: n must be >= 1, got {n!r}")
+    a = np.asarray(l1_xy, dtype=np.float64).reshape(2)
+    b = np.asarray(l2_xy, dtype=np.float64).reshape(2)
+    psi = float(wrap_angle(float(bearing2_rad) - float(bearing1_rad)))
+    chord = b - a
+    length = math.hypot(chord[0], chord[1])
+    if abs(math.sin(psi)) < 1e-9 or length == 0.0:
+        return np.full((n, 3), np.nan)
+    centre = 0.5 * (a + b) + 0.5 / math.tan(psi) * _rot90(chord)
+    radius = 0.5 * length / abs(math.sin(psi))
+    start = math.atan2(b[1] - centre[1], b[0] - centre[0])
+    # From L2 the arc runs counter-clockwise to L1 for psi > 0, clockwise for psi < 0.
+    sweep = math.copysign(2.0 * math.pi - 2.0 * abs(psi), psi)
+    ang = start + sweep * np.arange(1, n + 1) / (n + 1)
+    pos = centre + radius * np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+    heading = wrap_angle(np.arctan2(a[1] - pos[:, 1], a[0] - pos[:, 0]) - float(bearing1_rad))
+    return np.concatenate([pos, np.reshape(heading, (n, 1))], axis=1)
+
+
+@dataclass(frozen=True)
+class TripleResection:
+    """All Cassini triple solutions of one frame and their robust combination.
+
+    Attributes:
+        triples: ``(T, 3)`` landmark ids of each triple (T = C(n, 3)).
+        poses: ``(T, 3)`` triple solutions, NaN where not ok.
+        ok: ``(T,)`` whether each triple is well conditioned.
+        sensitivity_m_per_rad: ``(T,)`` linearized RMS position error per radian of
+            independent bearing noise (``d_rms / c``), NaN where not ok.
+        inliers: ``(T,)`` ok solutions within the inlier radius of the combined position.
+        pose: ``(3,)`` combined pose (NaN when ``valid`` is False).
+        valid: whether at least one inlier exists.
+    """
+
+    triples: NDArray[np.int64]
+    poses: NDArray[np.float64]
+    ok: NDArray[np.bool_]
+    sensitivity_m_per_rad: NDArray[np.float64]
+    inliers: NDArray[np.bool_]
+    pose: NDArray[np.float64]
+    valid: bool
+
+
+def resect_all_triples(
+    landmarks_xy: ArrayLike,
+    ids: ArrayLike,
+    bearings: ArrayLike,
+    *,
+    min_conditioning: float = DEFAULT_MIN_CONDITIONING,
+    inlier_radius_m: float = 0.5,
+) -> TripleResection:
+    """Solve every triple of the observed landmarks and combine the solutions robustly.
+
+    Position: coordinate-wise median of the ok solutions; inliers: ok solutions within
+    ``inlier_radius_m`` of it; heading: circular mean of the inliers' headings. No inlier
+    (e.g. two ok solutions far apart) means no combined pose.
+
+    Args:
+        landmarks_xy: ``(L, 2)`` map positions.
+        ids: ``(n,)`` observed landmark ids (indices into ``landmarks_xy``).
+        bearings: ``(n,)`` their bearings.
+        min_conditioning: see :func:`cassini_resection`.
+        inlier_radius_m: gate around the median position.
+
+    Returns:
+        A :class:`TripleResection` (empty arrays and ``valid=False`` when n < 3).
+    """
+    lm = np.asarray(landmarks_xy, dtype=np.float64)
+    idx = np.asarray(ids, dtype=np.int64).reshape(-1)
+    b = np.asarray(bearings, dtype=np.float64).reshape(-1)
+    if idx.shape != b.shape:
+        raise ValueError(f"resect_all_triples: ids and bearings must have equal length, got {idx.shape} and {b.shape}")
+    if idx.size < 3:
+        return TripleResection(
+            np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), np.zeros(0, bool),
+            np.full(3, np.nan), False,
+        )  # fmt: skip
+    local = np.array(list(combinations(range(idx.size), 3)), dtype=np.int64)  # (T, 3)
+    poses, cond, d_rms = _cassini(lm[idx[local]], b[local])
+    ok = np.isfinite(poses).all(axis=-1) & (cond >= min_conditioning)
+    poses = np.where(ok[:, None], poses, np.nan)
+    with np.errstate(all="ignore"):
+        sens = np.where(ok, d_rms / cond, np.nan)
+    inliers = np.zeros(ok.shape, dtype=bool)
+    pose = np.full(3, np.nan)
+    if ok.any():
+        centre = np.median(poses[ok, :2], axis=0)
+        inliers = ok & (np.hypot(poses[:, 0] - centre[0], poses[:, 1] - centre[1]) <= inlier_radius_m)
+        if inliers.any():
+            pose = np.array([centre[0], centre[1], float(circular_mean(poses[inliers, 2]))])
+    return TripleResection(idx[local], poses, ok, sens, inliers, pose, bool(inliers.any()))
+
+
+@dataclass(frozen=True)
+class ResectionParams:
+    """Parameters of baseline (2) (defaults: ``configs/localizers/resection.yaml``).
+
+    Attributes:
+        min_conditioning: smallest accepted Cassini conditioning ``c`` (dimensionless; ours).
+        inlier_radius_m: triple solutions farther than this from the median position are
+            outliers (metres; ours).
+        bearing_std_rad: assumed bearing noise for the covariance floor (radians; ours, 1 deg).
+    """
+
+    min_conditioning: float = DEFAULT_MIN_CONDITIONING
+    inlier_radius_m: float = 0.5
+    bearing_std_rad: float = 0.0175
+
+    def __post_init__(self) -> None:
+        for name in ("min_conditioning", "inlier_radius_m", "bearing_std_rad"):
+            value = getattr(self, name)
+            check(math.isfinite(value) and value > 0.0, f"ResectionParams.{name} must be a number > 0, got {value!r}")
+
+
+class ResectionLocalizer:
+    """Baseline (2): Cassini resection whenever >= 3 bearings are seen, no output otherwise.
+
+    With more than 3 landmarks every triple is solved and combined by
+    :func:`resect_all_triples`. The estimate belongs to the latest update only: ``predict``
+    invalidates it (the method has no motion model).
+
+    Covariance: sample covariance of the inlier triple solutions (heading deviations taken
+    about the circular mean), floored per axis by the linearized noise of the best inlier
+    triple: position variance ``(bearing_std_rad * sensitivity)^2 / 2`` per axis, heading
+    variance ``bearing_std_rad^2``.
+    """
+
+    name: ClassVar[str] = "resection"
+
+    def __init__(self, landmarks: LandmarkMap, params: ResectionParams, *, dt_s: float) -> None:
+        if not (math.isfinite(dt_s) and dt_s > 0.0):
+            raise ValueError(f"ResectionLocalizer: dt_s must be a positive number of seconds, got {dt_s!r}")
+        self._map = landmarks
+        self._params = params
+        self._dt = float(dt_s)
+        self._started = False
+        self._estimate = PoseEstimate.invalid()
+        self._last: TripleResection | None = None
+
+    def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
+        """Forget everything. The method is deterministic and needs no prior (both ignored)."""
+        del rng, prior
+        self._started = True
+        self._estimate = PoseEstimate.invalid()
+        self._last = None
+
+    def _require_reset(self) -> None:
+        if not self._started:
+            raise RuntimeError("ResectionLocalizer: call reset() before predict() or update()")
+
+    def predict(self, odometry: OdometryDelta) -> None:
+        """Check the increment and drop the estimate (no motion model in this baseline)."""
+        self._require_reset()
+        d = odometry.as_array()
+        if not np.isfinite(d).all():
+            raise MeasurementError(f"resection: odometry increment {d.tolist()} is not finite")
+        self._estimate = PoseEstimate.invalid()
+        self._last = None
+
+    def update(self, measurement: BearingMeasurement) -> None:
+        """Resect from this frame's bearings (>= 3 needed, else the estimate is invalid)."""
+        self._require_reset()
+        if not isinstance(measurement, BearingMeasurement):
+            raise MeasurementError(f"resection: expected a BearingMeasurement, got {type(measurement).__name__}")
+        m = measurement.validated(self._map.count, source="resection")
+        p = self._params
+        res = resect_all_triples(
+            self._map.positions_xy_m, m.landmark_ids, m.bearings_rad,
+            min_conditioning=p.min_conditioning, inlier_radius_m=p.inlier_radius_m,
+        )  # fmt: skip
+        self._last = res if res.ok.any() else None
+        if not res.valid:
+            self._estimate = PoseEstimate.invalid()
+            return
+        inl = res.poses[res.inliers]
+        cov = np.zeros((3, 3))
+        if inl.shape[0] >= 2:
+            dev = np.column_stack([inl[:, :2] - res.pose[:2], wrap_angle(inl[:, 2] - res.pose[2])])
+            cov = dev.T @ dev / (inl.shape[0] - 1)
+        sens = float(np.nanmin(res.sensitivity_m_per_rad[res.inliers]))
+        floor = np.array([0.5 * (p.bearing_std_rad * sens) ** 2] * 2 + [p.bearing_std_rad**2])
+        cov[np.diag_indices(3)] = np.maximum(np.diag(cov), floor)
+        x, y, th = res.pose
+        self._estimate = PoseEstimate(float(x), float(y), float(th), cov, True)
+
+    @property
+    def estimate(self) -> PoseEstimate:
+        e = self._estimate
+        return PoseEstimate(e.x_m, e.y_m, e.theta_rad, e.covariance.copy(), e.valid)
+
+    def overlay(self) -> Overlay:
+        """The ok triple solutions of the latest update; outliers drawn faint."""
+        if self._last is None:
+            return Overlay(label="resection: no solution")
+        ok = self._last.ok
+        weights = np.where(self._last.inliers[ok], 1.0, 0.25)
+        return Overlay(poses=self._last.poses[ok].copy(), weights=weights, label="resection")

@@ -1,0 +1,157 @@
+"""``LocalizationObservation``: run a localizer inside the env loop and show its estimate to the policy.
+
+The wrapper feeds the localizer what the robot senses (the observation), never the truth,
+and adds to the observation:
+
+- ``estimate`` ``(4,)``: ``(x, y)`` normalized to ``[-1, 1]`` over the field (clipped: a wild
+  estimate outside the field shows at the border) and ``(cos theta, sin theta)``; zeros
+  when there is no valid estimate;
+- ``estimate_valid`` ``(1,)``: 1 when the localizer claims a pose;
+- ``estimate_spread`` ``(2,)``: position spread over the field diagonal and heading spread
+  over pi, both clipped to ``[0, 1]`` (1 when unknown).
+
+``info["estimate"]`` holds the :class:`PoseEstimate` in world units for metrics. The
+localizer draws from its own generator, seeded from the env seed, so filtering never
+changes the world's random stream. This module knows the observation layout of crowdloc
+envs (keys ``odometry``, ``landmarks``) but imports nothing from ``envs``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate
+from localizers.registry import make_localizer, spec
+from localizers.schema import ConfigError
+
+ESTIMATE_COLOR = (220, 30, 200)
+_SEED_SALT = 0x10CA112E  # separates the localizer's stream from the env's for the same seed
+
+
+def bearing_measurement(landmarks_obs: NDArray[np.float32]) -> BearingMeasurement:
+    """Turn the camera's flat ``(3 L,)`` slots ``(visible, cos, sin)`` into a :class:`BearingMeasurement`."""
+    slots = np.asarray(landmarks_obs, dtype=np.float64).reshape(-1, 3)
+    seen = np.flatnonzero(slots[:, 0] > 0.5)
+    slots = slots[seen]
+    return BearingMeasurement(seen.astype(np.int64), np.arctan2(slots[:, 2], slots[:, 1]))
+
+
+class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
+    """Adds a localizer's pose estimate to a crowdloc env's observation.
+
+    Args:
+        env: a crowdloc env (its ``unwrapped`` has ``landmark_map`` and ``config.dt_s``).
+        localizer: a registered name (``"candidate_sets"``) or a ready :class:`Localizer`.
+        localizer_params: overrides of the localizer's YAML parameters (names only).
+        prior: ``"start"`` to give the localizer the true start pose (what the paper's dead
+            reckoning and Kalman filter assume), ``"none"``; default: what the localizer needs.
+
+    Raises:
+        ConfigError: unknown localizer or parameter, or a world without the sensor it needs.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env[Any, Any],
+        localizer: str | Localizer = "candidate_sets",
+        localizer_params: Mapping[str, Any] | None = None,
+        prior: str | None = None,
+    ) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, localizer=localizer, localizer_params=localizer_params, prior=prior)
+        gym.ObservationWrapper.__init__(self, env)
+        base = env.unwrapped
+        if not isinstance(env.observation_space, spaces.Dict):
+            raise ConfigError(f"LocalizationObservation needs a Dict observation space, got {env.observation_space!r}")
+        self.landmark_map: LandmarkMap = base.landmark_map  # type: ignore[attr-defined]
+        dt_s = float(base.config.dt_s)  # type: ignore[attr-defined]
+        if isinstance(localizer, str):
+            entry = spec(localizer)
+            if entry.measurement == "bearings" and "landmarks" not in env.observation_space.spaces:
+                raise ConfigError(f"localizer {localizer!r} needs a bearing camera; this world has none")
+            self.localizer_name = localizer
+            self.localizer: Localizer = make_localizer(localizer, self.landmark_map, dt_s=dt_s, params=localizer_params)
+            default_prior = "start" if entry.needs_prior else "none"
+        else:
+            if localizer_params:
+                raise ConfigError("localizer_params only apply to a localizer given by name")
+            self.localizer_name = type(localizer).__name__
+            self.localizer = localizer
+            default_prior = "none"
+        self.prior = prior or default_prior
+        if self.prior not in ("start", "none"):
+            raise ConfigError(f"prior must be 'start' or 'none', got {self.prior!r}")
+        xmin, ymin, xmax, ymax = self.landmark_map.bounds_m
+        self._centre = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2])
+        self._half = np.array([(xmax - xmin) / 2, (ymax - ymin) / 2])
+        self._diag = float(np.hypot(xmax - xmin, ymax - ymin))
+        self.observation_space = spaces.Dict(
+            {
+                **env.observation_space.spaces,
+                "estimate": spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32),
+                "estimate_valid": spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32),
+                "estimate_spread": spaces.Box(0.0, 1.0, shape=(2,), dtype=np.float32),
+            }
+        )
+        self._rng = np.random.default_rng()
+        self._estimate = PoseEstimate.invalid()
+        if hasattr(base, "add_overlay"):
+            base.add_overlay(self.draw)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        if seed is not None:
+            self._rng = np.random.default_rng([seed, _SEED_SALT])
+        prior = None
+        if self.prior == "start":
+            x, y, theta = np.asarray(info["true_pose"], dtype=np.float64)
+            prior = PoseEstimate(float(x), float(y), float(theta), np.diag([1e-6, 1e-6, 1e-6]), True)
+        self.localizer.reset(self._rng, prior)
+        self._update(obs, first=True)
+        info["estimate"] = self._estimate
+        return self.observation(obs), info
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._update(obs, first=False)
+        info["estimate"] = self._estimate
+        return self.observation(obs), float(reward), terminated, truncated, info
+
+    def _update(self, obs: Mapping[str, NDArray[np.float32]], first: bool) -> None:
+        if not first:
+            d = obs["odometry"]
+            self.localizer.predict(OdometryDelta(float(d[0]), float(d[1]), float(d[2])))
+        if "landmarks" in obs:
+            self.localizer.update(bearing_measurement(obs["landmarks"]))
+        self._estimate = self.localizer.estimate
+
+    def observation(self, observation: dict[str, NDArray[np.float32]]) -> dict[str, NDArray[np.float32]]:
+        est = self._estimate
+        estimate = np.zeros(4, dtype=np.float32)
+        valid = np.zeros(1, dtype=np.float32)
+        spread = np.ones(2, dtype=np.float32)
+        if est.valid:
+            xy = np.clip((np.array([est.x_m, est.y_m]) - self._centre) / self._half, -1.0, 1.0)
+            estimate[:] = (xy[0], xy[1], np.cos(est.theta_rad), np.sin(est.theta_rad))
+            valid[0] = 1.0
+            pos, head = est.position_spread_m, est.heading_spread_rad
+            spread[0] = min(pos / self._diag, 1.0) if np.isfinite(pos) else 1.0
+            spread[1] = min(head / np.pi, 1.0) if np.isfinite(head) else 1.0
+        return {**observation, "estimate": estimate, "estimate_valid": valid, "estimate_spread": spread}
+
+    @property
+    def estimate(self) -> PoseEstimate:
+        return self._estimate
+
+    def draw(self, canvas: Any) -> None:
+        """Overlay for the env's renderer: the localizer's hypotheses and its estimate."""
+        canvas.overlay(self.localizer.overlay(), ESTIMATE_COLOR)
+        est = self._estimate
+        if est.valid:
+            canvas.pose(est.x_m, est.y_m, est.theta_rad, ESTIMATE_COLOR)
+        canvas.text(f"{self.localizer_name}: {'fix' if est.valid else 'no fix'}", ESTIMATE_COLOR)

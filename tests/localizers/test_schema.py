@@ -1,0 +1,176 @@
+"""``localizers.schema``: strict mapping -> frozen dataclass conversion."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import pytest
+
+from localizers.schema import ConfigError, check, from_mapping, load_yaml, replace_checked
+
+
+@dataclass(frozen=True)
+class Inner:
+    gain: float = 1.0
+    steps: int = 3
+
+    def __post_init__(self) -> None:
+        check(self.gain >= 0, f"gain must be >= 0, got {self.gain}")
+
+
+@dataclass(frozen=True)
+class Outer:
+    name: str
+    mode: Literal["fast", "exact"] = "fast"
+    enabled: bool = True
+    point: tuple[float, float] = (0.0, 0.0)
+    points: tuple[tuple[float, float], ...] = ()
+    limit: float | None = None
+    inner: Inner = field(default_factory=Inner)
+    inners: tuple[Inner, ...] = ()
+
+
+def build(data: dict, where: str = "test.yaml") -> Outer:
+    return from_mapping(Outer, data, where=where)
+
+
+def test_minimal_mapping_uses_defaults() -> None:
+    assert build({"name": "a"}) == Outer(name="a")
+
+
+def test_full_mapping_with_nested_dataclasses_tuples_and_optional() -> None:
+    out = build(
+        {
+            "name": "b",
+            "mode": "exact",
+            "enabled": False,
+            "point": [1, 2.5],
+            "points": [[0, 1], [2, 3]],
+            "limit": 4,
+            "inner": {"gain": 0.5},
+            "inners": [{"steps": 1}, {"gain": 2, "steps": 7}],
+        }
+    )
+    assert out == Outer(
+        name="b",
+        mode="exact",
+        enabled=False,
+        point=(1.0, 2.5),
+        points=((0.0, 1.0), (2.0, 3.0)),
+        limit=4.0,
+        inner=Inner(gain=0.5, steps=3),
+        inners=(Inner(steps=1), Inner(gain=2.0, steps=7)),
+    )
+    # lists become tuples (hashable, frozen), ints declared as float become floats
+    assert isinstance(out.point, tuple) and isinstance(out.points[0], tuple)
+    assert type(out.point[0]) is float and type(out.limit) is float and type(out.inners[1].gain) is float
+
+
+def test_optional_accepts_none() -> None:
+    assert build({"name": "c", "limit": None}).limit is None
+
+
+def test_dataclass_instance_passes_through() -> None:
+    inner = Inner(gain=3.0)
+    assert build({"name": "d", "inner": inner}).inner is inner
+
+
+@pytest.mark.parametrize(
+    ("data", "fragments"),
+    [
+        ({"name": "x", "bogus": 1}, ["'bogus'", "Outer", "test.yaml"]),
+        ({"name": "x", "inner": {"gian": 1.0}}, ["'gian'", "Inner", "test.yaml.inner"]),
+        ({"name": "x", "inners": [{}, {"step": 1}]}, ["'step'", "test.yaml.inners[1]"]),
+        ({}, ["missing required key 'name'", "Outer", "test.yaml"]),
+        ({"name": 3}, ["expected a string", "3", "test.yaml.name"]),
+        ({"name": "x", "mode": "slow"}, ["'slow'", "'fast'", "'exact'", "test.yaml.mode"]),
+        ({"name": "x", "enabled": 1}, ["expected true or false", "1", "test.yaml.enabled"]),  # no int -> bool
+        ({"name": "x", "enabled": "yes"}, ["expected true or false", "'yes'"]),
+        ({"name": "x", "inner": {"steps": True}}, ["expected an integer", "True", "test.yaml.inner.steps"]),  # bool is not int
+        ({"name": "x", "inner": {"steps": 2.0}}, ["expected an integer", "2.0"]),  # no float -> int
+        ({"name": "x", "inner": {"gain": True}}, ["expected a number", "True", "test.yaml.inner.gain"]),  # bool is not float
+        ({"name": "x", "inner": {"gain": "1.0"}}, ["expected a number", "'1.0'"]),
+        ({"name": "x", "point": [1.0]}, ["expected 2 values", "[1.0]", "test.yaml.point"]),
+        ({"name": "x", "point": [1.0, 2.0, 3.0]}, ["expected 2 values", "[1.0, 2.0, 3.0]"]),
+        ({"name": "x", "point": 1.0}, ["expected a list", "1.0"]),
+        ({"name": "x", "points": [[0, 1], [2, "z"]]}, ["'z'", "test.yaml.points[1][1]"]),
+        ({"name": "x", "limit": "high"}, ["'high'", "test.yaml.limit"]),
+        ({"name": "x", "inner": 5}, ["expected a mapping for Inner", "5"]),
+        ({"name": "x", "inner": {"gain": -1.0}}, ["gain must be >= 0, got -1.0", "test.yaml.inner"]),  # __post_init__
+    ],
+)
+def test_bad_mappings_raise_config_error_naming_the_problem(data: dict, fragments: list[str]) -> None:
+    with pytest.raises(ConfigError) as exc:
+        build(data)
+    for fragment in fragments:
+        assert fragment in str(exc.value), (fragment, str(exc.value))
+
+
+def test_config_error_is_a_value_error() -> None:
+    assert issubclass(ConfigError, ValueError)
+
+
+def test_replace_checked_merges_nested_overrides() -> None:
+    base = Outer(name="a", inner=Inner(gain=2.0, steps=5))
+    out = replace_checked(base, {"mode": "exact", "inner": {"steps": 9}}, where="kwargs")
+    assert out == Outer(name="a", mode="exact", inner=Inner(gain=2.0, steps=9))
+    assert base.inner.steps == 5  # the original is untouched
+
+
+@pytest.mark.parametrize(
+    ("overrides", "fragments"),
+    [
+        ({"nmae": "b"}, ["'nmae'", "Outer", "kwargs"]),
+        ({"inner": {"gian": 1.0}}, ["'gian'", "Inner", "kwargs.inner"]),
+        ({"inner": {"steps": "many"}}, ["expected an integer", "'many'", "kwargs.inner.steps"]),
+        ({"inner": {"gain": -2.0}}, ["gain must be >= 0, got -2.0"]),
+        ({"enabled": 0}, ["expected true or false", "0"]),
+    ],
+)
+def test_replace_checked_rejects_bad_overrides(overrides: dict, fragments: list[str]) -> None:
+    with pytest.raises(ConfigError) as exc:
+        replace_checked(Outer(name="a"), overrides, where="kwargs")
+    for fragment in fragments:
+        assert fragment in str(exc.value), (fragment, str(exc.value))
+
+
+def test_replace_checked_needs_a_mapping_and_an_instance() -> None:
+    with pytest.raises(ConfigError, match=r"overrides must be a mapping, got list \[1\]"):
+        replace_checked(Outer(name="a"), [1], where="kwargs")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="dataclass instance"):
+        replace_checked(Outer, {}, where="kwargs")  # type: ignore[arg-type]
+
+
+def test_unsupported_annotation_is_a_type_error() -> None:
+    @dataclass(frozen=True)
+    class Odd:
+        value: set[int]
+
+    with pytest.raises(TypeError, match="unsupported annotation"):
+        from_mapping(Odd, {"value": [1]}, where="odd")
+
+
+def test_frozen_results() -> None:
+    out = build({"name": "a"})
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        out.name = "b"  # type: ignore[misc]
+
+
+def test_load_yaml_errors(tmp_path: Path) -> None:
+    missing = tmp_path / "missing.yaml"
+    with pytest.raises(ConfigError, match="missing.yaml"):
+        load_yaml(missing)
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("a: [1, 2\n")
+    with pytest.raises(ConfigError, match="broken.yaml.*not valid YAML"):
+        load_yaml(broken)
+    listed = tmp_path / "listed.yaml"
+    listed.write_text("- 1\n- 2\n")
+    with pytest.raises(ConfigError, match="listed.yaml.*top level must be a mapping, got list"):
+        load_yaml(listed)
+    good = tmp_path / "good.yaml"
+    good.write_text("name: a\ninner: {gain: 2}\n")
+    assert from_mapping(Outer, load_yaml(good), where=str(good)) == Outer(name="a", inner=Inner(gain=2.0))
