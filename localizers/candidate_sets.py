@@ -1,9 +1,10 @@
 """The candidate-set localizer of the two-landmark bearings paper (PAPERS.md A, method (5)).
 
 1. *Generation*: with exactly 2 landmark bearings seen, N poses on the inscribed-angle arc
-   (:func:`localizers.resection.inscribed_arc_poses`); with >= 3, the ok Cassini solutions
-   of all C(L, 3) triples (:func:`localizers.resection.resect_all_triples`). Candidates
-   outside the map bounds (plus a margin) are dropped (ours). Every error starts at 0.
+   (:func:`localizers.resection.inscribed_arc_poses`), spread over the part of the arc
+   inside the map bounds (ours); with >= 3, the ok Cassini solutions of all C(L, 3)
+   triples (:func:`localizers.resection.resect_all_triples`) inside the bounds. Every
+   error starts at 0.
 2. *Propagation*: each candidate moves by the odometry increment in its own frame.
 3. *Evaluation*: eq. (1)-(2), accumulated per candidate.
 4. *Pruning / determination*: candidates with Error > ``prune_error_rad`` are deleted; a
@@ -115,6 +116,20 @@ class CandidateSetParams:
             check(math.isfinite(value) and value >= 0.0, f"CandidateSetParams.{name} must be a number >= 0, got {value!r}")
 
 
+_ARC_OVERSAMPLING = 8
+"""Arc points computed per kept candidate before clipping to the bounds (ours)."""
+
+
+def _inside(landmarks: LandmarkMap, poses: NDArray[np.float64], margin_m: float) -> NDArray[np.bool_]:
+    """``(m,)`` finite poses within the map bounds grown by ``margin_m``."""
+    xmin, ymin, xmax, ymax = landmarks.bounds_m
+    return (
+        np.isfinite(poses).all(axis=1)
+        & (poses[:, 0] >= xmin - margin_m) & (poses[:, 0] <= xmax + margin_m)
+        & (poses[:, 1] >= ymin - margin_m) & (poses[:, 1] <= ymax + margin_m)
+    )  # fmt: skip
+
+
 def generate_candidates(
     landmarks: LandmarkMap,
     ids: ArrayLike,
@@ -167,20 +182,6 @@ def generate_candidates(
     return fine[pick]
 
 
-_ARC_OVERSAMPLING = 8
-"""Arc points computed per kept candidate before clipping to the bounds (ours)."""
-
-
-def _inside(landmarks: LandmarkMap, poses: NDArray[np.float64], margin_m: float) -> NDArray[np.bool_]:
-    """``(m,)`` finite poses within the map bounds grown by ``margin_m``."""
-    xmin, ymin, xmax, ymax = landmarks.bounds_m
-    return (
-        np.isfinite(poses).all(axis=1)
-        & (poses[:, 0] >= xmin - margin_m) & (poses[:, 0] <= xmax + margin_m)
-        & (poses[:, 1] >= ymin - margin_m) & (poses[:, 1] <= ymax + margin_m)
-    )  # fmt: skip
-
-
 def fuse_poses(poses: ArrayLike, median_threshold_m: float) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Fuse the determined poses of several candidate sets (paper sec. 3, steps (1)-(4)).
 
@@ -223,7 +224,14 @@ def _pose_covariance(poses: NDArray[np.float64], centre: NDArray[np.float64]) ->
 
 
 class CandidateSetLocalizer:
-    """Multiple candidate sets pruned by accumulated bearing errors, fused (paper method (5))."""
+    """Multiple candidate sets pruned by accumulated bearing errors, fused (paper method (5)).
+
+    The estimate is invalid until a set first determines. Its covariance is the sample
+    covariance of the fused (kept) poses when there are >= 2, else that of the candidates
+    of the one determined set, each diagonal entry floored by ``position_floor_m^2`` /
+    ``heading_floor_rad^2``. :meth:`overlay` draws every live candidate, weighted by
+    ``1 - Error / prune_error_rad``.
+    """
 
     name: ClassVar[str] = "candidate_sets"
 
@@ -509,3 +517,8 @@ class CandidateSetLocalizer:
     def sets_determined(self) -> NDArray[np.bool_]:
         """``(S,)`` whether each live set has determined a pose."""
         return self._determined.copy()
+
+    @property
+    def candidate_errors(self) -> NDArray[np.float64]:
+        """``(M,)`` accumulated Error of the live candidates, in the order of :meth:`overlay`."""
+        return self._err.copy()
