@@ -6,6 +6,7 @@ Every sub-command has ``--help``; bad arguments exit with status 2 and a one-lin
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from pathlib import Path
 
@@ -39,8 +40,21 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=int, default=0, help="seed of the env and the policy (default 0)")
     demo.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "demo", help="output folder (default results/demo)")
 
-    worlds = sub.add_parser("worlds", help="list the registered env ids and their worlds")
-    worlds.set_defaults()
+    sub.add_parser("worlds", help="list the registered env ids and their worlds")
+
+    from agents.reproduce import EXPERIMENTS
+
+    reproduce = sub.add_parser(
+        "reproduce",
+        help="re-run a paper's experiments and write results/NAME/report.md",
+        description="Re-run the experiments of one source paper; the report puts the paper's numbers beside ours.",
+    )
+    experiments = reproduce.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
+    for name, module in EXPERIMENTS.items():
+        mod = importlib.import_module(module)
+        exp = experiments.add_parser(name, help=(mod.__doc__ or "").strip().splitlines()[0], description=mod.__doc__)
+        exp.add_argument("--out", type=Path, default=DEFAULT_RESULTS / name, help=f"output folder (default results/{name})")
+        mod.add_arguments(exp)
     return parser
 
 
@@ -51,6 +65,12 @@ def main(argv: list[str] | None = None) -> int:
         from agents.demo import run_demo
 
         run_demo(args.out, steps=args.steps, seed=args.seed)
+        return 0
+    if args.command == "reproduce":
+        from agents.reproduce import EXPERIMENTS
+
+        report = importlib.import_module(EXPERIMENTS[args.experiment]).run(args)
+        print(f"wrote {report}")
         return 0
     if args.command == "worlds":
         import envs

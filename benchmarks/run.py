@@ -9,10 +9,10 @@ import platform
 import sys
 from pathlib import Path
 
-from benchmarks import bench_envs
+from benchmarks import bench_envs, bench_localizers
 from benchmarks.common import Result
 
-SUITES = {"envs": bench_envs.run_all}
+SUITES = {"envs": bench_envs.run_all, "localizers": bench_localizers.run_all}
 
 HEADER = """# Benchmarks
 

@@ -163,7 +163,8 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
     def landmark_map(self) -> LandmarkMap:
         """The known map a localizer gets: landmark positions and the field's bounds."""
         w, h = self.config.size_m
-        return LandmarkMap(self.world.landmark_xy.copy(), self.world.landmark_names, (0.0, 0.0, w, h))
+        walls = np.hstack([self.world.seg_a, self.world.seg_b])
+        return LandmarkMap(self.world.landmark_xy.copy(), self.world.landmark_names, (0.0, 0.0, w, h), walls)
 
     @property
     def last_observation(self) -> dict[str, NDArray[np.float32]]:

@@ -20,17 +20,19 @@ class MeasurementError(ValueError):
 
 @dataclass(frozen=True)
 class LandmarkMap:
-    """Known landmark positions and the field they live on.
+    """The known map: landmark positions, static walls and the field they live on.
 
     Attributes:
         positions_xy_m: ``(L, 2)`` landmark positions in the world frame.
         names: ``L`` landmark names (for reports).
         bounds_m: ``(xmin, ymin, xmax, ymax)`` of the region the robot can be in.
+        walls_m: ``(S, 4)`` static wall segments ``(x1, y1, x2, y2)`` (what a LIDAR sees of the map).
     """
 
     positions_xy_m: NDArray[np.float64]
     names: tuple[str, ...]
     bounds_m: tuple[float, float, float, float]
+    walls_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
 
     def __post_init__(self) -> None:
         pos = np.asarray(self.positions_xy_m, dtype=np.float64)
@@ -41,8 +43,11 @@ class LandmarkMap:
         xmin, ymin, xmax, ymax = self.bounds_m
         if not (xmax > xmin and ymax > ymin):
             raise ValueError(f"LandmarkMap.bounds_m must be (xmin, ymin, xmax, ymax) with max > min, got {self.bounds_m}")
+        walls = np.asarray(self.walls_m, dtype=np.float64).reshape(-1, 4)
         pos.setflags(write=False)
+        walls.setflags(write=False)
         object.__setattr__(self, "positions_xy_m", pos)
+        object.__setattr__(self, "walls_m", walls)
 
     @property
     def count(self) -> int:
@@ -99,6 +104,21 @@ class BearingMeasurement:
 
 
 @dataclass(frozen=True)
+class ScanMeasurement:
+    """One 2-D range scan.
+
+    Attributes:
+        ranges_m: ``(B,)`` ranges; ``max_range_m`` where nothing was hit.
+        angles_rad: ``(B,)`` beam angles in the robot frame, ascending.
+        max_range_m: the sensor's maximum range.
+    """
+
+    ranges_m: NDArray[np.float64]
+    angles_rad: NDArray[np.float64]
+    max_range_m: float
+
+
+@dataclass(frozen=True, eq=False)
 class PoseEstimate:
     """A localizer's answer.
 
@@ -113,6 +133,18 @@ class PoseEstimate:
     theta_rad: float
     covariance: NDArray[np.float64] = field(default_factory=lambda: np.full((3, 3), np.nan))
     valid: bool = True
+
+    def __eq__(self, other: object) -> bool:
+        # NaN-aware and array-aware, so that equal estimates compare equal (determinism checks)
+        if not isinstance(other, PoseEstimate):
+            return NotImplemented
+        return (
+            self.valid == other.valid
+            and np.array_equal(self.as_array(), other.as_array(), equal_nan=True)
+            and np.array_equal(self.covariance, other.covariance, equal_nan=True)
+        )
+
+    __hash__ = None  # type: ignore[assignment]
 
     @staticmethod
     def invalid() -> PoseEstimate:

@@ -1,0 +1,155 @@
+"""LocalizationObservation: every bearing localizer through gym.make, spaces, truth kept out, seeding."""
+
+from __future__ import annotations
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import envs  # noqa: F401
+from localizers.base import PoseEstimate
+from localizers.registry import LOCALIZERS
+from localizers.schema import ConfigError
+from localizers.wrappers import LocalizationObservation, bearing_measurement
+
+BEARING_LOCALIZERS = sorted(name for name, s in LOCALIZERS.items() if s.measurement == "bearings")
+SOCCER_IDS = ["crowdloc/RoboCupStatic-v0", "crowdloc/RoboCupCrowded-v0"]
+
+
+def rollout(env: gym.Env, seed: int, steps: int) -> list[tuple[dict, dict]]:
+    obs, info = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    out = [(obs, info)]
+    for _ in range(steps):
+        obs, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        out.append((obs, info))
+        if terminated or truncated:
+            break
+    return out
+
+
+@pytest.mark.parametrize("name", BEARING_LOCALIZERS)
+@pytest.mark.parametrize("env_id", SOCCER_IDS)
+def test_every_bearing_localizer_runs_through_gym_make(env_id: str, name: str) -> None:
+    env = gym.make(env_id, localizer=name)
+    for obs, info in rollout(env, seed=3, steps=150):
+        assert env.observation_space.contains(obs), {k: v for k, v in obs.items() if not env.observation_space[k].contains(v)}
+        assert isinstance(info["estimate"], PoseEstimate)
+        valid = bool(obs["estimate_valid"][0])
+        assert valid == info["estimate"].valid
+        if not valid:
+            assert not obs["estimate"].any()
+    env.close()
+
+
+@pytest.mark.parametrize("name", ["candidate_sets", "mcl_bearing", "kalman"])
+def test_wrapped_env_passes_the_checkers(name: str) -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0").unwrapped
+    wrapped = LocalizationObservation(env, name)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(wrapped, skip_render_check=True)
+    # gymnasium always notes that a wrapped env differs from its unwrapped one; nothing else may warn
+    assert [str(w.message) for w in caught if "unwrapped version" not in str(w.message)] == []
+    assert len(caught) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sb3_check_env(wrapped, warn=True, skip_render_check=True)
+
+
+@pytest.mark.parametrize("name", BEARING_LOCALIZERS)
+def test_the_estimate_is_reported_in_world_units_and_normalized_in_the_observation(name: str) -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer=name, crowd_size=0)
+    fixes = 0
+    for obs, info in rollout(env, seed=1, steps=200):
+        est = info["estimate"]
+        if not est.valid:
+            continue
+        fixes += 1
+        x, y = np.clip([(est.x_m - 2.5) / 2.5, (est.y_m - 2.5) / 2.5], -1, 1)
+        np.testing.assert_allclose(obs["estimate"], [x, y, np.cos(est.theta_rad), np.sin(est.theta_rad)], atol=1e-6)
+    assert fixes > 100, f"{name} gave a pose on only {fixes} of 200 steps with all 8 landmarks in view"
+    env.close()
+
+
+@pytest.mark.parametrize("name", BEARING_LOCALIZERS)
+def test_no_observation_leaf_holds_the_true_pose(name: str) -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer=name)
+    for obs, info in rollout(env, seed=5, steps=100):
+        truth = np.asarray(info["true_pose"])
+        for key, leaf in obs.items():
+            assert "true" not in key and "pose" not in key
+            assert not np.any(np.isclose(np.asarray(leaf, dtype=np.float64).reshape(-1, 1), truth[None, :], atol=1e-6, rtol=0)), key
+    env.close()
+
+
+def test_filtering_never_changes_the_world() -> None:
+    plain = rollout(gym.make("crowdloc/RoboCupCrowded-v0"), seed=9, steps=200)
+    filtered = rollout(gym.make("crowdloc/RoboCupCrowded-v0", localizer="mcl_bearing"), seed=9, steps=200)
+    for (obs_a, info_a), (obs_b, info_b) in zip(plain, filtered):
+        np.testing.assert_array_equal(info_a["true_pose"], info_b["true_pose"])
+        np.testing.assert_array_equal(obs_a["landmarks"], obs_b["landmarks"])
+        np.testing.assert_array_equal(obs_a["odometry"], obs_b["odometry"])
+
+
+@pytest.mark.parametrize("name", ["mcl_bearing", "mcl_bearing_paper", "candidate_sets"])
+def test_same_seed_same_estimates_and_reset_mid_episode_starts_over(name: str) -> None:
+    env_a = gym.make("crowdloc/RoboCupCrowded-v0", localizer=name)
+    env_b = gym.make("crowdloc/RoboCupCrowded-v0", localizer=name)
+    run_a = rollout(env_a, seed=4, steps=120)
+    run_b = rollout(env_b, seed=4, steps=120)
+    for (oa, _), (ob, _) in zip(run_a, run_b):
+        for key in oa:
+            np.testing.assert_array_equal(oa[key], ob[key])
+    # a reset in the middle of an episode replays the episode from the start
+    again = rollout(env_a, seed=4, steps=120)
+    for (oa, _), (ob, _) in zip(run_a, again):
+        np.testing.assert_array_equal(oa["estimate"], ob["estimate"])
+
+
+def test_prior_start_gives_dead_reckoning_the_true_start_pose() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer="dead_reckoning", odometry={"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0}, crowd_size=0)
+    obs, info = env.reset(seed=2)
+    est = info["estimate"]
+    np.testing.assert_allclose([est.x_m, est.y_m, est.theta_rad], info["true_pose"], atol=1e-9)
+    for _ in range(30):
+        obs, _, _, _, info = env.step(np.array([0.5, 0.2], dtype=np.float32))
+    est = info["estimate"]
+    # float32 odometry: drift of micrometres only
+    np.testing.assert_allclose([est.x_m, est.y_m], info["true_pose"][:2], atol=1e-4)
+
+
+def test_bearing_measurement_reads_the_flat_camera_slots() -> None:
+    slots = np.zeros(9, dtype=np.float32)
+    slots[3:6] = (1.0, np.cos(0.5), np.sin(0.5))
+    slots[6:9] = (1.0, np.cos(-2.0), np.sin(-2.0))
+    m = bearing_measurement(slots)
+    np.testing.assert_array_equal(m.landmark_ids, [1, 2])
+    np.testing.assert_allclose(m.bearings_rad, [0.5, -2.0], atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "needle"),
+    [
+        ({"localizer": "kalmann"}, "kalmann"),
+        ({"localizer": "candidate_sets", "localizer_params": {"max_setz": 3}}, "max_setz"),
+        ({"localizer": "candidate_sets", "prior": "sometimes"}, "sometimes"),
+    ],
+)
+def test_bad_localizer_arguments_name_the_bad_value(kwargs: dict, needle: str) -> None:
+    with pytest.raises(ConfigError, match=needle):
+        gym.make("crowdloc/RoboCupCrowded-v0", **kwargs)
+
+
+def test_localizer_params_without_a_localizer_is_an_error() -> None:
+    with pytest.raises(ValueError, match="localizer"):
+        gym.make("crowdloc/RoboCupCrowded-v0", localizer_params={"max_sets": 3})
+
+
+def test_a_bearing_localizer_on_a_lidar_world_is_refused() -> None:
+    with pytest.raises(ConfigError, match="bearing camera"):
+        gym.make("crowdloc/CrowdedRoom-v0", localizer="candidate_sets")
