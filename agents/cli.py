@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 DEFAULT_RESULTS = Path("results")
@@ -23,7 +24,8 @@ def _positive_int(text: str) -> int:
     return value
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
+    """The full parser; an experiment's own options are added only for the one named in ``argv``."""
     parser = argparse.ArgumentParser(
         prog="crowdloc",
         description="crowdloc: robot self-localization among crowds (worlds, localizers, agents).",
@@ -42,6 +44,22 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("worlds", help="list the registered env ids and their worlds")
 
+    train = sub.add_parser(
+        "train",
+        help="train a PPO active-localization policy from configs/experiments/NAME.yaml",
+        description="Train PPO (stable-baselines3) on a crowdloc env wrapped with a localizer and the "
+        "active-localization reward. Writes checkpoints, TensorBoard logs and run.json under --out.",
+    )
+    train.add_argument("config", help="experiment YAML path or name under configs/experiments/")
+    train.add_argument("--total-timesteps", type=_positive_int, help="override total_timesteps")
+    train.add_argument("--seed", type=int, help="override the run seed")
+    train.add_argument("--n-envs", type=_positive_int, help="override the number of parallel envs")
+    train.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override any config field, e.g. --set ppo.learning_rate=1e-3 (repeatable)")
+    train.add_argument("--resume", metavar="CHECKPOINT", help="a checkpoint .zip to resume from, or 'latest'")
+    train.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "train", help="output folder (default results/train)")
+    train.add_argument("--no-progress", action="store_true", help="no progress bar")
+
     from agents.reproduce import EXPERIMENTS
 
     reproduce = sub.add_parser(
@@ -50,26 +68,50 @@ def build_parser() -> argparse.ArgumentParser:
         description="Re-run the experiments of one source paper; the report puts the paper's numbers beside ours.",
     )
     experiments = reproduce.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
-    for name, module in EXPERIMENTS.items():
-        mod = importlib.import_module(module)
-        exp = experiments.add_parser(name, help=(mod.__doc__ or "").strip().splitlines()[0], description=mod.__doc__)
+    chosen = argv[1] if len(argv) > 1 and argv[0] == "reproduce" else None
+    for name, (module, summary) in EXPERIMENTS.items():
+        exp = experiments.add_parser(name, help=summary, description=summary)
         exp.add_argument("--out", type=Path, default=DEFAULT_RESULTS / name, help=f"output folder (default results/{name})")
-        mod.add_arguments(exp)
+        if name == chosen:  # import only the experiment being run (they pull in plotting and more)
+            importlib.import_module(module).add_arguments(exp)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     if args.command == "demo":
         from agents.demo import run_demo
 
         run_demo(args.out, steps=args.steps, seed=args.seed)
         return 0
+    if args.command == "train":
+        from agents.train import latest_checkpoint, load_train_config, parse_overrides, train
+        from localizers.schema import ConfigError
+
+        try:
+            overrides = parse_overrides(args.overrides)
+            for key, value in (("total_timesteps", args.total_timesteps), ("seed", args.seed), ("n_envs", args.n_envs)):
+                if value is not None:
+                    overrides[key] = value
+            config = load_train_config(args.config, overrides)
+            resume = None
+            if args.resume == "latest":
+                resume = latest_checkpoint(config, args.out)
+                if resume is None:
+                    raise ConfigError(f"--resume latest: no checkpoint under {args.out / config.name}")
+            elif args.resume:
+                resume = Path(args.resume)
+        except ConfigError as exc:
+            parser.error(str(exc))
+        model = train(config, args.out, resume=resume, progress_bar=not args.no_progress)
+        print(f"wrote {model}")
+        return 0
     if args.command == "reproduce":
         from agents.reproduce import EXPERIMENTS
 
-        report = importlib.import_module(EXPERIMENTS[args.experiment]).run(args)
+        report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
         print(f"wrote {report}")
         return 0
     if args.command == "worlds":

@@ -2,16 +2,36 @@
 
 A fixed policy and a trained SB3 model are interchangeable in every evaluation loop:
 ``action, state = policy.predict(observation, state, episode_start, deterministic)``.
-Policies see only the observation, never ``info``.
+Policies see only the observation (the sensors and, behind ``LocalizationObservation``, the
+localizer's estimate and spread) and the known map, never ``info``. Those that plan from
+the estimate need the wrapped observation and say so when it is missing.
+
+- :class:`RandomWalk`: forward at a fixed speed, turn rate a bounded random walk.
+- :class:`SpinInPlace`: turn on the spot.
+- :class:`PatrolPath`: an open-loop list of (speed, turn rate, duration) segments, looped
+  (the Exp 1 path of the candidate-set paper is :meth:`PatrolPath.exp1`).
+- :class:`StopAndGo`: alternately drive (random walk) and stand still.
+- :class:`LandmarkSeeking`: head for the nearby spot from which most landmarks are in range.
+- :class:`GreedyInformationGain`: one-step look-ahead over a set of motions maximizing the
+  Fisher information of the bearings expected to be visible from the estimated pose.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
+
+from localizers.base import LandmarkMap
+from localizers.bounds import bearing_information
+from localizers.geometry import wrap_angle
+from localizers.wrappers import decode_estimate
+
+Observation = dict[str, NDArray[np.float32]]
 
 
 class FixedPolicy:
@@ -35,7 +55,7 @@ class FixedPolicy:
 
     def predict(
         self,
-        observation: dict[str, NDArray[np.float32]],
+        observation: Observation,
         state: Any = None,
         episode_start: Any = None,
         deterministic: bool = False,
@@ -45,7 +65,7 @@ class FixedPolicy:
         action = np.clip(self._act(observation), self.action_space.low, self.action_space.high)
         return action.astype(np.float32), state
 
-    def _act(self, observation: dict[str, NDArray[np.float32]]) -> NDArray[np.float64]:
+    def _act(self, observation: Observation) -> NDArray[np.float64]:
         raise NotImplementedError
 
 
@@ -67,8 +87,7 @@ class RandomWalk(FixedPolicy):
         persistence: float = 0.9,
     ) -> None:
         super().__init__(action_space, seed)
-        if not -1.0 <= speed <= 1.0:
-            raise ValueError(f"RandomWalk speed must be in [-1, 1], got {speed}")
+        _check_command("RandomWalk speed", speed)
         if not 0.0 <= persistence < 1.0:
             raise ValueError(f"RandomWalk persistence must be in [0, 1), got {persistence}")
         self.speed = speed
@@ -80,6 +99,285 @@ class RandomWalk(FixedPolicy):
         super().reset(seed)
         self._turn = 0.0
 
-    def _act(self, observation: dict[str, NDArray[np.float32]]) -> NDArray[np.float64]:
+    def _act(self, observation: Observation) -> NDArray[np.float64]:
         self._turn = float(np.clip(self.persistence * self._turn + self.rng.normal(0.0, self.turn_noise), -1.0, 1.0))
         return np.array([self.speed, self._turn])
+
+
+class SpinInPlace(FixedPolicy):
+    """Turn on the spot at a fixed rate (the cheapest way to look around)."""
+
+    def __init__(self, action_space: spaces.Box, seed: int | None = None, turn: float = 0.5) -> None:
+        super().__init__(action_space, seed)
+        _check_command("SpinInPlace turn", turn)
+        self.turn = turn
+
+    def _act(self, observation: Observation) -> NDArray[np.float64]:
+        return np.array([0.0, self.turn])
+
+
+class PatrolPath(FixedPolicy):
+    """Open-loop segments ``(speed, turn, steps)`` in action units, repeated forever.
+
+    Open loop is enough in simulation: the body moves exactly as commanded unless something
+    pushes it, and a pushed robot should not be steered back by knowledge it does not have.
+    """
+
+    def __init__(self, action_space: spaces.Box, segments: Sequence[tuple[float, float, int]], seed: int | None = None) -> None:
+        super().__init__(action_space, seed)
+        if not segments:
+            raise ValueError("PatrolPath needs at least one segment")
+        for i, (v, w, n) in enumerate(segments):
+            _check_command(f"PatrolPath segment {i} speed", v)
+            _check_command(f"PatrolPath segment {i} turn", w)
+            if int(n) != n or n < 1:
+                raise ValueError(f"PatrolPath segment {i} needs a positive whole number of steps, got {n!r}")
+        self.actions = np.concatenate([np.tile([v, w], (int(n), 1)) for v, w, n in segments])
+        self._t = 0
+
+    @classmethod
+    def through_waypoints(
+        cls,
+        action_space: spaces.Box,
+        waypoints: Sequence[tuple[float, float]],
+        start_heading_rad: float,
+        *,
+        speed_mps: float,
+        turn_rate_rps: float,
+        max_speed_mps: float,
+        max_turn_rate_rps: float,
+        dt_s: float,
+    ) -> PatrolPath:
+        """Straight lines between ``waypoints`` with turns in place at each one (a closed loop
+        when the last waypoint is the first). Lengths and angles are rounded to whole steps
+        by adjusting the speed of each segment, so the path is followed exactly."""
+        segments: list[tuple[float, float, int]] = []
+        heading = start_heading_rad
+        for (x0, y0), (x1, y1) in zip(waypoints[:-1], waypoints[1:]):
+            direction = math.atan2(y1 - y0, x1 - x0)
+            turn = float(wrap_angle(direction - heading))
+            if abs(turn) > 1e-9:
+                n = max(1, math.ceil(abs(turn) / (turn_rate_rps * dt_s)))
+                segments.append((0.0, turn / (n * dt_s) / max_turn_rate_rps, n))
+            length = math.hypot(x1 - x0, y1 - y0)
+            n = max(1, math.ceil(length / (speed_mps * dt_s)))
+            segments.append((length / (n * dt_s) / max_speed_mps, 0.0, n))
+            heading = direction
+        return cls(action_space, segments)
+
+    def reset(self, seed: int | None = None) -> None:
+        super().reset(seed)
+        self._t = 0
+
+    def _act(self, observation: Observation) -> NDArray[np.float64]:
+        action = self.actions[self._t % len(self.actions)]
+        self._t += 1
+        return action
+
+
+class StopAndGo(FixedPolicy):
+    """Drive a random walk for ``go_steps``, then stand still for ``stop_steps``, and repeat."""
+
+    def __init__(self, action_space: spaces.Box, seed: int | None = None, go_steps: int = 60, stop_steps: int = 30, speed: float = 0.6) -> None:
+        super().__init__(action_space, seed)
+        if go_steps < 1 or stop_steps < 1:
+            raise ValueError(f"StopAndGo needs go_steps and stop_steps >= 1, got {go_steps} and {stop_steps}")
+        self.go_steps = go_steps
+        self.stop_steps = stop_steps
+        self.walk = RandomWalk(action_space, seed, speed=speed)
+        self._t = 0
+
+    def reset(self, seed: int | None = None) -> None:
+        super().reset(seed)
+        self.walk.reset(None if seed is None else seed + 1)
+        self._t = 0
+
+    def _act(self, observation: Observation) -> NDArray[np.float64]:
+        phase = self._t % (self.go_steps + self.stop_steps)
+        self._t += 1
+        return self.walk._act(observation) if phase < self.go_steps else np.zeros(2)
+
+
+class _MapPolicy(FixedPolicy):
+    """A policy that plans from the localizer's estimate on the known landmark map."""
+
+    def __init__(
+        self,
+        action_space: spaces.Box,
+        landmarks: LandmarkMap,
+        seed: int | None = None,
+        *,
+        max_range_m: float = math.inf,
+        speed: float = 0.6,
+        occluder_halfwidth_rad: float = 0.15,
+    ) -> None:
+        super().__init__(action_space, seed)
+        _check_command(f"{type(self).__name__} speed", speed)
+        if landmarks.count == 0:
+            raise ValueError(f"{type(self).__name__} needs a map with landmarks")
+        self.landmarks = landmarks
+        self.max_range_m = max_range_m
+        self.speed = speed
+        self.occluder_halfwidth_rad = occluder_halfwidth_rad
+        self.search = SpinInPlace(action_space, seed)
+
+    def _estimate(self, observation: Observation) -> NDArray[np.float64] | None:
+        if "estimate" not in observation:
+            raise KeyError(
+                f"{type(self).__name__} plans from the localizer's estimate: make the env with localizer=... "
+                f"(observation keys: {sorted(observation)})"
+            )
+        if observation["estimate_valid"][0] < 0.5:
+            return None
+        return decode_estimate(observation["estimate"], self.landmarks.bounds_m)
+
+    def expected_visible(self, pose: NDArray[np.float64], spots: NDArray[np.float64], seen_now: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """``(C, L)``: landmarks expected in view from positions ``spots`` ``(C, 2)``.
+
+        In camera range, and either seen now or seen from a direction that has turned by more
+        than ``occluder_halfwidth_rad`` from the current one (whatever hides it now no longer
+        covers it).
+        """
+        lm = self.landmarks.positions_xy_m
+        offsets = lm[None, :, :] - spots[:, None, :]
+        in_range = np.linalg.norm(offsets, axis=-1) <= self.max_range_m
+        now_dir = np.arctan2(lm[:, 1] - pose[1], lm[:, 0] - pose[0])
+        turned = np.abs(wrap_angle(np.arctan2(offsets[..., 1], offsets[..., 0]) - now_dir)) > self.occluder_halfwidth_rad
+        return in_range & (seen_now | turned)
+
+    def _inside(self, xy: NDArray[np.float64], margin: float = 0.4) -> NDArray[np.bool_]:
+        xmin, ymin, xmax, ymax = self.landmarks.bounds_m
+        return (xy[..., 0] > xmin + margin) & (xy[..., 0] < xmax - margin) & (xy[..., 1] > ymin + margin) & (xy[..., 1] < ymax - margin)
+
+    def _steer(self, pose: NDArray[np.float64], direction_rad: float) -> NDArray[np.float64]:
+        """Turn toward ``direction_rad`` and drive forward once roughly facing it."""
+        error = float(wrap_angle(direction_rad - pose[2]))
+        return np.array([self.speed * max(0.0, math.cos(error)) ** 2, float(np.clip(2.0 * error, -1.0, 1.0))])
+
+
+class LandmarkSeeking(_MapPolicy):
+    """Head for the nearby spot from which the most landmarks are expected in view.
+
+    From the estimated pose, ``directions`` spots at ``lookahead_m`` are scored by the
+    number of landmarks expected visible there (:meth:`expected_visible`; ties: keep going
+    straight); without an estimate the robot spins to find landmarks.
+    """
+
+    def __init__(self, action_space: spaces.Box, landmarks: LandmarkMap, seed: int | None = None, *, lookahead_m: float = 0.8, directions: int = 12, **kwargs: Any) -> None:
+        super().__init__(action_space, landmarks, seed, **kwargs)
+        self.lookahead_m = lookahead_m
+        self.angles = np.linspace(-math.pi, math.pi, directions, endpoint=False)
+
+    def _act(self, observation: Observation) -> NDArray[np.float64]:
+        pose = self._estimate(observation)
+        if pose is None:
+            return self.search._act(observation)
+        world_angles = pose[2] + self.angles
+        spots = pose[:2] + self.lookahead_m * np.stack([np.cos(world_angles), np.sin(world_angles)], axis=1)
+        seen_now = np.asarray(observation["landmarks"]).reshape(-1, 3)[:, 0] > 0.5
+        score = self.expected_visible(pose, spots, seen_now).sum(axis=1) + 0.01 * np.cos(self.angles)  # ties: straight
+        score = np.where(self._inside(spots), score, -np.inf)
+        if not np.isfinite(score).any():
+            centre = np.mean(np.reshape(self.landmarks.bounds_m, (2, 2)), axis=0)
+            return self._steer(pose, math.atan2(centre[1] - pose[1], centre[0] - pose[0]))
+        return self._steer(pose, float(world_angles[int(np.argmax(score))]))
+
+
+class GreedyInformationGain(_MapPolicy):
+    """One-step look-ahead: the motion whose end pose sees the most informative bearings.
+
+    Candidate motions (forward speed x turn rate) are rolled ``horizon_s`` ahead from the
+    estimated pose; the landmarks expected in view at each end pose come from
+    :meth:`expected_visible`. The score is ``log det(J_prior + J_bearings)`` with ``J_prior`` from the estimate's
+    spread and ``J_bearings`` the Fisher information of the expected bearings.
+    """
+
+    def __init__(
+        self,
+        action_space: spaces.Box,
+        landmarks: LandmarkMap,
+        seed: int | None = None,
+        *,
+        bearing_std_rad: float = math.radians(1.0),
+        horizon_s: float = 1.0,
+        speeds: Sequence[float] = (0.0, 0.5, 1.0),
+        turns: Sequence[float] = (-1.0, -0.5, 0.0, 0.5, 1.0),
+        max_speed_mps: float = 1.75,
+        max_turn_rate_rps: float = 3.0,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(action_space, landmarks, seed, **kwargs)
+        self.bearing_std_rad = bearing_std_rad
+        self.horizon_s = horizon_s
+        self.candidates = np.array([(v, w) for v in speeds for w in turns], dtype=np.float64)
+        self.max_speed_mps = max_speed_mps
+        self.max_turn_rate_rps = max_turn_rate_rps
+
+    def end_poses(self, pose: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``(C, 3)`` poses after each candidate motion held for ``horizon_s`` (exact arcs)."""
+        v = self.candidates[:, 0] * self.max_speed_mps
+        w = self.candidates[:, 1] * self.max_turn_rate_rps
+        t = self.horizon_s
+        turn = w * t
+        straight = np.abs(turn) < 1e-9
+        safe_w = np.where(straight, 1.0, w)
+        dx = np.where(straight, v * t, v / safe_w * np.sin(turn))
+        dy = np.where(straight, 0.0, v / safe_w * (1.0 - np.cos(turn)))
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        return np.stack([pose[0] + c * dx - s * dy, pose[1] + s * dx + c * dy, pose[2] + turn], axis=1)
+
+    def _act(self, observation: Observation) -> NDArray[np.float64]:
+        pose = self._estimate(observation)
+        if pose is None:
+            return self.search._act(observation)
+        seen_now = np.asarray(observation["landmarks"]).reshape(-1, 3)[:, 0] > 0.5
+        spread = observation["estimate_spread"]
+        xmin, ymin, xmax, ymax = self.landmarks.bounds_m
+        pos_var = max(float(spread[0]) * math.hypot(xmax - xmin, ymax - ymin), 0.05) ** 2
+        head_var = max(float(spread[1]) * math.pi, 0.02) ** 2
+        prior = np.diag([1.0 / pos_var, 1.0 / pos_var, 1.0 / head_var])
+        lm = self.landmarks.positions_xy_m
+        ends = self.end_poses(pose)
+        visible = self.expected_visible(pose, ends[:, :2], seen_now)
+        scores = np.full(len(ends), -np.inf)
+        for i, (end, expected) in enumerate(zip(ends, visible)):
+            if not self._inside(end[:2]):
+                continue
+            info = prior + bearing_information(end, lm[expected], self.bearing_std_rad) if expected.any() else prior
+            scores[i] = np.linalg.slogdet(info)[1] + 1e-3 * self.candidates[i, 0]  # ties: keep moving
+        if not np.isfinite(scores).any():
+            centre = np.mean(np.reshape(self.landmarks.bounds_m, (2, 2)), axis=0)
+            return self._steer(pose, math.atan2(centre[1] - pose[1], centre[0] - pose[0]))
+        return self.candidates[int(np.argmax(scores))].copy()
+
+
+def _check_command(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and -1.0 <= value <= 1.0):
+        raise ValueError(f"{name} must be a number in [-1, 1] (action units), got {value!r}")
+
+
+def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> FixedPolicy:
+    """Build fixed policy ``name`` for ``env`` (the map and limits come from ``env.unwrapped``)."""
+    base = env.unwrapped
+    space = env.action_space
+    if name not in FIXED_POLICIES:
+        raise ValueError(f"unknown policy {name!r}; fixed policies: {', '.join(sorted(FIXED_POLICIES))}")
+    if name in ("landmark_seeking", "greedy_info_gain"):
+        cam = base.config.camera
+        kwargs.setdefault("max_range_m", cam.max_range_m if cam is not None else math.inf)
+        if name == "greedy_info_gain":
+            kwargs.setdefault("max_speed_mps", base.config.robot.max_speed_mps)
+            kwargs.setdefault("max_turn_rate_rps", base.config.robot.max_turn_rate_rps)
+            if cam is not None:
+                kwargs.setdefault("bearing_std_rad", max(cam.noise_std_rad, 1e-3))
+        return FIXED_POLICIES[name](space, base.landmark_map, seed, **kwargs)
+    return FIXED_POLICIES[name](space, seed=seed, **kwargs)
+
+
+FIXED_POLICIES: dict[str, Any] = {
+    "random_walk": RandomWalk,
+    "spin": SpinInPlace,
+    "stop_and_go": StopAndGo,
+    "landmark_seeking": LandmarkSeeking,
+    "greedy_info_gain": GreedyInformationGain,
+}

@@ -34,6 +34,25 @@ ESTIMATE_COLOR = (220, 30, 200)
 _SEED_SALT = 0x10CA112E  # separates the localizer's stream from the env's for the same seed
 
 
+def encode_estimate(estimate: PoseEstimate, bounds_m: tuple[float, float, float, float]) -> NDArray[np.float32]:
+    """The ``estimate`` observation ``(4,)``: position normalized to ``[-1, 1]`` over the field
+    (clipped), then ``cos`` and ``sin`` of the heading; zeros for an invalid estimate."""
+    out = np.zeros(4, dtype=np.float32)
+    if estimate.valid:
+        xmin, ymin, xmax, ymax = bounds_m
+        x = (estimate.x_m - (xmin + xmax) / 2) / ((xmax - xmin) / 2)
+        y = (estimate.y_m - (ymin + ymax) / 2) / ((ymax - ymin) / 2)
+        out[:] = (min(max(x, -1.0), 1.0), min(max(y, -1.0), 1.0), np.cos(estimate.theta_rad), np.sin(estimate.theta_rad))
+    return out
+
+
+def decode_estimate(encoded: NDArray[np.float32], bounds_m: tuple[float, float, float, float]) -> NDArray[np.float64]:
+    """Invert :func:`encode_estimate`: ``(3,)`` pose ``(x, y, theta)`` in world units."""
+    xmin, ymin, xmax, ymax = bounds_m
+    e = np.asarray(encoded, dtype=np.float64)
+    return np.array([(xmin + xmax) / 2 + e[0] * (xmax - xmin) / 2, (ymin + ymax) / 2 + e[1] * (ymax - ymin) / 2, np.arctan2(e[3], e[2])])
+
+
 def bearing_measurement(landmarks_obs: NDArray[np.float32]) -> BearingMeasurement:
     """Turn the camera's flat ``(3 L,)`` slots ``(visible, cos, sin)`` into a :class:`BearingMeasurement`."""
     slots = np.asarray(landmarks_obs, dtype=np.float64).reshape(-1, 3)
@@ -87,8 +106,6 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         if self.prior not in ("start", "none"):
             raise ConfigError(f"prior must be 'start' or 'none', got {self.prior!r}")
         xmin, ymin, xmax, ymax = self.landmark_map.bounds_m
-        self._centre = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2])
-        self._half = np.array([(xmax - xmin) / 2, (ymax - ymin) / 2])
         self._diag = float(np.hypot(xmax - xmin, ymax - ymin))
         self.observation_space = spaces.Dict(
             {
@@ -132,12 +149,10 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
 
     def observation(self, observation: dict[str, NDArray[np.float32]]) -> dict[str, NDArray[np.float32]]:
         est = self._estimate
-        estimate = np.zeros(4, dtype=np.float32)
+        estimate = encode_estimate(est, self.landmark_map.bounds_m)
         valid = np.zeros(1, dtype=np.float32)
         spread = np.ones(2, dtype=np.float32)
         if est.valid:
-            xy = np.clip((np.array([est.x_m, est.y_m]) - self._centre) / self._half, -1.0, 1.0)
-            estimate[:] = (xy[0], xy[1], np.cos(est.theta_rad), np.sin(est.theta_rad))
             valid[0] = 1.0
             pos, head = est.position_spread_m, est.heading_spread_rad
             spread[0] = min(pos / self._diag, 1.0) if np.isfinite(pos) else 1.0

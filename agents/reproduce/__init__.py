@@ -6,7 +6,10 @@ Each experiment module exposes ``add_arguments(parser)`` (its own options) and
 
 from __future__ import annotations
 
-#: experiment name -> module implementing it
-EXPERIMENTS: dict[str, str] = {
-    "bearing-candidates": "agents.reproduce.bearing_candidates",
+#: experiment name -> (module implementing it, one-line summary for --help)
+EXPERIMENTS: dict[str, tuple[str, str]] = {
+    "bearing-candidates": (
+        "agents.reproduce.bearing_candidates",
+        "two-landmark candidate sets (Motomura et al.): Exp 1-3, Tables 1-3, beside the paper's numbers",
+    ),
 }

@@ -1,0 +1,322 @@
+"""``crowdloc train``: PPO (stable-baselines3, MultiInputPolicy) on a crowdloc env with a localizer.
+
+A run is described by a YAML file under ``configs/experiments/`` (:class:`TrainConfig`);
+command-line overrides (``--total-timesteps``, ``--set ppo.learning_rate=1e-3``) are
+checked like the file itself. A run writes ``<out>/<name>/seed_<seed>/``:
+
+- ``run.json``: the resolved config, the seed, versions and the command;
+- ``checkpoints/step_<N>.zip`` + ``.state.pkl``: model, optimizer and every random state;
+- ``model.zip``: the final policy; ``tb/``: TensorBoard logs.
+
+Exact resume: every rollout is one whole episode per env (``ppo.n_steps`` equals the
+episode length and episodes only end by truncation), each episode's env seed is a pure
+function of (run seed, env index, episode index), and a checkpoint stores the torch,
+numpy and python random states. Training N steps in one go or in pieces through
+checkpoints then gives identical weights (a test proves it).
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import platform
+import random
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+import envs  # noqa: F401  (registers the ids)
+from agents.rewards import ActiveLocalizationReward, RewardWeights
+from localizers.schema import ConfigError, check, from_mapping, load_yaml, parse_yaml, replace_checked
+
+EXPERIMENT_DIR = Path(__file__).resolve().parent.parent / "configs" / "experiments"
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """stable-baselines3 PPO hyperparameters (its names and meanings)."""
+
+    learning_rate: float = 3e-4
+    n_steps: int = 450  # per env per rollout; must equal the episode length (exact resume)
+    batch_size: int = 600
+    n_epochs: int = 5
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_range: float = 0.2
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    net_arch: tuple[int, ...] = (64, 64)
+
+    def __post_init__(self) -> None:
+        check(self.learning_rate > 0, f"ppo.learning_rate must be > 0, got {self.learning_rate}")
+        check(self.n_steps >= 2, f"ppo.n_steps must be >= 2, got {self.n_steps}")
+        check(self.batch_size >= 2, f"ppo.batch_size must be >= 2, got {self.batch_size}")
+        check(self.n_epochs >= 1, f"ppo.n_epochs must be >= 1, got {self.n_epochs}")
+        check(0 < self.gamma <= 1, f"ppo.gamma must be in (0, 1], got {self.gamma}")
+        check(all(n > 0 for n in self.net_arch), f"ppo.net_arch sizes must be > 0, got {self.net_arch}")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One training run."""
+
+    name: str
+    env_id: str = "crowdloc/RoboCupCrowded-v0"
+    crowd_sizes: tuple[int, ...] = (6,)  # env i trains at crowd_sizes[i % len]
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)  # other gym.make overrides
+    localizer: str = "candidate_sets"
+    localizer_params: Mapping[str, Any] = field(default_factory=dict)
+    reward: RewardWeights = field(default_factory=RewardWeights)
+    n_envs: int = 4
+    vec_env: str = "subproc"  # "subproc" (one process per env) or "dummy" (in-process)
+    seed: int = 0
+    total_timesteps: int = 200_000
+    checkpoint_every: int = 36_000  # env steps; rounded to whole rollouts
+    ppo: PPOConfig = field(default_factory=PPOConfig)
+
+    def __post_init__(self) -> None:
+        check(self.n_envs >= 1, f"n_envs must be >= 1, got {self.n_envs}")
+        check(self.vec_env in ("subproc", "dummy"), f"vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}")
+        check(self.total_timesteps >= 1, f"total_timesteps must be >= 1, got {self.total_timesteps}")
+        check(len(self.crowd_sizes) >= 1, "crowd_sizes needs at least one crowd size")
+        check("max_episode_steps" not in self.env_kwargs, "the episode length is ppo.n_steps; remove env_kwargs.max_episode_steps")
+        check("crowd_size" not in self.env_kwargs, "give crowd sizes as crowd_sizes, not env_kwargs.crowd_size")
+
+    @property
+    def rollout_steps(self) -> int:
+        """Env steps per PPO iteration (all envs)."""
+        return self.ppo.n_steps * self.n_envs
+
+
+def load_train_config(path_or_name: str | Path, overrides: Mapping[str, Any] | None = None) -> TrainConfig:
+    """Load ``configs/experiments/<name>.yaml`` (or a path) and apply dotted-key overrides."""
+    path = Path(path_or_name)
+    if path.suffix not in (".yaml", ".yml"):
+        path = EXPERIMENT_DIR / f"{path_or_name}.yaml"
+    config = from_mapping(TrainConfig, load_yaml(path), where=str(path))
+    if overrides:
+        config = replace_checked(config, _nest(overrides), where=f"overrides of {path}")
+    return config
+
+
+def _nest(dotted: Mapping[str, Any]) -> dict[str, Any]:
+    """``{"ppo.learning_rate": 1e-3}`` -> ``{"ppo": {"learning_rate": 1e-3}}``."""
+    out: dict[str, Any] = {}
+    for key, value in dotted.items():
+        parts = key.split(".")
+        node = out
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ConfigError(f"override {key!r} conflicts with another override")
+        node[parts[-1]] = value
+    return out
+
+
+def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
+    """``["ppo.learning_rate=1e-3", "n_envs=2"]`` -> a dict of YAML-parsed values."""
+    out = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"override {item!r} is not KEY=VALUE")
+        out[key.strip()] = parse_yaml(text)
+    return out
+
+
+class EpisodeSeeds(gym.Wrapper):
+    """Seed every episode from ``(run_seed, env_index, episode_index)``: resets become replayable.
+
+    A seed passed to ``reset`` is ignored on purpose: stable-baselines3 re-seeds its vector
+    env whenever a model is built or loaded, which would make a resumed run differ.
+    """
+
+    def __init__(self, env: gym.Env[Any, Any], run_seed: int, env_index: int, first_episode: int = 0) -> None:
+        super().__init__(env)
+        self.run_seed = run_seed
+        self.env_index = env_index
+        self.episode = first_episode
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        episode_seed = int(np.random.SeedSequence([self.run_seed, self.env_index, self.episode]).generate_state(1)[0])
+        self.episode += 1
+        return self.env.reset(seed=episode_seed, options=options)
+
+
+def make_training_env(config: TrainConfig, env_index: int, first_episode: int = 0) -> gym.Env[Any, Any]:
+    """One training env: the localizer wrapper, the reward, the episode length, episode seeding."""
+    crowd = config.crowd_sizes[env_index % len(config.crowd_sizes)]
+    env = gym.make(
+        config.env_id,
+        crowd_size=crowd,
+        localizer=config.localizer,
+        localizer_params=dict(config.localizer_params) or None,
+        max_episode_steps=config.ppo.n_steps,
+        **dict(config.env_kwargs),
+    )
+    env = ActiveLocalizationReward(env, config.reward)
+    return EpisodeSeeds(env, config.seed, env_index, first_episode)
+
+
+def _env_factory(config: TrainConfig, env_index: int, first_episode: int) -> Callable[[], gym.Env[Any, Any]]:
+    def make() -> gym.Env[Any, Any]:
+        from stable_baselines3.common.monitor import Monitor
+
+        return Monitor(make_training_env(config, env_index, first_episode))
+
+    return make
+
+
+def make_vec_env(config: TrainConfig, first_episode: int = 0) -> Any:
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    factories = [_env_factory(config, i, first_episode) for i in range(config.n_envs)]
+    if config.vec_env == "subproc" and config.n_envs > 1:
+        return SubprocVecEnv(factories, start_method="spawn")
+    return DummyVecEnv(factories)
+
+
+def _random_states() -> dict[str, Any]:
+    return {"torch": torch.get_rng_state(), "numpy": np.random.get_state(), "python": random.getstate()}
+
+
+def _set_random_states(states: Mapping[str, Any]) -> None:
+    torch.set_rng_state(states["torch"])
+    np.random.set_state(states["numpy"])
+    random.setstate(states["python"])
+
+
+def run_dir(config: TrainConfig, out: Path) -> Path:
+    return out / config.name / f"seed_{config.seed}"
+
+
+def train(config: TrainConfig, out: Path, resume: Path | None = None, progress_bar: bool = True, verbose: int = 0) -> Path:
+    """Train (or resume) and return the path of the final ``model.zip``."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.utils import set_random_seed
+
+    directory = run_dir(config, out)
+    (directory / "checkpoints").mkdir(parents=True, exist_ok=True)
+    _write_run_json(config, directory)
+    every_rollouts = max(1, round(config.checkpoint_every / config.rollout_steps))
+
+    if resume is not None:
+        state = _load_state(resume)
+        done_steps = int(state["num_timesteps"])
+        if done_steps % config.rollout_steps:
+            raise ConfigError(f"checkpoint {resume} is not at a rollout boundary ({done_steps} steps)")
+        episodes = done_steps // config.rollout_steps  # one episode per env per rollout
+        venv = make_vec_env(config, first_episode=episodes)
+        model = PPO.load(resume, env=venv, device="cpu")
+        _set_random_states(state["random"])
+    else:
+        set_random_seed(config.seed)
+        venv = make_vec_env(config)
+        p = config.ppo
+        model = PPO(
+            "MultiInputPolicy",
+            venv,
+            learning_rate=p.learning_rate,
+            n_steps=p.n_steps,
+            batch_size=p.batch_size,
+            n_epochs=p.n_epochs,
+            gamma=p.gamma,
+            gae_lambda=p.gae_lambda,
+            clip_range=p.clip_range,
+            ent_coef=p.ent_coef,
+            vf_coef=p.vf_coef,
+            max_grad_norm=p.max_grad_norm,
+            policy_kwargs={"net_arch": list(p.net_arch)},
+            tensorboard_log=str(directory / "tb"),
+            seed=config.seed,
+            device="cpu",
+            verbose=verbose,
+        )
+
+    class Checkpoints(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.rollouts = model.num_timesteps // config.rollout_steps
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_rollout_end(self) -> None:
+            pass
+
+        def _on_rollout_start(self) -> None:
+            # called before each rollout after the previous update: a rollout boundary
+            if model.num_timesteps and model.num_timesteps // config.rollout_steps % every_rollouts == 0:
+                save_checkpoint(model, directory / "checkpoints" / f"step_{model.num_timesteps}")
+
+    remaining = config.total_timesteps - model.num_timesteps
+    if remaining > 0:
+        model.learn(
+            total_timesteps=remaining,
+            callback=Checkpoints(),
+            reset_num_timesteps=resume is None,
+            progress_bar=progress_bar,
+            tb_log_name="ppo",
+        )
+    final = directory / "model.zip"
+    model.save(final)
+    save_checkpoint(model, directory / "checkpoints" / f"step_{model.num_timesteps}")
+    venv.close()
+    return final
+
+
+def save_checkpoint(model: Any, stem: Path) -> Path:
+    """Write ``stem.zip`` (model + optimizer) and ``stem.state.pkl`` (step count, random states)."""
+    model.save(stem.with_suffix(".zip"))
+    with open(stem.with_suffix(".state.pkl"), "wb") as f:
+        pickle.dump({"num_timesteps": model.num_timesteps, "random": _random_states()}, f)
+    return stem.with_suffix(".zip")
+
+
+def _load_state(checkpoint: Path) -> dict[str, Any]:
+    state_path = checkpoint.with_suffix(".state.pkl")
+    if not checkpoint.is_file() or not state_path.is_file():
+        raise ConfigError(f"checkpoint {checkpoint} needs both {checkpoint.name} and {state_path.name}")
+    with open(state_path, "rb") as f:
+        state: dict[str, Any] = pickle.load(f)
+    return state
+
+
+def latest_checkpoint(config: TrainConfig, out: Path) -> Path | None:
+    """The checkpoint with the most steps of this run, if any."""
+    found = sorted((run_dir(config, out) / "checkpoints").glob("step_*.zip"), key=lambda p: int(p.stem.split("_")[1]))
+    return found[-1] if found else None
+
+
+def _write_run_json(config: TrainConfig, directory: Path) -> None:
+    import stable_baselines3
+
+    record = {
+        "config": _jsonable(asdict(config)),
+        "seed": config.seed,
+        "command": sys.argv,
+        "versions": {
+            "python": platform.python_version(),
+            "stable_baselines3": stable_baselines3.__version__,
+            "torch": torch.__version__,
+            "gymnasium": gym.__version__,
+            "numpy": np.__version__,
+        },
+    }
+    (directory / "run.json").write_text(json.dumps(record, indent=2) + "\n")
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    return value

@@ -1,0 +1,102 @@
+"""Fixed policies: every one runs on every bearing env, stays in the action space, sees no truth."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from agents.policies import FIXED_POLICIES, GreedyInformationGain, PatrolPath, make_policy
+from localizers.base import LandmarkMap
+
+BEARING_IDS = ["crowdloc/RoboCupStatic-v0", "crowdloc/RoboCupCrowded-v0"]
+
+
+@pytest.mark.parametrize("name", sorted(FIXED_POLICIES))
+@pytest.mark.parametrize("env_id", BEARING_IDS)
+def test_every_fixed_policy_runs_on_every_bearing_env(env_id: str, name: str) -> None:
+    env = gym.make(env_id, localizer="mcl_bearing")
+    policy = make_policy(name, env, seed=0)
+    obs, _ = env.reset(seed=0)
+    episode_start = np.array([True])
+    for _ in range(200):
+        action, state = policy.predict(obs, None, episode_start, deterministic=True)
+        episode_start = np.array([False])
+        assert state is None
+        assert env.action_space.contains(action), action
+        obs, _, terminated, truncated, _ = env.step(action)
+        assert not terminated
+    env.close()
+
+
+def test_a_planning_policy_without_a_localizer_says_what_is_missing() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0")
+    policy = make_policy("greedy_info_gain", env)
+    obs, _ = env.reset(seed=0)
+    with pytest.raises(KeyError, match="localizer"):
+        policy.predict(obs)
+
+
+def test_unknown_policy_and_bad_settings_name_the_value() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0")
+    with pytest.raises(ValueError, match="wander"):
+        make_policy("wander", env)
+    with pytest.raises(ValueError, match="1.5"):
+        make_policy("random_walk", env, speed=1.5)
+    with pytest.raises(ValueError, match="segment 1"):
+        PatrolPath(env.action_space, [(0.5, 0.0, 10), (0.0, 0.2, 0)])
+
+
+def test_patrol_path_through_waypoints_closes_the_loop_exactly() -> None:
+    env = gym.make("crowdloc/RoboCupStatic-v0", odometry={"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0})
+    base = env.unwrapped
+    waypoints = [(2.5, 8.0), (4.0, 8.0), (4.0, 5.0), (1.0, 5.0), (1.0, 8.0), (2.5, 8.0)]
+    policy = PatrolPath.through_waypoints(
+        env.action_space, waypoints, 0.0, speed_mps=0.5, turn_rate_rps=1.0,
+        max_speed_mps=base.max_speed_mps, max_turn_rate_rps=base.max_turn_rate_rps, dt_s=base.config.dt_s,
+    )
+    obs, info = env.reset(seed=0)
+    visited = []
+    for _ in range(len(policy.actions)):
+        obs, _, _, _, info = env.step(policy.predict(obs)[0])
+        visited.append(info["true_pose"][:2].copy())
+    visited = np.array(visited)
+    for wp in waypoints:
+        assert np.min(np.linalg.norm(visited - wp, axis=1)) < 1e-6, wp
+    np.testing.assert_allclose(info["true_pose"][:2], waypoints[-1], atol=1e-6)
+
+
+def test_greedy_information_gain_prefers_the_motion_that_uncovers_landmarks() -> None:
+    # four landmarks in a square; only two are seen now, from the middle of the left edge.
+    landmarks = LandmarkMap(np.array([[0.0, 0.0], [0.0, 4.0], [4.0, 0.0], [4.0, 4.0]]), ("a", "b", "c", "d"), (0, 0, 4, 4))
+    from gymnasium import spaces
+
+    policy = GreedyInformationGain(spaces.Box(-1, 1, (2,), np.float32), landmarks, max_speed_mps=1.0, max_turn_rate_rps=1.0)
+    pose = np.array([1.0, 2.0, 0.0])
+    seen = np.array([True, True, False, False])
+    ends = policy.end_poses(pose)
+    visible = policy.expected_visible(pose, ends[:, :2], seen)
+    standing = int(np.flatnonzero((policy.candidates[:, 0] == 0) & (policy.candidates[:, 1] == 0))[0])
+    # standing still cannot uncover the hidden pair; driving a metre toward them turns their lines of sight
+    assert visible[standing].tolist() == [True, True, False, False]
+    forward = int(np.flatnonzero((policy.candidates[:, 0] == 1) & (policy.candidates[:, 1] == 0))[0])
+    assert visible[forward].all()
+    obs = {
+        "landmarks": np.array([1, math.cos(-2.0), math.sin(-2.0), 1, math.cos(2.0), math.sin(2.0), 0, 0, 0, 0, 0, 0], np.float32),
+        "estimate": np.array([-0.5, 0.0, 1.0, 0.0], np.float32),
+        "estimate_valid": np.ones(1, np.float32),
+        "estimate_spread": np.array([0.05, 0.05], np.float32),
+    }
+    action, _ = policy.predict(obs)
+    assert action[0] > 0  # it moves rather than standing still
+
+
+def test_policies_are_seeded() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer="mcl_bearing")
+    obs, _ = env.reset(seed=0)
+    a = [make_policy("random_walk", env, seed=3).predict(obs)[0] for _ in range(1)]
+    b = [make_policy("random_walk", env, seed=3).predict(obs)[0] for _ in range(1)]
+    np.testing.assert_array_equal(a, b)
