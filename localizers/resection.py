@@ -39,11 +39,13 @@ solution by more than ~17 % of the distance to the landmarks.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from itertools import combinations
 from typing import ClassVar
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -76,44 +78,119 @@ def _cassini(
     Degenerate inputs give NaN poses or conditioning (never an exception); a pose whose
     bearings do not reproduce the measurement gets conditioning NaN.
     """
-    # Pivot (the construction's L2) on the landmark outside the pair seen most nearly
-    # (anti)parallel: a robot on the line through two landmarks makes their angle 0 or pi
-    # and cot() infinite, but the pose is still defined unless all three are on one line.
-    b = bearings_rad
-    pair_sin = np.abs(np.sin(np.stack([b[..., 1] - b[..., 0], b[..., 2] - b[..., 1], b[..., 2] - b[..., 0]], -1)))
-    order = _PIVOT_ORDER[np.argmin(pair_sin, axis=-1)]  # (..., 3)
-    landmarks_xy = np.take_along_axis(landmarks_xy, order[..., None], axis=-2)
-    bearings_rad = np.take_along_axis(b, order, axis=-1)
-    l1, l2, l3 = landmarks_xy[..., 0, :], landmarks_xy[..., 1, :], landmarks_xy[..., 2, :]
-    a12 = bearings_rad[..., 1] - bearings_rad[..., 0]
-    a23 = bearings_rad[..., 2] - bearings_rad[..., 1]
-    with np.errstate(all="ignore"):
-        cot12 = np.cos(a12) / np.sin(a12)
-        cot23 = np.cos(a23) / np.sin(a23)
-        p1 = l1 - cot12[..., None] * _rot90(l1 - l2)
-        p3 = l3 + cot23[..., None] * _rot90(l3 - l2)
-        # Foot of the perpendicular from L2 on the line P1P3.
-        e = p3 - p1
-        t = np.sum((l2 - p1) * e, axis=-1) / np.sum(e * e, axis=-1)
-        robot = p1 + t[..., None] * e
+    lm = np.ascontiguousarray(landmarks_xy, dtype=np.float64)
+    b = np.ascontiguousarray(bearings_rad, dtype=np.float64)
+    lead = b.shape[:-1]
+    poses, cond, d_rms = _cassini_kernel(lm.reshape(-1, 3, 2), b.reshape(-1, 3), _PIVOT_ORDER, RESIDUAL_TOL_RAD)
+    return poses.reshape(lead + (3,)), cond.reshape(lead), d_rms.reshape(lead)
 
-        d = landmarks_xy - robot[..., None, :]  # (..., 3, 2) robot -> landmark
-        world_dir = np.arctan2(d[..., 1], d[..., 0])  # (..., 3)
-        heading = np.asarray(circular_mean(world_dir - bearings_rad, axis=-1))
-        residual = np.max(np.abs(wrap_angle(world_dir - heading[..., None] - bearings_rad)), axis=-1)
 
-        # Conditioning from the adjugate of A (rows a0, a1, a2): A^-1 = [a1 x a2, a2 x a0, a0 x a1] / det.
-        r2 = np.sum(d * d, axis=-1)
-        rows = np.stack([d[..., 1] / r2, -d[..., 0] / r2, -np.ones_like(r2)], axis=-1)  # (..., 3, 3)
-        a0, a1, a2 = rows[..., 0, :], rows[..., 1, :], rows[..., 2, :]
-        cof = np.stack([np.cross(a1, a2), np.cross(a2, a0), np.cross(a0, a1)], axis=-2)  # (..., 3 cols, 3)
-        det = np.sum(a0 * cof[..., 0, :], axis=-1)
-        sens_num = np.sqrt(np.sum(cof[..., :2] ** 2, axis=(-2, -1)))  # ||adj[:2, :]||_F
-        d_rms = np.sqrt(np.mean(r2, axis=-1))
-        conditioning = d_rms * np.abs(det) / sens_num
-        conditioning = np.where(residual <= RESIDUAL_TOL_RAD, conditioning, np.nan)
-    poses = np.concatenate([robot, heading[..., None]], axis=-1)
-    return poses, conditioning, d_rms
+@numba.njit(cache=True, error_model="numpy")
+def _cassini_kernel(
+    landmarks_xy: NDArray[np.float64], bearings_rad: NDArray[np.float64], pivot_order: NDArray[np.intp], residual_tol: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The construction of the module docstring for ``(T, 3, 2)`` landmarks and ``(T, 3)`` bearings.
+
+    Compiled: frames with 8 landmarks solve all 56 triples at once, and candidate sets,
+    the Kalman filter and MCL re-seeding do this often.
+    """
+    n = bearings_rad.shape[0]
+    poses = np.empty((n, 3))
+    cond = np.empty(n)
+    d_rms = np.empty(n)
+    lx = np.empty(3)
+    ly = np.empty(3)
+    bb = np.empty(3)
+    world_dir = np.empty(3)
+    r2 = np.empty(3)
+    rows = np.empty((3, 3))
+    cof = np.empty((3, 3))
+    for t in range(n):
+        b0, b1, b2 = bearings_rad[t, 0], bearings_rad[t, 1], bearings_rad[t, 2]
+        # Pivot (the construction's L2) on the landmark outside the pair seen most nearly
+        # (anti)parallel: a robot on the line through two landmarks makes their angle 0 or
+        # pi and cot() infinite, but the pose is still defined unless all three are on one line.
+        s01 = abs(math.sin(b1 - b0))
+        s12 = abs(math.sin(b2 - b1))
+        s02 = abs(math.sin(b2 - b0))
+        k = 0
+        if s12 < s01:
+            k = 1
+        if s02 < min(s01, s12):
+            k = 2
+        for j in range(3):
+            src = pivot_order[k, j]
+            lx[j] = landmarks_xy[t, src, 0]
+            ly[j] = landmarks_xy[t, src, 1]
+            bb[j] = bearings_rad[t, src]
+        a12 = bb[1] - bb[0]
+        a23 = bb[2] - bb[1]
+        cot12 = math.cos(a12) / math.sin(a12)
+        cot23 = math.cos(a23) / math.sin(a23)
+        # P1 = L1 - cot(a12) J (L1 - L2), P3 = L3 + cot(a23) J (L3 - L2), with J (x, y) = (-y, x)
+        p1x = lx[0] + cot12 * (ly[0] - ly[1])
+        p1y = ly[0] - cot12 * (lx[0] - lx[1])
+        p3x = lx[2] - cot23 * (ly[2] - ly[1])
+        p3y = ly[2] + cot23 * (lx[2] - lx[1])
+        # foot of the perpendicular from L2 on the line P1P3
+        ex = p3x - p1x
+        ey = p3y - p1y
+        u = ((lx[1] - p1x) * ex + (ly[1] - p1y) * ey) / (ex * ex + ey * ey)
+        rx = p1x + u * ex
+        ry = p1y + u * ey
+        sin_sum = 0.0
+        cos_sum = 0.0
+        for j in range(3):
+            dx = lx[j] - rx
+            dy = ly[j] - ry
+            world_dir[j] = math.atan2(dy, dx)
+            sin_sum += math.sin(world_dir[j] - bb[j])
+            cos_sum += math.cos(world_dir[j] - bb[j])
+            r2[j] = dx * dx + dy * dy
+            rows[j, 0] = dy / r2[j]
+            rows[j, 1] = -dx / r2[j]
+            rows[j, 2] = -1.0
+        heading = (math.atan2(sin_sum, cos_sum) + math.pi) % (2.0 * math.pi) - math.pi
+        residual = 0.0
+        for j in range(3):
+            e = (world_dir[j] - heading - bb[j] + math.pi) % (2.0 * math.pi) - math.pi
+            # NaN-propagating maximum, like np.max
+            if abs(e) > residual or e != e:
+                residual = abs(e)
+        # conditioning from the adjugate of A (rows a0, a1, a2): A^-1 = [a1 x a2, a2 x a0, a0 x a1] / det
+        for j in range(3):
+            p = rows[(j + 1) % 3]
+            q = rows[(j + 2) % 3]
+            cof[j, 0] = p[1] * q[2] - p[2] * q[1]
+            cof[j, 1] = p[2] * q[0] - p[0] * q[2]
+            cof[j, 2] = p[0] * q[1] - p[1] * q[0]
+        det = rows[0, 0] * cof[0, 0] + rows[0, 1] * cof[0, 1] + rows[0, 2] * cof[0, 2]
+        sens_num = math.sqrt(sum_sq_xy(cof))
+        rms = math.sqrt((r2[0] + r2[1] + r2[2]) / 3.0)
+        c = rms * abs(det) / sens_num
+        poses[t, 0] = rx
+        poses[t, 1] = ry
+        poses[t, 2] = heading
+        cond[t] = c if residual <= residual_tol else math.nan
+        d_rms[t] = rms
+    return poses, cond, d_rms
+
+
+@functools.lru_cache(maxsize=32)
+def _triples(n: int) -> NDArray[np.int64]:
+    """``(C(n, 3), 3)`` index triples, read-only and cached per landmark count."""
+    out = np.array(list(combinations(range(n), 3)), dtype=np.int64)
+    out.setflags(write=False)
+    return out
+
+
+@numba.njit(cache=True, inline="always")
+def sum_sq_xy(cof: NDArray[np.float64]) -> float:
+    """Sum of squares of the x and y components of three vectors ``(3, 3)`` (``||adj[:2, :]||_F^2``)."""
+    total = 0.0
+    for j in range(3):
+        total += cof[j, 0] * cof[j, 0] + cof[j, 1] * cof[j, 1]
+    return total
 
 
 def cassini_resection(
@@ -243,7 +320,7 @@ def resect_all_triples(
             np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), np.zeros(0, bool),
             np.full(3, np.nan), False,
         )  # fmt: skip
-    local = np.array(list(combinations(range(idx.size), 3)), dtype=np.int64)  # (T, 3)
+    local = _triples(idx.size)  # (T, 3)
     poses, cond, d_rms = _cassini(lm[idx[local]], b[local])
     ok = np.isfinite(poses).all(axis=-1) & (cond >= min_conditioning)
     poses = np.where(ok[:, None], poses, np.nan)
