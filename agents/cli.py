@@ -60,6 +60,37 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     train.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "train", help="output folder (default results/train)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
 
+    ev = sub.add_parser(
+        "eval",
+        help="evaluate policies x localizers x crowd sizes on held-out seeds; bootstrap CIs, plots, TUM files, a GIF",
+        description="Run one episode per (policy, localizer, crowd size, held-out seed) and write episodes.csv, "
+        "summary.csv, summary.md (mean [95% bootstrap CI] per metric), plots, TUM trajectories and episode.gif under --out.",
+    )
+    ev.add_argument("--policies", nargs="+", metavar="POLICY",
+                    help="fixed policy names or ppo:PATH/model.zip (default: every fixed policy)")
+    ev.add_argument("--localizers", nargs="+", metavar="NAME", help="registered localizers (default: candidate_sets)")
+    ev.add_argument("--crowd-sizes", "--densities", dest="crowd_sizes", nargs="+", type=int, metavar="N",
+                    help="crowd sizes (default: 2 6 10)")
+    ev.add_argument("--seeds", type=_positive_int, default=10, help="held-out seeds per cell (default 10)")
+    ev.add_argument("--episode-steps", type=_positive_int, default=450, help="steps per episode (default 450 = 15 s)")
+    ev.add_argument("--env-id", default="crowdloc/RoboCupCrowded-v0", help="a bearing env id (default: RoboCupCrowded-v0)")
+    ev.add_argument("--workers", type=_positive_int, help="local worker processes (default: the core count)")
+    ev.add_argument("--ray-address", help="run the episodes on this Ray cluster (e.g. auto)")
+    ev.add_argument("--gif-cell", metavar="POLICY,LOCALIZER,CROWD", help="the episode to animate (default: the first)")
+    ev.add_argument("--no-gif", action="store_true", help="write no GIF")
+    ev.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "eval", help="output folder (default results/eval)")
+    ev.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    tune = sub.add_parser(
+        "tune",
+        help="tune a localizer's parameters with Optuna on recorded episodes; compare with the defaults on held-out seeds",
+        description="Seeded TPE search with median pruning over configs/tuning/LOCALIZER.yaml; episodes are recorded "
+        "once and replayed into every trial; the study lives in a database (SQLite by default) that several workers "
+        "can share. Writes report.md, best_params.yaml and figures under --out.",
+    )
+    if argv[:1] == ["tune"]:  # import only when tuning (optuna, the replay machinery)
+        importlib.import_module("agents.tune").add_arguments(tune)
+
     from agents.reproduce import EXPERIMENTS
 
     reproduce = sub.add_parser(
@@ -107,6 +138,25 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(str(exc))
         model = train(config, args.out, resume=resume, progress_bar=not args.no_progress)
         print(f"wrote {model}")
+        return 0
+    if args.command == "eval":
+        from agents.evaluate import run_cli as run_eval
+        from localizers.schema import ConfigError
+
+        try:
+            run_eval(args)
+        except ConfigError as exc:
+            parser.error(str(exc))
+        return 0
+    if args.command == "tune":
+        from agents.tune import run_cli
+        from localizers.schema import ConfigError
+
+        try:
+            result = run_cli(args)
+        except ConfigError as exc:
+            parser.error(str(exc))
+        print(f"wrote {result.report} ({result.n_trials} trials in study {result.study_name!r})")
         return 0
     if args.command == "reproduce":
         from agents.reproduce import EXPERIMENTS

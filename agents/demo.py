@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 import envs
+from agents.metrics import beam_breakdown
 from agents.policies import RandomWalk
 from localizers.raycast import cast_rays
 
@@ -102,7 +103,8 @@ def _wall_beams(env: envs.LocalizationEnv, ranges: NDArray[np.float32], pose: ND
         pose[:2], env.lidar.relative_angles + pose[2], env.lidar.config.max_range_m, world.seg_a, world.seg_b,
         np.zeros((0, 2)), np.zeros(0),
     )
-    return int(np.sum(np.abs(ranges - empty) < 0.1)), int(ranges.size)
+    match, _, _, _ = beam_breakdown(ranges, empty, env.lidar.config.max_range_m)
+    return match, int(ranges.size)
 
 
 def save_frame(env_id: str, path: Path, seed: int, steps: int = 150) -> None:

@@ -167,6 +167,11 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         return LandmarkMap(self.world.landmark_xy.copy(), self.world.landmark_names, (0.0, 0.0, w, h), walls)
 
     @property
+    def lidar_beam_angles_rad(self) -> NDArray[np.float64] | None:
+        """``(B,)`` the LIDAR's beam angles relative to the heading (ascending), or None without a LIDAR."""
+        return None if self.lidar is None else self.lidar.relative_angles.copy()
+
+    @property
     def last_observation(self) -> dict[str, NDArray[np.float32]]:
         return self._last_obs
 

@@ -8,11 +8,11 @@
   in log-weights, systematic resampling on low effective sample size and augmented-MCL
   random injection (Probabilistic Robotics, Table 8.3) to recover from pose jumps.
 
-Both share the particle core below. Particles are stored *struct-of-arrays*: an array of
-shape ``(3, N)`` whose rows are x, y and heading, so every vector operation runs over one
-contiguous row of N values. The motion model is the alpha model of
-:mod:`localizers.motion` (Probabilistic Robotics, sample_motion_model_odometry), applied to
-the odometry increment.
+Both share the particle core of :mod:`localizers.particles` (re-exported here). Particles
+are stored *struct-of-arrays*: an array of shape ``(3, N)`` whose rows are x, y and
+heading, so every vector operation runs over one contiguous row of N values. The motion
+model is the alpha model of :mod:`localizers.motion` (Probabilistic Robotics,
+sample_motion_model_odometry), applied to the odometry increment.
 """
 
 from __future__ import annotations
@@ -25,75 +25,25 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
-from localizers.geometry import circular_mean, compose, wrap_angle
-from localizers.motion import odometry_noise_std, to_rot_trans_rot
+from localizers.geometry import compose, wrap_angle
+from localizers.particles import (
+    gaussian_poses,
+    propagate_particles,
+    systematic_resample,
+    uniform_poses,
+    weighted_pose_covariance,
+    weighted_pose_mean,
+)
+from localizers.particles import prior_covariance as _prior_covariance
 from localizers.resection import inscribed_arc_poses, resect_all_triples
 from localizers.schema import check
 
 Array = NDArray[np.float64]
 _TWO_PI = 2.0 * math.pi
 _INV_TWO_PI = 1.0 / _TWO_PI
-_HEADING_REWRAP_RAD = 32.0  # particle headings are re-wrapped once they exceed this magnitude
 
 # --------------------------------------------------------------------------------------
-# Particle core (pure functions on (3, N) particle arrays)
-
-
-def propagate_particles(
-    particles: Array,
-    delta: ArrayLike,
-    alphas: ArrayLike,
-    rng: np.random.Generator,
-    *,
-    min_translation_std_m: float = 0.0,
-    min_rotation_std_rad: float = 0.0,
-) -> Array:
-    """Sample the odometry motion model for every particle, in place.
-
-    Each particle draws its own ``(rot1, trans, rot2)`` around the decomposed increment
-    with the alpha-model standard deviations (:func:`localizers.motion.odometry_noise_std`);
-    the optional floors are added in quadrature to those deviations so that a robot at rest
-    keeps a little particle diversity (ours, a form of roughening).
-
-    Speed: the direction of travel goes through ``cos``/``sin`` in float32 (SIMD, ~8x faster
-    than float64 here). Headings are kept in ``(-_HEADING_REWRAP_RAD, _HEADING_REWRAP_RAD)``
-    so the float32 rounding of the angle stays below 4e-6 rad, i.e. below 1e-7 m of position
-    per step, far under any motion noise.
-
-    Args:
-        particles: ``(3, N)`` poses (rows x, y, heading); overwritten. Headings come out
-            unwrapped (bounded, see above); wrap them where a canonical angle is needed.
-        delta: ``(3,)`` odometry increment in the previous odometry frame.
-        alphas: ``(4,)`` alpha1..alpha4.
-        rng: the random generator.
-        min_translation_std_m: floor on the translation noise std.
-        min_rotation_std_rad: floor on each rotation noise std.
-
-    Returns:
-        ``particles`` (the same array).
-    """
-    rot1, trans, rot2 = (float(v) for v in to_rot_trans_rot(delta))
-    std = odometry_noise_std(delta, alphas)
-    sd_r1 = math.hypot(float(std[0]), min_rotation_std_rad)
-    sd_t = math.hypot(float(std[1]), min_translation_std_m)
-    sd_r2 = math.hypot(float(std[2]), min_rotation_std_rad)
-    noise = rng.standard_normal((3, particles.shape[1]))
-    phi, t, turn = noise[0], noise[1], noise[2]
-    phi *= sd_r1
-    phi += rot1
-    phi += particles[2]  # direction of travel: heading + noisy rot1
-    t *= sd_t
-    t += trans
-    phi32 = phi.astype(np.float32)
-    particles[0] += t * np.cos(phi32)
-    particles[1] += t * np.sin(phi32)
-    turn *= sd_r2
-    turn += rot2
-    heading = particles[2]
-    np.add(phi, turn, out=heading)  # left unwrapped: every consumer wraps (saves a pass per step)
-    if max(heading.max(), -heading.min()) > _HEADING_REWRAP_RAD:
-        heading[:] = wrap_angle(heading)
-    return particles
+# Bearing-specific parts of the particle core (the rest is in localizers.particles)
 
 
 def bearing_residuals(particles: Array, landmarks_xy: Array, bearings_rad: Array, out: Array | None = None) -> Array:
@@ -129,70 +79,6 @@ def bearing_residuals(particles: Array, landmarks_xy: Array, bearings_rad: Array
     return e
 
 
-def weighted_pose_mean(particles: Array, weights: Array | None = None) -> Array:
-    """``(3,)`` weighted mean pose of ``(3, N)`` particles, heading by circular mean.
-
-    ``weights`` ``(N,)`` must sum to one; ``None`` means uniform.
-    """
-    if weights is None:
-        x, y = particles[0].mean(), particles[1].mean()
-    else:
-        x, y = weights @ particles[0], weights @ particles[1]
-    return np.array([x, y, circular_mean(particles[2], weights)], dtype=np.float64)
-
-
-def weighted_pose_covariance(particles: Array, mean: Array, weights: Array | None = None) -> Array:
-    """``(3, 3)`` weighted covariance of ``(3, N)`` particles about ``mean`` (heading wrapped)."""
-    d = particles - mean[:, None]
-    d[2] = wrap_angle(d[2])
-    if weights is None:
-        return (d @ d.T) / max(particles.shape[1], 1)
-    return (d * weights) @ d.T
-
-
-def systematic_resample(weights: Array, count: int, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Low-variance (systematic) resampling, Probabilistic Robotics Table 4.4.
-
-    Args:
-        weights: ``(N,)`` normalized weights.
-        count: number of indices to draw.
-        rng: one uniform draw per call.
-
-    Returns:
-        ``(count,)`` ancestor indices in ``[0, N)``, non-decreasing.
-    """
-    if count <= 0:
-        return np.zeros(0, dtype=np.intp)
-    cumulative = np.cumsum(weights)
-    cumulative[-1] = 1.0  # guard against round-off
-    positions = (rng.random() + np.arange(count)) / count
-    idx = np.searchsorted(cumulative, positions, side="right")
-    return np.minimum(idx, weights.shape[0] - 1)
-
-
-def uniform_poses(bounds_m: tuple[float, float, float, float], count: int, rng: np.random.Generator) -> Array:
-    """``(3, count)`` poses uniform over the field ``(xmin, ymin, xmax, ymax)`` and heading."""
-    xmin, ymin, xmax, ymax = bounds_m
-    out = rng.random((3, count))
-    out[0] = xmin + (xmax - xmin) * out[0]
-    out[1] = ymin + (ymax - ymin) * out[1]
-    out[2] = math.pi * (2.0 * out[2] - 1.0)
-    return out
-
-
-def gaussian_poses(center: ArrayLike, cov: ArrayLike, count: int, rng: np.random.Generator) -> Array:
-    """``(3, count)`` poses drawn from ``N(center, cov)`` (heading wrapped).
-
-    ``cov`` ``(3, 3)`` must be symmetric positive semi-definite.
-    """
-    c = np.asarray(center, dtype=np.float64)
-    w, v = np.linalg.eigh(np.asarray(cov, dtype=np.float64))
-    root = v * np.sqrt(np.clip(w, 0.0, None))
-    out = root @ rng.standard_normal((3, count)) + c[:, None]
-    out[2] = wrap_angle(out[2])
-    return out
-
-
 def resection_poses(landmarks_xy: Array, measurement: BearingMeasurement) -> Array:
     """``(M, 3)`` Cassini solutions of the inlier triples of a frame (``(0, 3)`` if none).
 
@@ -213,16 +99,6 @@ def _jitter(centers: Array, position_std_m: float, heading_std_rad: float, rng: 
     noise += centers
     noise[2] = wrap_angle(noise[2])
     return noise
-
-
-def _prior_covariance(prior: PoseEstimate, position_std_m: float, heading_std_rad: float) -> Array:
-    """The prior's covariance when it is a finite PSD ``(3, 3)``, else the params' diagonal."""
-    cov = np.asarray(prior.covariance, dtype=np.float64)
-    if cov.shape == (3, 3) and np.isfinite(cov).all():
-        cov = 0.5 * (cov + cov.T)
-        if np.linalg.eigvalsh(cov).min() >= -1e-12:
-            return cov
-    return np.diag([position_std_m**2, position_std_m**2, heading_std_rad**2])
 
 
 def _check_alphas(owner: str, alphas: tuple[float, float, float, float]) -> None:

@@ -56,6 +56,14 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         "localizers.candidate_sets", "CandidateSetLocalizer", "CandidateSetParams", "bearings", False,
         "the proposed two-landmark candidate-set method with K independent sets (paper A)",
     ),
+    "mcl_lidar": LocalizerSpec(
+        "localizers.mcl_lidar", "LidarMCL", "LidarMCLParams", "scan", True,
+        "LIDAR MCL on the raw scan: beam model on a ray-cast table, alphas scaled by the sampling parameter (paper B's MCL)",
+    ),
+    "far_point_mcl": LocalizerSpec(
+        "localizers.scan_filter", "FarPointMCL", "FarPointMCLParams", "scan", True,
+        "LIDAR MCL on scans accumulated over 0.5 m of travel, far point per angular bin (paper B's method)",
+    ),
 }
 
 
@@ -75,6 +83,15 @@ def params_path(name: str) -> Path:
     return LOCALIZER_CONFIG_DIR / f"{name}.yaml"
 
 
+def _merged(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with ``overrides`` applied; nested mappings (nested params) merge key by key."""
+    out = dict(base)
+    for key, value in overrides.items():
+        current = out.get(key)
+        out[key] = _merged(current, value) if isinstance(current, Mapping) and isinstance(value, Mapping) else value
+    return out
+
+
 def load_params(name: str, overrides: Mapping[str, Any] | None = None) -> Any:
     """The parameters of localizer ``name``: its YAML defaults with ``overrides`` applied."""
     s = spec(name)
@@ -84,7 +101,7 @@ def load_params(name: str, overrides: Mapping[str, Any] | None = None) -> Any:
     if overrides:
         if not isinstance(overrides, Mapping):
             raise ConfigError(f"localizer_params for {name!r} must be a mapping, got {type(overrides).__name__} {overrides!r}")
-        data = {**data, **overrides}
+        data = _merged(data, overrides)
         where = f"{path} with localizer_params {dict(overrides)!r}"
     return from_mapping(_attr(s.module, s.params_cls), data, where=where)
 

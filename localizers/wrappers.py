@@ -13,7 +13,8 @@ and adds to the observation:
 ``info["estimate"]`` holds the :class:`PoseEstimate` in world units for metrics. The
 localizer draws from its own generator, seeded from the env seed, so filtering never
 changes the world's random stream. This module knows the observation layout of crowdloc
-envs (keys ``odometry``, ``landmarks``) but imports nothing from ``envs``.
+envs (keys ``odometry``, ``landmarks``, ``lidar``) but imports nothing from ``envs``: the
+LIDAR's beam angles come from the base env's ``lidar_beam_angles_rad``.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate
+from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
 from localizers.registry import make_localizer, spec
 from localizers.schema import ConfigError
 
@@ -89,10 +90,13 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
             raise ConfigError(f"LocalizationObservation needs a Dict observation space, got {env.observation_space!r}")
         self.landmark_map: LandmarkMap = base.landmark_map  # type: ignore[attr-defined]
         dt_s = float(base.config.dt_s)  # type: ignore[attr-defined]
+        sensed = env.observation_space.spaces
         if isinstance(localizer, str):
             entry = spec(localizer)
-            if entry.measurement == "bearings" and "landmarks" not in env.observation_space.spaces:
+            if entry.measurement == "bearings" and "landmarks" not in sensed:
                 raise ConfigError(f"localizer {localizer!r} needs a bearing camera; this world has none")
+            self.measurement = entry.measurement
+            self._scan_format(base, localizer)
             self.localizer_name = localizer
             self.localizer: Localizer = make_localizer(localizer, self.landmark_map, dt_s=dt_s, params=localizer_params)
             default_prior = "start" if entry.needs_prior else "none"
@@ -100,6 +104,9 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
             if localizer_params:
                 raise ConfigError("localizer_params only apply to a localizer given by name")
             self.localizer_name = type(localizer).__name__
+            # a ready localizer gets bearings where the world has a camera, else LIDAR scans
+            self.measurement = "bearings" if "landmarks" in sensed or "lidar" not in sensed else "scan"
+            self._scan_format(base, self.localizer_name)
             self.localizer = localizer
             default_prior = "none"
         self.prior = prior or default_prior
@@ -139,11 +146,26 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         info["estimate"] = self._estimate
         return self.observation(obs), float(reward), terminated, truncated, info
 
+    def _scan_format(self, base: Any, name: str) -> None:
+        """For a scan localizer: the LIDAR's beam angles and maximum range, or a ConfigError."""
+        self._scan_angles: NDArray[np.float64] | None = None
+        self._scan_max_range_m = 0.0
+        if self.measurement != "scan":
+            return
+        angles = getattr(base, "lidar_beam_angles_rad", None)
+        if angles is None or "lidar" not in self.env.observation_space.spaces:  # type: ignore[attr-defined]
+            raise ConfigError(f"localizer {name!r} needs a LIDAR; this world has none")
+        self._scan_angles = np.asarray(angles, dtype=np.float64)
+        self._scan_max_range_m = float(base.config.lidar.max_range_m)
+
     def _update(self, obs: Mapping[str, NDArray[np.float32]], first: bool) -> None:
         if not first:
             d = obs["odometry"]
             self.localizer.predict(OdometryDelta(float(d[0]), float(d[1]), float(d[2])))
-        if "landmarks" in obs:
+        if self._scan_angles is not None:
+            ranges = np.asarray(obs["lidar"], dtype=np.float64)
+            self.localizer.update(ScanMeasurement(ranges, self._scan_angles, self._scan_max_range_m))
+        elif "landmarks" in obs:
             self.localizer.update(bearing_measurement(obs["landmarks"]))
         self._estimate = self.localizer.estimate
 

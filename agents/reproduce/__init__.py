@@ -12,4 +12,8 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
         "agents.reproduce.bearing_candidates",
         "two-landmark candidate sets (Motomura et al.): Exp 1-3, Tables 1-3, beside the paper's numbers",
     ),
+    "lidar-far-point": (
+        "agents.reproduce.lidar_far_point",
+        "LIDAR scan accumulation + far points (Fujii et al.): MCL with and without them vs sampling and hit (Figs 5, 7-11)",
+    ),
 }

@@ -1,0 +1,378 @@
+"""Record one rollout, then replay its observation stream into any number of localizers.
+
+:func:`record` steps an env with a scenario driver once and keeps, per step, the
+observation leaves (odometry, the camera's landmark slots or the LIDAR's ranges) beside the
+ground truth from ``info`` (true pose, truly visible landmarks, false detections, contacts).
+:func:`replay` feeds the *observation leaves only* to a localizer exactly as
+:class:`localizers.wrappers.LocalizationObservation` does online (``reset`` with an optional
+known start pose, an update with the first frame, then ``predict`` and ``update`` per step),
+so every localizer runs on identical data and the results equal the online wrapper's for the
+same generator. Ground truth is used for the prior only when asked (``prior="start"``).
+:func:`feed` is that stepping loop on its own, for measurement streams built elsewhere.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+import envs  # noqa: F401  (registers the crowdloc ids)
+from agents.scenarios import Driver
+from envs.localization_env import LocalizationEnv
+from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
+from localizers.registry import make_localizer, spec
+from localizers.wrappers import bearing_measurement
+
+#: the covariance of the known start pose handed to localizers that need it (as the wrapper does)
+PRIOR_COVARIANCE = np.diag([1e-6, 1e-6, 1e-6])
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One rollout: observation leaves and ground truth, ``T`` steps (row 0 is the reset).
+
+    Attributes:
+        env_id: the env it came from.
+        seed: the env seed.
+        dt_s: time step.
+        landmark_map: the map a localizer gets.
+        odometry: ``(T, 3)`` float32 odometry leaves (row 0: zeros, the reset observation).
+        landmarks: ``(T, 3 L)`` float32 camera slots (``(T, 0)`` without a camera).
+        true_pose: ``(T, 3)`` ground truth.
+        time_s: ``(T,)`` simulated time.
+        visible: ``(T, L)`` landmarks truly in sight (before dropout).
+        false_detections: ``(T, L)`` slots holding a false detection.
+        contacts: ``(T,)`` contacts of our robot that began in each step.
+        commanded: ``(T - 1, 3)`` the motion commanded in steps 1..T-1 (what the odometry
+            measures before noise; contacts move the body beyond it).
+        camera_noise_std_rad: the camera's bearing noise (0 without a camera).
+        odometry_alphas: the odometry's alpha1..alpha4.
+        lidar: ``(T, B)`` float32 LIDAR ranges, or None without a LIDAR.
+        lidar_angles_rad: ``(B,)`` beam angles in the robot frame (None without a LIDAR).
+        lidar_max_range_m: the LIDAR's maximum range (0 without a LIDAR).
+    """
+
+    env_id: str
+    seed: int
+    dt_s: float
+    landmark_map: LandmarkMap
+    odometry: NDArray[np.float32]
+    landmarks: NDArray[np.float32]
+    true_pose: NDArray[np.float64]
+    time_s: NDArray[np.float64]
+    visible: NDArray[np.bool_]
+    false_detections: NDArray[np.bool_]
+    contacts: NDArray[np.int64]
+    commanded: NDArray[np.float64]
+    camera_noise_std_rad: float
+    odometry_alphas: tuple[float, float, float, float]
+    lidar: NDArray[np.float32] | None = None
+    lidar_angles_rad: NDArray[np.float64] | None = None
+    lidar_max_range_m: float = 0.0
+
+    @property
+    def steps(self) -> int:
+        return int(self.true_pose.shape[0])
+
+    def detected(self, landmark_subset: Sequence[int] | None = None) -> NDArray[np.bool_]:
+        """``(T, L)`` slots reported as seen (true or false detections), limited to a subset."""
+        mask = self.landmarks.reshape(self.steps, -1, 3)[:, :, 0] > 0.5
+        return mask & subset_mask(self.landmark_map.count, landmark_subset)
+
+
+def subset_mask(count: int, landmark_subset: Sequence[int] | None) -> NDArray[np.bool_]:
+    """``(L,)`` mask of the landmark ids a localizer may use (all when ``None``)."""
+    mask = np.ones(count, dtype=bool)
+    if landmark_subset is not None:
+        ids = np.asarray(landmark_subset, dtype=np.int64)
+        if ids.size and (ids.min() < 0 or ids.max() >= count):
+            raise ValueError(f"landmark subset {ids.tolist()} out of range 0..{count - 1}")
+        mask[:] = False
+        mask[ids] = True
+    return mask
+
+
+def record(
+    env_id: str,
+    driver: Driver | Any,
+    seed: int,
+    *,
+    max_steps: int,
+    env_kwargs: Mapping[str, Any] | None = None,
+    reset_options: Mapping[str, Any] | None = None,
+) -> Recording:
+    """Roll ``env_id`` out once with a scenario driver and keep what the sensors reported.
+
+    Args:
+        env_id: a registered crowdloc id.
+        driver: a :class:`agents.scenarios.Driver`, or a callable ``env -> Driver`` (built
+            after the env, for drivers that need its geometry).
+        seed: the env seed.
+        max_steps: stop after this many steps (also stops when the driver is done or the
+            episode is truncated).
+        env_kwargs: ``gym.make`` overrides (``crowd_size``, ``camera={...}``, ...).
+        reset_options: passed to ``env.reset`` (``robot_pose``).
+    """
+    env = gym.make(env_id, **dict(env_kwargs or {}))
+    base = env.unwrapped
+    assert isinstance(base, LocalizationEnv)
+    if base.camera is None and base.lidar is None:
+        raise ValueError(f"record: {env_id} has neither a bearing camera nor a LIDAR")
+    obs, info = env.reset(seed=seed, options=dict(reset_options) if reset_options else None)
+    drv: Driver = driver if hasattr(driver, "act") else driver(base)
+    drv.reset(base)
+    # the driver may have moved the ball or the crowd: observations are unchanged (the ball
+    # does not occlude; parked members sit outside the field), the truth is re-read below
+    n_lm = base.world.landmark_xy.shape[0]
+    rows: list[tuple[Any, ...]] = []
+
+    no_slots = np.zeros(0, dtype=np.float32)
+
+    def keep(o: Mapping[str, Any], i: Mapping[str, Any]) -> None:
+        vis = np.zeros(n_lm, dtype=bool)
+        vis[np.asarray(i.get("visible_landmarks", ()), dtype=np.int64)] = True
+        false = np.zeros(n_lm, dtype=bool)
+        false[np.asarray(i.get("false_detections", ()), dtype=np.int64)] = True
+        scan = o["lidar"].copy() if "lidar" in o else None
+        rows.append((o["odometry"].copy(), o.get("landmarks", no_slots).copy(), np.asarray(i["true_pose"]).copy(),
+                     float(i["time_s"]), vis, false, len(i["contacts"]), scan))  # fmt: skip
+
+    keep(obs, info)
+    commanded = []
+    for _ in range(max_steps):
+        if drv.done:
+            break
+        action = drv.act(base)
+        commanded.append(commanded_increment(action, base))
+        obs, _, terminated, truncated, info = env.step(action)
+        keep(obs, info)
+        if terminated or truncated:
+            break
+    cam = base.config.camera
+    lidar = base.config.lidar
+    rec = Recording(
+        env_id=env_id,
+        seed=seed,
+        dt_s=float(base.config.dt_s),
+        landmark_map=base.landmark_map,
+        odometry=np.stack([r[0] for r in rows]),
+        landmarks=np.stack([r[1] for r in rows]),
+        true_pose=np.stack([r[2] for r in rows]),
+        time_s=np.array([r[3] for r in rows]),
+        visible=np.stack([r[4] for r in rows]),
+        false_detections=np.stack([r[5] for r in rows]),
+        contacts=np.array([r[6] for r in rows], dtype=np.int64),
+        commanded=np.array(commanded, dtype=np.float64).reshape(-1, 3),
+        camera_noise_std_rad=float(cam.noise_std_rad) if cam is not None else 0.0,
+        odometry_alphas=base.config.odometry.alphas,
+        lidar=np.stack([r[7] for r in rows]) if lidar is not None else None,
+        lidar_angles_rad=base.lidar_beam_angles_rad,
+        lidar_max_range_m=float(lidar.max_range_m) if lidar is not None else 0.0,
+    )
+    env.close()
+    return rec
+
+
+def commanded_increment(action: NDArray[np.float32], env: LocalizationEnv) -> NDArray[np.float64]:
+    """``(3,)`` the increment an action commands, as :meth:`LocalizationEnv.step` computes it:
+    turn by ``omega dt`` while driving the chord of that arc."""
+    dt = env.config.dt_s
+    v = float(action[0]) * env.max_speed_mps
+    omega = float(action[1]) * env.max_turn_rate_rps
+    half = 0.5 * omega * dt
+    return np.array([v * dt * np.cos(half), v * dt * np.sin(half), omega * dt])
+
+
+def measurements(recording: Recording, landmark_subset: Sequence[int] | None = None) -> list[BearingMeasurement]:
+    """The ``T`` bearing measurements a localizer is fed, built from the camera leaves only."""
+    keep = subset_mask(recording.landmark_map.count, landmark_subset)
+    out = []
+    for slots in recording.landmarks:
+        m = bearing_measurement(slots)
+        if landmark_subset is not None:
+            sel = keep[m.landmark_ids]
+            m = BearingMeasurement(m.landmark_ids[sel], m.bearings_rad[sel])
+        out.append(m)
+    return out
+
+
+def scans(recording: Recording) -> list[ScanMeasurement]:
+    """The ``T`` LIDAR scans a scan localizer is fed, built from the LIDAR leaves only.
+
+    Raises:
+        ValueError: for a recording without a LIDAR.
+    """
+    if recording.lidar is None or recording.lidar_angles_rad is None:
+        raise ValueError(f"scans: the recording of {recording.env_id} has no LIDAR")
+    angles = np.asarray(recording.lidar_angles_rad, dtype=np.float64)
+    ranges = recording.lidar.astype(np.float64)
+    return [ScanMeasurement(r, angles, recording.lidar_max_range_m) for r in ranges]
+
+
+def odometry_deltas(recording: Recording) -> list[OdometryDelta]:
+    """The ``T - 1`` odometry increments a localizer is fed (steps 1..T-1), from the odometry leaves."""
+    return [OdometryDelta(float(d[0]), float(d[1]), float(d[2])) for d in recording.odometry[1:]]
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """A localizer's answers along a recording.
+
+    Attributes:
+        estimates: ``(T, 3)`` poses, NaN where the estimate was invalid (or not read).
+        valid: ``(T,)`` whether the localizer claimed a pose.
+        fed: ``(T, L)`` landmark slots handed to it (true or false detections; ``(T, 0)``
+            for scans).
+        updated: ``(T,)`` steps at which the localizer weighed its measurement, for
+            localizers that count their updates (an ``updates`` attribute), else None.
+    """
+
+    estimates: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+    fed: NDArray[np.bool_]
+    updated: NDArray[np.bool_] | None = None
+
+
+def start_prior(recording: Recording) -> PoseEstimate:
+    """The known initial pose (the paper's baselines (1) and (3) start from it)."""
+    x, y, theta = recording.true_pose[0]
+    return PoseEstimate(float(x), float(y), float(theta), PRIOR_COVARIANCE.copy(), True)
+
+
+def feed(
+    localizer: Localizer,
+    deltas: Sequence[OdometryDelta],
+    stream: Sequence[Any],
+    rng: np.random.Generator,
+    *,
+    prior: PoseEstimate | None = None,
+    read: str = "every_step",
+    observer: Callable[[int, Localizer, bool], None] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_] | None]:
+    """Step a localizer through a measurement stream as the online wrapper does.
+
+    ``reset(rng, prior)``, ``update(stream[0])``, then per step ``t >= 1``
+    ``predict(deltas[t - 1])`` and ``update(stream[t])``.
+
+    Args:
+        localizer: any :class:`localizers.base.Localizer`.
+        deltas: ``T - 1`` odometry increments.
+        stream: ``T`` measurements.
+        rng: the localizer's own generator.
+        prior: handed to ``reset``.
+        read: ``"every_step"`` reads the estimate after every update call; ``"updates"``
+            only at the steps where the localizer weighed its measurement (needs an
+            ``updates`` counter; the other rows stay NaN and invalid). Reading is free of
+            side effects, so both give the same estimates where both read.
+        observer: called as ``observer(t, localizer, weighed)`` after each step (a tap for
+            figures; it must not change the localizer).
+
+    Returns:
+        ``(T, 3)`` estimates (NaN where invalid or not read), ``(T,)`` validity and the
+        ``(T,)`` steps at which the measurement was weighed (None without an ``updates``
+        counter).
+    """
+    if read not in ("every_step", "updates"):
+        raise ValueError(f"read must be 'every_step' or 'updates', got {read!r}")
+    T = len(stream)
+    if len(deltas) != T - 1:
+        raise ValueError(f"feed: {T} measurements need {T - 1} odometry increments, got {len(deltas)}")
+    counts = hasattr(localizer, "updates")
+    if read == "updates" and not counts:
+        raise ValueError(f"feed: read='updates' needs a localizer with an updates counter, got {type(localizer).__name__}")
+    est = np.full((T, 3), np.nan)
+    valid = np.zeros(T, dtype=bool)
+    updated = np.zeros(T, dtype=bool)
+    localizer.reset(rng, prior)
+    for t in range(T):
+        if t:
+            localizer.predict(deltas[t - 1])
+        before = localizer.updates if counts else 0  # type: ignore[attr-defined]
+        localizer.update(stream[t])
+        weighed = counts and localizer.updates != before  # type: ignore[attr-defined]
+        updated[t] = weighed
+        if read == "every_step" or weighed:
+            e = localizer.estimate
+            if e.valid:
+                valid[t] = True
+                est[t] = (e.x_m, e.y_m, e.theta_rad)
+        if observer is not None:
+            observer(t, localizer, weighed)
+    return est, valid, updated if counts else None
+
+
+def replay_into(
+    localizer: Localizer,
+    recording: Recording,
+    rng: np.random.Generator,
+    *,
+    prior: PoseEstimate | None = None,
+    landmark_subset: Sequence[int] | None = None,
+    measurement: str = "bearings",
+    read: str = "every_step",
+    observer: Callable[[int, Localizer, bool], None] | None = None,
+) -> ReplayResult:
+    """Feed a recording's observation leaves to ``localizer``, as the online wrapper does.
+
+    Args:
+        localizer: any :class:`localizers.base.Localizer`.
+        recording: from :func:`record`.
+        rng: the localizer's own generator.
+        prior: handed to ``reset`` (``None``: the localizer starts without a pose).
+        landmark_subset: landmark ids it may use; bearings to others are dropped.
+        measurement: ``"bearings"`` (the camera's slots) or ``"scan"`` (the LIDAR's ranges).
+        read, observer: see :func:`feed`.
+    """
+    if measurement == "scan":
+        stream: Sequence[Any] = scans(recording)
+        fed = np.zeros((recording.steps, 0), dtype=bool)
+    elif measurement == "bearings":
+        stream = measurements(recording, landmark_subset)
+        fed = recording.detected(landmark_subset)
+    else:
+        raise ValueError(f"measurement must be 'bearings' or 'scan', got {measurement!r}")
+    est, valid, updated = feed(localizer, odometry_deltas(recording), stream, rng, prior=prior, read=read, observer=observer)
+    return ReplayResult(est, valid, fed, updated)
+
+
+def replay(
+    recording: Recording,
+    name: str,
+    *,
+    rng_seed: int | Sequence[int],
+    params: Mapping[str, Any] | None = None,
+    landmark_subset: Sequence[int] | None = None,
+    prior: str = "auto",
+    read: str = "every_step",
+) -> ReplayResult:
+    """Build registered localizer ``name`` and replay ``recording`` into it.
+
+    Args:
+        recording: from :func:`record`.
+        name: a registered localizer.
+        rng_seed: seeds the localizer's generator (``np.random.default_rng(rng_seed)``).
+        params: overrides of its YAML parameters.
+        landmark_subset: landmark ids it may use.
+        prior: ``"start"`` (the true start pose), ``"none"``, or ``"auto"``: what the
+            registry says the method needs.
+        read: see :func:`feed`.
+    """
+    if prior not in ("auto", "start", "none"):
+        raise ValueError(f"prior must be 'auto', 'start' or 'none', got {prior!r}")
+    entry = spec(name)
+    needs = entry.needs_prior if prior == "auto" else prior == "start"
+    localizer = make_localizer(name, recording.landmark_map, dt_s=recording.dt_s, params=params)
+    return replay_into(
+        localizer,
+        recording,
+        np.random.default_rng(rng_seed),
+        prior=start_prior(recording) if needs else None,
+        landmark_subset=landmark_subset,
+        measurement=entry.measurement,
+        read=read,
+    )

@@ -1,0 +1,198 @@
+"""``crowdloc eval``: the files it writes, its metrics, bootstrap intervals, TUM files, bad input."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents.cli import build_parser, main
+from agents.evaluate import (
+    Cell,
+    EvalSpec,
+    bootstrap_ci,
+    episode_metrics,
+    evaluate,
+    read_tum,
+    run_episode,
+    write_tum,
+)
+from agents.train import EVAL_SEED_BASE, load_train_config, train
+from localizers.schema import ConfigError
+
+
+def test_cli_eval_writes_tables_plots_trajectories_and_a_gif(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from PIL import Image
+
+    out = tmp_path / "eval"
+    argv = ["eval", "--policies", "spin", "random_walk", "--localizers", "candidate_sets", "--crowd-sizes", "3",
+            "--seeds", "2", "--episode-steps", "60", "--workers", "1", "--out", str(out), "--no-progress"]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "| spin | candidate_sets | 3 |" in printed and "| random_walk | candidate_sets | 3 |" in printed
+
+    with open(out / "episodes.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 4
+    assert sorted(int(r["seed"]) for r in rows) == [EVAL_SEED_BASE, EVAL_SEED_BASE, EVAL_SEED_BASE + 1, EVAL_SEED_BASE + 1]
+    assert all(int(r["steps"]) == 60 and 0.0 <= float(r["availability"]) <= 1.0 for r in rows)
+    with open(out / "summary.csv") as f:
+        summary = list(csv.DictReader(f))
+    assert [(r["policy"], r["episodes"]) for r in summary] == [("spin", "2"), ("random_walk", "2")]
+    for r in summary:
+        assert float(r["availability_ci_low"]) <= float(r["availability"]) <= float(r["availability_ci_high"])
+    md = (out / "summary.md").read_text()
+    assert "| policy | localizer | crowd |" in md and "| spin | candidate_sets | 3 |" in md
+
+    pngs = list((out / "plots").glob("*.png"))
+    assert len(pngs) >= 1 and all(p.stat().st_size > 1000 for p in pngs)
+
+    tum = sorted((out / "tum").glob("*.tum"))
+    assert len(tum) == 8  # an estimate and a ground truth per episode
+    for path in tum:
+        table = np.loadtxt(path, comments="#", ndmin=2)
+        assert table.shape[1] == 8
+        assert np.all(np.diff(table[:, 0]) > 0)
+        np.testing.assert_allclose(np.linalg.norm(table[:, 4:8], axis=1), 1.0, atol=1e-6)
+        np.testing.assert_array_equal(table[:, 3], 0.0)
+    truth = [p for p in tum if p.name.endswith("_groundtruth.tum")]
+    assert all(np.loadtxt(p, ndmin=2).shape[0] == 61 for p in truth)  # the reset and 60 steps
+
+    with Image.open(out / "episode.gif") as gif:
+        assert gif.n_frames > 1
+    assert (out / "episode.gif").stat().st_size < 5_000_000
+
+
+def test_metrics_of_a_hand_made_episode() -> None:
+    time_s = np.arange(5) * 0.5
+    truth = np.column_stack([np.arange(5.0), np.zeros(5), np.zeros(5)])  # 1 m per step along x
+    valid = np.array([False, False, True, True, True])
+    est = np.array([[99, 99, 99], [99, 99, 99], [2.3, 0.4, 0.1], [3.0, 0.0, -0.2], [5.2, 1.6, 0.0]], dtype=float)
+    # position errors 0.5, 0, 2 m from the first fix (step 2); heading errors 0.1, 0.2, 0 rad
+    m = episode_metrics(time_s, truth, est, valid, [0, 1, 0, 2, 0], [-1.0, -1.0, 0.5, -0.5], np.full(5, 0.25))
+    rms_pos = math.sqrt((0.25 + 0.0 + 4.0) / 3)
+    assert m["position_error_mean_m"] == pytest.approx(2.5 / 3)
+    assert m["position_error_rms_m"] == pytest.approx(rms_pos)
+    assert m["heading_error_mean_deg"] == pytest.approx(math.degrees(0.1))
+    assert m["heading_error_rms_deg"] == pytest.approx(math.degrees(math.sqrt(0.05 / 3)))
+    assert m["failure_rate"] == pytest.approx(1 / 3)
+    assert m["availability"] == pytest.approx(3 / 5)
+    assert m["fixed"] == 1.0
+    assert m["first_fix_s"] == pytest.approx(1.0)
+    assert m["first_fix_distance_m"] == pytest.approx(2.0)
+    assert m["collisions"] == 3.0
+    assert m["episode_return"] == pytest.approx(-2.0)
+    assert m["bound_rmse_m"] == pytest.approx(0.25)
+    assert m["error_bound_ratio"] == pytest.approx(rms_pos / 0.25)
+
+
+def test_an_episode_without_a_fix_has_nan_errors_and_first_fix() -> None:
+    truth = np.zeros((4, 3))
+    m = episode_metrics(np.arange(4.0), truth, np.full((4, 3), np.nan), np.zeros(4, bool), [0] * 4, [-1.0] * 3, np.ones(4))
+    assert m["fixed"] == 0.0 and m["availability"] == 0.0 and m["episode_return"] == -3.0
+    for key in ("position_error_mean_m", "heading_error_rms_deg", "failure_rate", "first_fix_s", "first_fix_distance_m",
+                "error_bound_ratio"):  # fmt: skip
+        assert math.isnan(m[key]), key
+
+
+def test_bootstrap_ci_of_a_constant_sample_has_zero_width() -> None:
+    assert bootstrap_ci([2.5] * 7, rng=np.random.default_rng(0)) == (2.5, 2.5)
+    assert bootstrap_ci([1.0, np.nan, 1.0], rng=np.random.default_rng(0)) == (1.0, 1.0)  # NaN dropped
+    lo, hi = bootstrap_ci([np.nan], rng=np.random.default_rng(0))
+    assert math.isnan(lo) and math.isnan(hi)
+
+
+def test_bootstrap_ci_matches_the_normal_interval_and_covers_the_mean() -> None:
+    rng = np.random.default_rng(1)
+    # a large normal sample: the interval is about mean +- 1.96 sd / sqrt(n)
+    x = rng.normal(3.0, 2.0, 400)
+    lo, hi = bootstrap_ci(x, 2000, rng=rng)
+    half = 1.96 * x.std(ddof=1) / math.sqrt(x.size)
+    assert lo == pytest.approx(x.mean() - half, abs=0.1 * half)
+    assert hi == pytest.approx(x.mean() + half, abs=0.1 * half)
+    # coverage of the true mean over repeated samples of 30 is close to 95%
+    covered = [lo <= 0.0 <= hi for lo, hi in (bootstrap_ci(rng.normal(0.0, 1.0, 30), 2000, rng=rng) for _ in range(300))]
+    assert 0.88 <= np.mean(covered) <= 0.99
+    # the same generator state gives the same interval
+    assert bootstrap_ci(x, rng=np.random.default_rng(5)) == bootstrap_ci(x, rng=np.random.default_rng(5))
+
+
+def test_tum_round_trip_keeps_positions_and_yaw(tmp_path: Path) -> None:
+    t = np.linspace(0.0, 2.0, 9)
+    yaw = np.linspace(-math.pi + 1e-3, math.pi - 1e-3, 9)
+    poses = np.column_stack([np.linspace(0, 4, 9), np.linspace(1, -1, 9), yaw])
+    valid = np.ones(9, dtype=bool)
+    valid[[0, 4]] = False
+    path = write_tum(tmp_path / "traj.tum", t, poses, valid)
+    t_back, poses_back = read_tum(path)
+    np.testing.assert_allclose(t_back, t[valid], atol=1e-6)
+    np.testing.assert_allclose(poses_back[:, :2], poses[valid, :2], atol=1e-6)
+    np.testing.assert_allclose(poses_back[:, 2], yaw[valid], atol=1e-8)
+
+
+def test_eval_seeds_are_held_out_and_episodes_replay() -> None:
+    spec = EvalSpec(policies=("random_walk",), crowd_sizes=(3,), seeds=3, episode_steps=20)
+    assert spec.eval_seeds == (EVAL_SEED_BASE, EVAL_SEED_BASE + 1, EVAL_SEED_BASE + 2)
+    assert all(c.seed >= EVAL_SEED_BASE for c in spec.cells())
+    a, b = run_episode(spec, spec.cells()[0]), run_episode(spec, spec.cells()[0])
+    np.testing.assert_array_equal(a.true_pose, b.true_pose)
+    np.testing.assert_array_equal(a.estimates, b.estimates)
+    assert a.metrics == pytest.approx(b.metrics, nan_ok=True)
+    other = run_episode(spec, spec.cells()[1])
+    assert not np.array_equal(a.true_pose, other.true_pose)
+    assert a.true_pose.shape == (21, 3) and a.odometry.shape == (20, 3) and a.rewards.shape == (20,)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"policies": ("teleport",)}, "unknown policy 'teleport'"),
+        ({"policies": ("ppo:does/not/exist.zip",)}, "PPO model file 'does/not/exist.zip' does not exist"),
+        ({"localizers": ("oracle",)}, "unknown localizer 'oracle'"),
+        ({"crowd_sizes": (15,)}, "crowd size 15 out of range 0..14"),
+        ({"crowd_sizes": (-1,)}, "crowd size -1 out of range 0..14"),
+        ({"seeds": 0}, "seeds must be an integer >= 1, got 0"),
+    ],
+)
+def test_bad_specs_are_refused_with_the_value(kwargs: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message.replace(".", r"\.").replace("(", r"\(")):
+        EvalSpec(**kwargs)
+
+
+def test_cli_refuses_a_missing_ppo_file_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["eval", "--policies", "ppo:missing/model.zip", "--no-progress"])
+    assert exit_info.value.code == 2
+    assert "error: PPO model file 'missing/model.zip' does not exist" in capsys.readouterr().err
+
+
+def _commands() -> list[str]:
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    return sorted(sub.choices)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("command", _commands())
+def test_every_command_has_help(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main([command, "--help"])
+    assert exit_info.value.code == 0
+    assert f"crowdloc {command}" in capsys.readouterr().out
+
+
+def test_a_tiny_ppo_model_is_evaluated(tmp_path: Path) -> None:
+    overrides = {"total_timesteps": 64, "n_envs": 2, "vec_env": "dummy", "crowd_sizes": [3], "ppo.n_steps": 32,
+                 "ppo.batch_size": 32, "ppo.n_epochs": 1, "ppo.net_arch": [16]}  # fmt: skip
+    model = train(load_train_config("ppo_candidate_sets", overrides), tmp_path, progress_bar=False)
+    policy = f"ppo:{model}"
+    spec = EvalSpec(policies=(policy,), crowd_sizes=(3,), seeds=1, episode_steps=40)
+    result = evaluate(spec, workers=1, progress=False)
+    (episode,) = result.episodes
+    assert episode.cell == Cell(policy, "candidate_sets", 3, EVAL_SEED_BASE)
+    assert episode.true_pose.shape == (41, 3)
+    assert np.isfinite(episode.metrics["episode_return"]) and 0.0 <= episode.metrics["availability"] <= 1.0
+    (row,) = result.summary
+    assert row.policy == policy and row.episodes == 1

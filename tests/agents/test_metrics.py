@@ -1,0 +1,94 @@
+"""agents.metrics on hand-made trajectories with known errors."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from agents import metrics
+
+
+def straight_line(T: int = 11, step: float = 0.1) -> np.ndarray:
+    """``(T, 3)`` poses along +x, ``step`` apart, heading 0."""
+    return np.column_stack([np.arange(T) * step, np.zeros(T), np.zeros(T)])
+
+
+def test_position_and_heading_errors_are_exact_and_wrap() -> None:
+    truth = np.array([[0.0, 0.0, math.radians(179.0)], [1.0, 1.0, 0.0], [2.0, 0.0, math.radians(-90.0)]])
+    est = np.array([[3.0, 4.0, math.radians(-179.0)], [1.0, 1.0, math.radians(359.0)], [np.nan, np.nan, np.nan]])
+    np.testing.assert_allclose(metrics.position_errors(est, truth)[:2], [5.0, 0.0])
+    # 179 deg vs -179 deg is 2 deg apart, 359 deg vs 0 is 1 deg, not 358
+    np.testing.assert_allclose(np.degrees(metrics.heading_errors(est, truth)[:2]), [2.0, 1.0], atol=1e-9)
+    assert np.isnan(metrics.position_errors(est, truth)[2]) and np.isnan(metrics.heading_errors(est, truth)[2])
+
+
+def test_first_fix_and_availability() -> None:
+    valid = np.array([False, False, True, False, True, True, True, True])
+    assert metrics.first_fix(valid) == 2
+    assert metrics.first_fix(np.zeros(5, dtype=bool)) is None
+    assert metrics.availability(valid) == pytest.approx(5 / 8)
+    assert metrics.availability(valid, start=2) == pytest.approx(5 / 6)
+
+
+def test_statistics_start_at_the_first_fix_and_skip_invalid_steps() -> None:
+    truth = straight_line()
+    est = truth.copy()
+    est[:3] = np.nan  # no pose yet
+    est[3:, 1] = [0.5, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.3]  # a known cross-track error
+    est[6] = np.nan  # a dropout after the fix
+    err = metrics.position_errors(est, truth)
+    start = metrics.first_fix(np.isfinite(est[:, 0]))
+    assert start == 3
+    expected = np.array([0.5, 0.1, 0.1, 0.1, 0.1, 0.1, 0.3])
+    mean, sd = metrics.mean_sd(err, start)
+    assert mean == pytest.approx(expected.mean())
+    assert sd == pytest.approx(expected.std())
+    # statistics from another method's first fix (later) see fewer steps
+    assert metrics.mean_sd(err, 4)[0] == pytest.approx(expected[1:].mean())
+    assert metrics.failure_rate(err, start, threshold=0.3) == pytest.approx(2 / 7)
+    assert math.isnan(metrics.mean_sd(err, None)[0])
+
+
+def test_distance_and_time_to_first_fix() -> None:
+    truth = straight_line(T=11, step=0.1)
+    truth[6:, 2] = 1.0  # turning in place does not add distance
+    truth[6:, 0] = truth[5, 0]
+    travelled = metrics.travelled(truth)
+    np.testing.assert_allclose(travelled, [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5], atol=1e-12)
+    valid = np.zeros(11, dtype=bool)
+    valid[4:] = True
+    ff = metrics.first_fix(valid)
+    assert ff is not None and travelled[ff] == pytest.approx(0.4)
+    np.testing.assert_allclose(metrics.speeds(truth, 0.05)[:5], 2.0)
+
+
+def test_rms_and_error_bound_ratio() -> None:
+    err = np.array([np.nan, 3.0, 4.0, np.nan, 0.0])
+    bound = np.array([9.0, 1.0, 1.0, 9.0, 1.0])
+    assert metrics.rms(err, 0) == pytest.approx(math.sqrt(25.0 / 3.0))
+    # the bound is averaged over the steps where the error exists only
+    assert metrics.error_bound_ratio(err, bound, 0) == pytest.approx(math.sqrt(25.0 / 3.0))
+    assert metrics.error_bound_ratio(err, bound, 2) == pytest.approx(math.sqrt(8.0))
+    assert math.isnan(metrics.error_bound_ratio(np.full(3, np.nan), np.ones(3), 0))
+
+
+def test_time_to_recover_needs_the_error_to_stay_low() -> None:
+    t = np.arange(0.0, 10.0, 0.5)
+    err = np.full(t.size, 0.05)
+    err[(t >= 2.0) & (t < 4.0)] = 0.6  # pushed at 2 s
+    err[t == 5.0] = 0.6  # a relapse: the run starting at 4.0 does not count
+    err[t == 6.5] = np.nan  # no pose counts as not recovered
+    # runs below 0.2 m: [4.0, 4.5], [5.5, 6.0], [7.0, ...]: the first lasting 1 s starts at 7.0
+    assert metrics.time_to_recover(t, err, 2.0, 0.2, hold_s=1.0) == pytest.approx(5.0)
+    assert metrics.time_to_recover(t, err, 2.0, 0.2, hold_s=0.5) == pytest.approx(2.0)
+    assert metrics.time_to_recover(t, np.full(t.size, 1.0), 2.0, 0.2) == math.inf
+
+
+def test_over_seeds_ignores_missing_values() -> None:
+    s = metrics.over_seeds([1.0, np.nan, 3.0])
+    assert (s.mean, s.n) == (2.0, 2)
+    assert s.sd == pytest.approx(math.sqrt(2.0))
+    empty = metrics.over_seeds([np.nan])
+    assert empty.n == 0 and math.isnan(empty.mean)

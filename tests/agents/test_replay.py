@@ -1,0 +1,157 @@
+"""agents.replay: replaying a recording equals the online wrapper, and feeds observation leaves only."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from agents import metrics
+from agents.replay import Recording, measurements, odometry_deltas, record, replay, replay_into
+from agents.scenarios import SoccerDriver, exp1_driver
+from localizers.base import BearingMeasurement, OdometryDelta, Overlay, PoseEstimate
+from localizers.registry import LOCALIZERS
+from localizers.wrappers import _SEED_SALT, bearing_measurement
+
+BEARING_LOCALIZERS = sorted(name for name, s in LOCALIZERS.items() if s.measurement == "bearings")
+SOCCER = {"crowd_size": 1, "camera": {"dropout_probability": 0.5}}
+START = [0.0, 3.0, 0.0]
+
+
+def exp1(max_steps: int = 300, **kwargs: Any) -> Recording:
+    return record("crowdloc/RoboCupStatic-v0", exp1_driver, seed=4, max_steps=max_steps, env_kwargs=kwargs)
+
+
+def soccer(max_steps: int = 200) -> Recording:
+    return record("crowdloc/RoboCupCrowded-v0", SoccerDriver(seed=5), seed=5, max_steps=max_steps, env_kwargs=SOCCER,
+                  reset_options={"robot_pose": START})  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def recordings() -> dict[str, Recording]:
+    return {"exp1": exp1(), "soccer": soccer()}
+
+
+def online(case: str, name: str) -> np.ndarray:
+    """Estimates ``(T, 3)`` of ``gym.make(id, localizer=name)`` driven like the recording."""
+    if case == "exp1":
+        env = gym.make("crowdloc/RoboCupStatic-v0", localizer=name)
+        seed, options, steps = 4, None, 300
+        _, info = env.reset(seed=seed, options=options)
+        driver: Any = exp1_driver(env.unwrapped)
+    else:
+        env = gym.make("crowdloc/RoboCupCrowded-v0", localizer=name, **SOCCER)
+        seed, options, steps = 5, {"robot_pose": START}, 200
+        _, info = env.reset(seed=seed, options=options)
+        driver = SoccerDriver(seed=5)
+    driver.reset(env.unwrapped)
+    out = [info["estimate"].as_array()]
+    for _ in range(steps):
+        _, _, _, _, info = env.step(driver.act(env.unwrapped))
+        out.append(info["estimate"].as_array())
+    env.close()
+    return np.array(out)
+
+
+@pytest.mark.parametrize("case", ["exp1", "soccer"])
+@pytest.mark.parametrize("name", BEARING_LOCALIZERS)
+def test_replay_equals_the_online_wrapper(recordings: dict[str, Recording], case: str, name: str) -> None:
+    rec = recordings[case]
+    seed = rec.seed
+    replayed = replay(rec, name, rng_seed=[seed, _SEED_SALT])
+    np.testing.assert_array_equal(replayed.estimates, online(case, name))
+    assert replayed.valid.any()
+
+
+class Spy:
+    """A localizer that only remembers what it was fed."""
+
+    def __init__(self) -> None:
+        self.prior: PoseEstimate | None = None
+        self.deltas: list[np.ndarray] = []
+        self.fed: list[BearingMeasurement] = []
+
+    def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
+        self.prior = prior
+
+    def predict(self, odometry: OdometryDelta) -> None:
+        self.deltas.append(odometry.as_array())
+
+    def update(self, measurement: BearingMeasurement) -> None:
+        self.fed.append(measurement)
+
+    @property
+    def estimate(self) -> PoseEstimate:
+        return PoseEstimate.invalid()
+
+    def overlay(self) -> Overlay:
+        return Overlay()
+
+
+def test_localizers_are_fed_observation_leaves_only(recordings: dict[str, Recording]) -> None:
+    rec = recordings["soccer"]
+    spy = Spy()
+    replay_into(spy, rec, np.random.default_rng(0))
+    assert spy.prior is None
+    np.testing.assert_array_equal(np.array(spy.deltas), rec.odometry[1:].astype(np.float64))
+    assert len(spy.fed) == rec.steps
+    for slots, m in zip(rec.landmarks, spy.fed):
+        expected = bearing_measurement(slots)
+        np.testing.assert_array_equal(m.landmark_ids, expected.landmark_ids)
+        np.testing.assert_array_equal(m.bearings_rad, expected.bearings_rad)
+    assert sum(m.landmark_ids.size for m in spy.fed) == rec.detected().sum() > 0
+
+
+@pytest.mark.parametrize("name", [n for n in BEARING_LOCALIZERS if not LOCALIZERS[n].needs_prior])
+def test_replay_never_reads_the_true_pose(recordings: dict[str, Recording], name: str) -> None:
+    rec = recordings["soccer"]
+    scrambled = dataclasses.replace(rec, true_pose=np.random.default_rng(1).uniform(-9, 9, rec.true_pose.shape))
+    a = replay(rec, name, rng_seed=[1, 2])
+    b = replay(scrambled, name, rng_seed=[1, 2])
+    np.testing.assert_array_equal(a.estimates, b.estimates)
+
+
+@pytest.mark.parametrize("name", BEARING_LOCALIZERS)
+def test_known_start_goes_only_to_methods_that_need_it(
+    recordings: dict[str, Recording], name: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    rec = recordings["exp1"]
+    seen: list[PoseEstimate | None] = []
+
+    def capture(localizer: Any, recording: Recording, rng: np.random.Generator, **kwargs: Any) -> None:
+        seen.append(kwargs["prior"])
+
+    monkeypatch.setattr("agents.replay.replay_into", capture)
+    replay(rec, name, rng_seed=0)
+    replay(rec, name, rng_seed=0, prior="none")
+    replay(rec, name, rng_seed=0, prior="start")
+    auto, none, start = seen
+    assert none is None and start is not None
+    np.testing.assert_array_equal(start.as_array(), rec.true_pose[0])
+    assert (auto is not None) == LOCALIZERS[name].needs_prior
+
+
+def test_landmark_subset_drops_the_other_bearings(recordings: dict[str, Recording]) -> None:
+    rec = recordings["exp1"]
+    fed = measurements(rec, landmark_subset=[1, 2])
+    assert all(set(m.landmark_ids.tolist()) <= {1, 2} for m in fed)
+    assert sum(0 in m.landmark_ids for m in measurements(rec)) > 0  # L5 was seen, and dropped
+    out = replay(rec, "candidate_sets", rng_seed=0, landmark_subset=[1, 2])
+    assert not out.fed[:, 0].any() and out.fed[:, 1:].any()
+    assert len(odometry_deltas(rec)) == rec.steps - 1
+    with pytest.raises(ValueError, match="out of range"):
+        measurements(rec, landmark_subset=[7])
+
+
+def test_noise_free_exp1_candidate_sets_fix_within_5_cm() -> None:
+    noise_free = {"camera": {"noise_std_rad": 0.0}, "odometry": {"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0}}
+    rec = exp1(max_steps=10_000, **noise_free)
+    out = replay(rec, "candidate_sets", rng_seed=0, landmark_subset=[1, 2])
+    ff = metrics.first_fix(out.valid)
+    assert ff is not None and metrics.travelled(rec.true_pose)[ff] < 2.0
+    err = metrics.position_errors(out.estimates, rec.true_pose)
+    assert metrics.mean_sd(err, ff)[0] < 0.05
