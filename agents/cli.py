@@ -41,6 +41,10 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     demo.add_argument("--steps", type=_positive_int, default=3000, help="steps per (world, density) run (default 3000)")
     demo.add_argument("--seed", type=int, default=0, help="seed of the env and the policy (default 0)")
     demo.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "demo", help="output folder (default results/demo)")
+    demo.add_argument("--active-seeds", type=int, default=10,
+                      help="held-out seeds per cell of the active-localization part (default 10; 0 skips it)")
+    demo.add_argument("--model", type=Path, default=None, help="the PPO model to evaluate (default: the shipped one)")
+    demo.add_argument("--workers", type=_positive_int, default=None, help="worker processes (default: the core count)")
 
     sub.add_parser("worlds", help="list the registered env ids and their worlds")
 
@@ -115,7 +119,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "demo":
         from agents.demo import run_demo
 
-        run_demo(args.out, steps=args.steps, seed=args.seed)
+        from agents.demo import SHIPPED_MODEL
+
+        if args.active_seeds < 0:
+            parser.error(f"--active-seeds must be >= 0, got {args.active_seeds}")
+        if args.model is not None and not args.model.is_file():
+            parser.error(f"--model {args.model}: no such file")
+        run_demo(args.out, steps=args.steps, seed=args.seed, active_seeds=args.active_seeds,
+                 model=args.model or SHIPPED_MODEL, workers=args.workers)
         return 0
     if args.command == "train":
         from agents.train import latest_checkpoint, load_train_config, parse_overrides, train

@@ -1,10 +1,15 @@
-"""The main job for now: run every world with a scripted policy and report what the crowd hides.
+"""The main job (``make demo``): the worlds, then active localization on held-out seeds.
 
-For each registered env and several crowd densities, a random-walk policy drives the robot
-for a fixed number of steps. The report gives the simulation speed and how the crowd cuts
-the robot off from its references: the share of time each number of landmarks is visible
-(bearing-camera worlds), or the share of LIDAR beams that reach a wall rather than a person
-(LIDAR worlds). One rendered frame per world goes beside the report.
+Part 1, the worlds: for each registered env and several crowd densities a random-walk policy
+drives the robot; the report gives the simulation speed and how the crowd cuts the robot off
+from its references (the share of time each number of landmarks is visible, or the share of
+LIDAR beams that reach a wall rather than a person), with one rendered frame per world.
+
+Part 2, active localization: the fixed policies and the shipped PPO policy
+(``models/ppo_candidate_sets.zip``) x two localizers x three crowd densities on
+``RoboCupCrowded-v0``, evaluated by :mod:`agents.evaluate` on held-out seeds (bootstrap 95 %
+intervals), with the table, plots and a GIF; then the verdict on whether the trained policy
+beats the best fixed one.
 """
 
 from __future__ import annotations
@@ -12,6 +17,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import gymnasium as gym
 import numpy as np
@@ -22,6 +28,9 @@ import envs
 from agents.metrics import beam_breakdown
 from agents.policies import RandomWalk
 from localizers.raycast import cast_rays
+
+if TYPE_CHECKING:
+    from agents.evaluate import EvalResult
 
 #: crowd densities visited per env id (the worlds' default density is marked in the report)
 DEFAULT_DENSITIES = {
@@ -172,8 +181,96 @@ def write_report(stats: list[RunStats], frames: dict[str, Path], out_dir: Path) 
     return report
 
 
-def run_demo(out_dir: Path, steps: int = 3000, seed: int = 0, densities: dict[str, tuple[int, ...]] | None = None) -> Path:
-    """Run every world at every density, write the report and frames, print the tables."""
+SHIPPED_MODEL = Path(__file__).resolve().parent.parent / "models" / "ppo_candidate_sets.zip"
+ACTIVE_LOCALIZERS = ("candidate_sets", "mcl_bearing")
+ACTIVE_DENSITIES = (2, 6, 10)
+#: the comparison the issue asks for: the trained policy against the best fixed one
+VERDICT_METRICS = ("position_error_mean_m", "first_fix_s")
+MIN_VERDICT_SEEDS = 5
+
+
+def run_demo(
+    out_dir: Path,
+    steps: int = 3000,
+    seed: int = 0,
+    densities: dict[str, tuple[int, ...]] | None = None,
+    active_seeds: int = 10,
+    model: Path | None = SHIPPED_MODEL,
+    workers: int | None = None,
+) -> Path:
+    """Part 1 and part 2; writes ``out_dir/report.md`` and prints it."""
+    report = run_worlds(out_dir, steps=steps, seed=seed, densities=densities)
+    if active_seeds > 0:
+        active = run_active(out_dir / "active", seeds=active_seeds, model=model, workers=workers)
+        report.write_text(report.read_text() + "\n" + active)
+    print(report.read_text())
+    return report
+
+
+def run_active(out_dir: Path, seeds: int, model: Path | None, workers: int | None = None, episode_steps: int = 450) -> str:
+    """Evaluate fixed policies (and the PPO model, if present) and return the report section."""
+    from agents.evaluate import Cell, EvalSpec, evaluate, summary_markdown, write_outputs
+    from agents.policies import FIXED_POLICIES
+
+    policies = list(FIXED_POLICIES)
+    ppo = None
+    if model is not None and Path(model).is_file():
+        ppo = f"ppo:{model}"
+        policies.append(ppo)
+    spec = EvalSpec(
+        policies=tuple(policies), localizers=ACTIVE_LOCALIZERS, crowd_sizes=ACTIVE_DENSITIES, seeds=seeds, episode_steps=episode_steps
+    )
+    result = evaluate(spec, workers=workers)
+    gif_cell = Cell(ppo or policies[-1], ACTIVE_LOCALIZERS[0], ACTIVE_DENSITIES[-1], spec.eval_seeds[0])
+    write_outputs(result, out_dir, gif_cell=gif_cell)
+    lines = [
+        "## Active localization (RoboCupCrowded-v0, held-out seeds)",
+        "",
+        f"{len(policies)} policies x {len(ACTIVE_LOCALIZERS)} localizers x crowd sizes {list(ACTIVE_DENSITIES)} x "
+        f"{seeds} held-out seeds, {spec.episode_steps} steps ({spec.episode_steps / 30:.0f} s) each; mean [95 % bootstrap CI]. "
+        f"Evaluated in {result.wall_s:.0f} s. Full outputs (CSV, plots, TUM trajectories) in `active/`.",
+        "",
+        summary_markdown(result),
+        "",
+        f"![one episode: {gif_cell.policy}, {gif_cell.localizer}, crowd {gif_cell.crowd_size}](active/episode.gif)",
+        "",
+    ]
+    if ppo is None:
+        lines.append(f"No trained policy at `{model}`: run `make demo` from a checkout that ships it.")
+    elif seeds < MIN_VERDICT_SEEDS:
+        lines.append(f"With {seeds} seed(s) per cell the intervals mean nothing: no verdict (use >= {MIN_VERDICT_SEEDS}).")
+    else:
+        lines += ["### Trained policy against the best fixed policy", "", *verdict(result, ppo)]
+    return "\n".join(lines) + "\n"
+
+
+def verdict(result: EvalResult, ppo: str) -> list[str]:
+    """For each localizer and the medium and high densities: does PPO beat the best fixed policy
+    (lowest mean error) with non-overlapping 95 % intervals, on each verdict metric?"""
+    lines = ["| localizer | crowd | metric | PPO | best fixed policy | verdict |", "|---|---:|---|---|---|---|"]
+    for localizer in ACTIVE_LOCALIZERS:
+        for crowd in ACTIVE_DENSITIES[1:]:
+            rows = [r for r in result.summary if r.localizer == localizer and r.crowd_size == crowd]
+            mine = next(r for r in rows if r.policy == ppo)
+            fixed = [r for r in rows if r.policy != ppo]
+            best = min(fixed, key=lambda r: r.stats["position_error_mean_m"].mean)
+            for key in VERDICT_METRICS:
+                a, b = mine.stats[key], best.stats[key]
+                if a.high < b.low:
+                    word = "PPO better (intervals do not overlap)"
+                elif b.high < a.low:
+                    word = "PPO worse (intervals do not overlap)"
+                else:
+                    word = "no significant difference"
+                lines.append(
+                    f"| {localizer} | {crowd} | {key} | {a.mean:.3f} [{a.low:.3f}, {a.high:.3f}] | "
+                    f"{best.policy}: {b.mean:.3f} [{b.low:.3f}, {b.high:.3f}] | {word} |"
+                )
+    return lines
+
+
+def run_worlds(out_dir: Path, steps: int = 3000, seed: int = 0, densities: dict[str, tuple[int, ...]] | None = None) -> Path:
+    """Part 1: every world at every density; writes the report and frames."""
     densities = densities or DEFAULT_DENSITIES
     out_dir.mkdir(parents=True, exist_ok=True)
     jobs = [(env_id, n) for env_id, ns in densities.items() for n in ns]
@@ -187,6 +284,4 @@ def run_demo(out_dir: Path, steps: int = 3000, seed: int = 0, densities: dict[st
         path = out_dir / f"{env_id.split('/')[-1]}.png"
         save_frame(env_id, path, seed)
         frames[env_id] = path
-    report = write_report(stats, frames, out_dir)
-    print(report.read_text())
-    return report
+    return write_report(stats, frames, out_dir)
