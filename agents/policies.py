@@ -9,7 +9,7 @@ the estimate need the wrapped observation and say so when it is missing.
 - :class:`RandomWalk`: forward at a fixed speed, turn rate a bounded random walk.
 - :class:`SpinInPlace`: turn on the spot.
 - :class:`PatrolPath`: an open-loop list of (speed, turn rate, duration) segments, looped
-  (the Exp 1 path of the candidate-set paper is :meth:`PatrolPath.exp1`).
+  (``"patrol"``: the Exp 1 path of the candidate-set paper, :meth:`PatrolPath.exp1`).
 - :class:`StopAndGo`: alternately drive (random walk) and stand still.
 - :class:`LandmarkSeeking`: head for the nearby spot from which most landmarks are in range.
 - :class:`GreedyInformationGain`: one-step look-ahead over a set of motions maximizing the
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import LandmarkMap
 from localizers.bounds import bearing_information
@@ -117,53 +117,53 @@ class SpinInPlace(FixedPolicy):
 
 
 class PatrolPath(FixedPolicy):
-    """Open-loop segments ``(speed, turn, steps)`` in action units, repeated forever.
+    """Open-loop actions ``(n, 2)`` played in order and repeated forever.
 
     Open loop is enough in simulation: the body moves exactly as commanded unless something
     pushes it, and a pushed robot should not be steered back by knowledge it does not have.
     """
 
-    def __init__(self, action_space: spaces.Box, segments: Sequence[tuple[float, float, int]], seed: int | None = None) -> None:
+    def __init__(self, action_space: spaces.Box, actions: ArrayLike, seed: int | None = None) -> None:
         super().__init__(action_space, seed)
-        if not segments:
-            raise ValueError("PatrolPath needs at least one segment")
+        a = np.asarray(actions, dtype=np.float64)
+        if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] == 0:
+            raise ValueError(f"PatrolPath needs actions of shape (n, 2) with n >= 1, got shape {a.shape}")
+        bad = np.flatnonzero(~np.all(np.abs(a) <= 1.0, axis=1))
+        if bad.size:
+            raise ValueError(f"PatrolPath action {int(bad[0])} = {a[bad[0]].tolist()} is outside [-1, 1]")
+        self.actions = a
+        self._t = 0
+
+    @classmethod
+    def from_segments(cls, action_space: spaces.Box, segments: Sequence[tuple[float, float, int]], seed: int | None = None) -> PatrolPath:
+        """Segments ``(speed, turn, steps)`` in action units."""
         for i, (v, w, n) in enumerate(segments):
             _check_command(f"PatrolPath segment {i} speed", v)
             _check_command(f"PatrolPath segment {i} turn", w)
             if int(n) != n or n < 1:
                 raise ValueError(f"PatrolPath segment {i} needs a positive whole number of steps, got {n!r}")
-        self.actions = np.concatenate([np.tile([v, w], (int(n), 1)) for v, w, n in segments])
-        self._t = 0
+        rows = [np.tile([v, w], (int(n), 1)) for v, w, n in segments]
+        return cls(action_space, np.concatenate(rows) if rows else np.zeros((0, 2)), seed)
 
     @classmethod
-    def through_waypoints(
-        cls,
-        action_space: spaces.Box,
-        waypoints: Sequence[tuple[float, float]],
-        start_heading_rad: float,
-        *,
-        speed_mps: float,
-        turn_rate_rps: float,
-        max_speed_mps: float,
-        max_turn_rate_rps: float,
-        dt_s: float,
-    ) -> PatrolPath:
-        """Straight lines between ``waypoints`` with turns in place at each one (a closed loop
-        when the last waypoint is the first). Lengths and angles are rounded to whole steps
-        by adjusting the speed of each segment, so the path is followed exactly."""
-        segments: list[tuple[float, float, int]] = []
-        heading = start_heading_rad
-        for (x0, y0), (x1, y1) in zip(waypoints[:-1], waypoints[1:]):
-            direction = math.atan2(y1 - y0, x1 - x0)
-            turn = float(wrap_angle(direction - heading))
-            if abs(turn) > 1e-9:
-                n = max(1, math.ceil(abs(turn) / (turn_rate_rps * dt_s)))
-                segments.append((0.0, turn / (n * dt_s) / max_turn_rate_rps, n))
-            length = math.hypot(x1 - x0, y1 - y0)
-            n = max(1, math.ceil(length / (speed_mps * dt_s)))
-            segments.append((length / (n * dt_s) / max_speed_mps, 0.0, n))
-            heading = direction
-        return cls(action_space, segments)
+    def exp1(cls, env: Any, speed_mps: float = 0.5, turn_rate_rps: float = 1.0) -> PatrolPath:
+        """The Exp 1 path a-b-c-d-e-f-g-h-a of the candidate-set paper
+        (:data:`agents.scenarios.EXP1_VERTICES`), driven from wherever the robot starts.
+
+        On a world smaller than the paper's 5 m x 10 m field the path is scaled down to fit
+        its shorter side (the turns stay the same).
+        """
+        from agents.scenarios import EXP1_VERTICES, command_actions, polygon_commands
+
+        base = env.unwrapped
+        vertices = np.array(list(EXP1_VERTICES.values()))
+        extent = np.ptp(vertices, axis=0)
+        scale = min(1.0, float(np.min(np.asarray(base.config.size_m) / (extent + 1.0))))
+        commands = polygon_commands(
+            [tuple(v) for v in vertices * scale], 0.0, speed_mps=speed_mps * scale, turn_rate_rps=turn_rate_rps,
+            dt_s=base.config.dt_s,
+        )
+        return cls(env.action_space, command_actions(commands, base.max_speed_mps, base.max_turn_rate_rps))
 
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
@@ -362,6 +362,8 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
     space = env.action_space
     if name not in FIXED_POLICIES:
         raise ValueError(f"unknown policy {name!r}; fixed policies: {', '.join(sorted(FIXED_POLICIES))}")
+    if name == "patrol":
+        return PatrolPath.exp1(env, **kwargs)
     if name in ("landmark_seeking", "greedy_info_gain"):
         cam = base.config.camera
         kwargs.setdefault("max_range_m", cam.max_range_m if cam is not None else math.inf)
@@ -378,6 +380,7 @@ FIXED_POLICIES: dict[str, Any] = {
     "random_walk": RandomWalk,
     "spin": SpinInPlace,
     "stop_and_go": StopAndGo,
+    "patrol": PatrolPath,
     "landmark_seeking": LandmarkSeeking,
     "greedy_info_gain": GreedyInformationGain,
 }

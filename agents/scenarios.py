@@ -128,6 +128,21 @@ def polygon_commands(
     return commands
 
 
+def command_actions(commands: Sequence[Command], max_speed_mps: float, max_turn_rate_rps: float) -> NDArray[np.float32]:
+    """``(steps, 2)`` actions in ``[-1, 1]`` that play ``commands`` on a robot with these limits.
+
+    Raises:
+        ValueError: naming a command beyond the robot's limits.
+    """
+    rows = []
+    for c in commands:
+        a = np.array([c.v_mps / max_speed_mps, c.omega_rps / max_turn_rate_rps], dtype=np.float32)
+        if not np.all(np.abs(a) <= 1.0):
+            raise ValueError(f"command {c} exceeds the robot's limits ({max_speed_mps} m/s, {max_turn_rate_rps} rad/s)")
+        rows.append(np.tile(a, (c.steps, 1)))
+    return np.concatenate(rows) if rows else np.zeros((0, 2), dtype=np.float32)
+
+
 class OpenLoopDriver:
     """Plays a list of :class:`Command` and then stops; never reads the world.
 
@@ -137,13 +152,7 @@ class OpenLoopDriver:
     """
 
     def __init__(self, commands: Sequence[Command], max_speed_mps: float, max_turn_rate_rps: float) -> None:
-        actions = []
-        for c in commands:
-            a = np.array([c.v_mps / max_speed_mps, c.omega_rps / max_turn_rate_rps], dtype=np.float32)
-            if not np.all(np.abs(a) <= 1.0):
-                raise ValueError(f"OpenLoopDriver: command {c} exceeds the robot's limits")
-            actions += [a] * c.steps
-        self._actions = actions
+        self._actions = list(command_actions(commands, max_speed_mps, max_turn_rate_rps))
         self._next = 0
 
     @property

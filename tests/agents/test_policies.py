@@ -47,26 +47,25 @@ def test_unknown_policy_and_bad_settings_name_the_value() -> None:
     with pytest.raises(ValueError, match="1.5"):
         make_policy("random_walk", env, speed=1.5)
     with pytest.raises(ValueError, match="segment 1"):
-        PatrolPath(env.action_space, [(0.5, 0.0, 10), (0.0, 0.2, 0)])
+        PatrolPath.from_segments(env.action_space, [(0.5, 0.0, 10), (0.0, 0.2, 0)])
+    with pytest.raises(ValueError, match="action 1"):
+        PatrolPath(env.action_space, [[0.5, 0.0], [1.5, 0.0]])
 
 
-def test_patrol_path_through_waypoints_closes_the_loop_exactly() -> None:
+def test_patrol_drives_the_exp1_path_through_every_vertex_and_closes_it() -> None:
+    from agents.scenarios import EXP1_VERTICES
+
     env = gym.make("crowdloc/RoboCupStatic-v0", odometry={"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0})
-    base = env.unwrapped
-    waypoints = [(2.5, 8.0), (4.0, 8.0), (4.0, 5.0), (1.0, 5.0), (1.0, 8.0), (2.5, 8.0)]
-    policy = PatrolPath.through_waypoints(
-        env.action_space, waypoints, 0.0, speed_mps=0.5, turn_rate_rps=1.0,
-        max_speed_mps=base.max_speed_mps, max_turn_rate_rps=base.max_turn_rate_rps, dt_s=base.config.dt_s,
-    )
+    policy = make_policy("patrol", env)
     obs, info = env.reset(seed=0)
     visited = []
     for _ in range(len(policy.actions)):
         obs, _, _, _, info = env.step(policy.predict(obs)[0])
-        visited.append(info["true_pose"][:2].copy())
+        visited.append(info["true_pose"].copy())
     visited = np.array(visited)
-    for wp in waypoints:
-        assert np.min(np.linalg.norm(visited - wp, axis=1)) < 1e-6, wp
-    np.testing.assert_allclose(info["true_pose"][:2], waypoints[-1], atol=1e-6)
+    for name, vertex in EXP1_VERTICES.items():
+        assert np.min(np.linalg.norm(visited[:, :2] - vertex, axis=1)) < 1e-6, name
+    np.testing.assert_allclose(info["true_pose"], [2.5, 8.0, 0.0], atol=1e-6)  # back at a, facing +x
 
 
 def test_greedy_information_gain_prefers_the_motion_that_uncovers_landmarks() -> None:
