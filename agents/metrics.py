@@ -81,7 +81,9 @@ def failure_count(errors: ArrayLike, threshold: float = 1.0) -> int:
     return int(np.count_nonzero(np.isfinite(e) & (e >= threshold)))
 
 
-def beam_breakdown(ranges_m: ArrayLike, expected_m: ArrayLike, max_range_m: float, tol_m: float = 0.1) -> tuple[int, int, int, int]:
+def beam_breakdown(
+    ranges_m: ArrayLike, expected_m: ArrayLike, max_range_m: float, tol_m: float = 0.1
+) -> tuple[int, int, int, int]:
     """Classify a scan's beams against the empty room's ranges ``expected_m``.
 
     Returns:

@@ -395,6 +395,9 @@ class BearingMCLParams:
             around resection solutions.
         initial_position_std_m, initial_heading_std_rad: spread around a prior without a
             finite covariance.
+        fix_spread_m: the estimate is valid only while the particles' position spread
+            (sqrt of the trace of their position covariance) is at most this: a set still
+            spread over the field is no fix.
     """
 
     n_particles: int = 1000
@@ -411,9 +414,11 @@ class BearingMCLParams:
     injection_heading_std_rad: float = 0.05
     initial_position_std_m: float = 0.1
     initial_heading_std_rad: float = 0.1
+    fix_spread_m: float = 0.5
 
     def __post_init__(self) -> None:
         check(self.n_particles >= 2, f"BearingMCLParams.n_particles must be >= 2, got {self.n_particles!r}")
+        check(self.fix_spread_m > 0, f"BearingMCLParams.fix_spread_m must be > 0, got {self.fix_spread_m!r}")
         _check_alphas("BearingMCLParams", self.alphas)
         _check_positive("BearingMCLParams", self, ("bearing_std_rad", "injection_position_std_m", "injection_heading_std_rad"))
         _check_positive(
@@ -550,8 +555,11 @@ class BearingMCL(_ParticleLocalizer):
 
     @property
     def estimate(self) -> PoseEstimate:
-        """Weighted mean and covariance; invalid before reset, or without a prior until a bearing arrives."""
+        """Weighted mean and covariance; invalid before reset, without a prior until a bearing
+        arrives, and while the position spread exceeds ``fix_spread_m``."""
         if self._rng is None or not self._valid:
             return PoseEstimate.invalid()
         mean, cov = self._mean_cov()
+        if math.sqrt(cov[0, 0] + cov[1, 1]) > self._params.fix_spread_m:
+            return PoseEstimate.invalid()
         return PoseEstimate(float(mean[0]), float(mean[1]), float(mean[2]), cov.copy(), True)

@@ -26,6 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from agents import metrics
+
 Array = NDArray[np.float64]
 
 # ------------------------------------------------------------------------------------ paper
@@ -237,7 +239,6 @@ def bound_along(recording: Any, fed: NDArray[np.bool_], known_start: bool) -> Ar
 
 def run_job(job: Job) -> JobResult:
     """Record the job's rollout once and replay it into each of its methods."""
-    from agents import metrics
     from agents.replay import record, replay
     from localizers.registry import spec
 
@@ -297,6 +298,7 @@ class Plan:
 
 
 def make_plan(args: argparse.Namespace) -> Plan:
+    """The run's size from the command line (``--quick``: a smoke run of a few seconds per study)."""
     if args.quick:
         return Plan(min(args.seeds, 2), 1, 1, 12.0, 8.0, (0, 6), (0.0, 0.05), quick=True)
     return Plan(args.seeds, args.sweep_seeds, args.push_seeds, EXP2_SECONDS, SWEEP_SECONDS, DENSITIES, FALSE_RATES)
@@ -388,8 +390,6 @@ def study_rows(results: Sequence[JobResult], methods: Sequence[Method], referenc
 
     ``reference[key]`` names the method whose first fix starts the statistics of ``key``.
     """
-    from agents import metrics
-
     rows = []
     for m in methods:
         per: dict[str, list[float]] = {k: [] for k in ("pm", "ps", "hm", "hs", "ffd", "fft", "av", "fail", "bnd", "ratio")}
@@ -425,8 +425,6 @@ def study_rows(results: Sequence[JobResult], methods: Sequence[Method], referenc
 def per_seed(results: Sequence[JobResult], methods: Sequence[Method], reference: Mapping[str, str]) -> dict[str, list[dict[str, Any]]]:
     """Per method, one record per seed: mean position / heading error from the reference first fix,
     first-fix distance and availability (for results.json)."""
-    from agents import metrics
-
     out: dict[str, list[dict[str, Any]]] = {}
     for m in methods:
         rows = []
@@ -454,8 +452,6 @@ def _nanmedian(values: Sequence[float]) -> float:
 def sweep_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> dict[str, dict[float, dict[str, Any]]]:
     """Per method and swept value: seed mean and sd of the mean error (mm) and the availability,
     both over the window ``t >= SWEEP_WARMUP_S``."""
-    from agents import metrics
-
     out: dict[str, dict[float, dict[str, Any]]] = {m.key: {} for m in methods}
     points = sorted({r.job.point for r in results})
     for m in methods:
@@ -475,8 +471,6 @@ def sweep_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> dict
 
 def push_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> tuple[Array, dict[str, Any]]:
     """Error curves aligned at the push (median, quartiles over seeds) and recovery times."""
-    from agents import metrics
-
     lo, hi = PUSH_WINDOW_S
     dt = results[0].dt_s
     t_rel = np.arange(round(lo / dt), round(hi / dt) + 1) * dt
@@ -708,8 +702,6 @@ def write_report(
     workers: int,
 ) -> Path:
     """Assemble report.md (tables, discussion, figures) and results.json; return the report path."""
-    from agents import metrics
-
     by = {s: [r for r in results if r.job.study == s] for s in ("exp1", "exp2", "density", "false", "push")}
     lines = ["# Candidate-set paper (Motomura et al.): Exp 1-3 re-run", ""]
     lines += [
@@ -948,8 +940,6 @@ def make_figures(out: Path, results: Sequence[JobResult]) -> dict[str, Path]:
 
     out.mkdir(parents=True, exist_ok=True)
     figs: dict[str, Path] = {}
-    from agents import metrics
-
     for study, methods, title, name in (
         ("exp1", EXP1_METHODS[:EXP1_FIGURE], "Exp 1 (seed 0): true path (black) and estimates (red), first fix of each method (star)", "exp1"),
         ("exp2", EXP2_METHODS[:6], "Exp 2 (seed 0): true path (black) and estimates (red)", "exp2"),
@@ -995,7 +985,7 @@ def make_figures(out: Path, results: Sequence[JobResult]) -> dict[str, Path]:
             {m.label: ps[m.key]["curve"] for m in SWEEP_METHODS},
             RECOVER_M,
             PUSH_SECONDS,
-            title=f"Position error around a shove (median and quartiles over {len(runs)} seeds; no pose = 10 m)",
+            title=f"Position error around a shove (median and quartiles over the {len(runs)} seeds with a pose at that time)",
         )
     return figs
 

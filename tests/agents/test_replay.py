@@ -11,8 +11,8 @@ import pytest
 
 import envs  # noqa: F401
 from agents import metrics
-from agents.replay import Recording, measurements, odometry_deltas, record, replay, replay_into
-from agents.scenarios import SoccerDriver, exp1_driver
+from agents.replay import Recording, measurements, odometry_deltas, record, replay, replay_into, scans
+from agents.scenarios import SoccerDriver, exp1_driver, square_driver
 from localizers.base import BearingMeasurement, OdometryDelta, Overlay, PoseEstimate
 from localizers.registry import LOCALIZERS
 from localizers.wrappers import _SEED_SALT, bearing_measurement
@@ -155,3 +155,49 @@ def test_noise_free_exp1_candidate_sets_fix_within_5_cm() -> None:
     assert ff is not None and metrics.travelled(rec.true_pose)[ff] < 2.0
     err = metrics.position_errors(out.estimates, rec.true_pose)
     assert metrics.mean_sd(err, ff)[0] < 0.05
+
+
+SCAN_LOCALIZERS = sorted(name for name, s in LOCALIZERS.items() if s.measurement == "scan")
+ROOM_START = [2.5, 2.5, 0.0]
+
+
+def room_driver(env: Any) -> Any:
+    return square_driver(env, center_xy=(3.5, 3.5), side_m=2.0, laps=1, speed_mps=0.5, turn_rate_rps=1.0)
+
+
+@pytest.fixture(scope="module")
+def room() -> Recording:
+    return record("crowdloc/CrowdedRoom-v0", room_driver, seed=6, max_steps=400, reset_options={"robot_pose": ROOM_START})
+
+
+@pytest.mark.parametrize("name", SCAN_LOCALIZERS)
+def test_scan_replay_equals_the_online_wrapper(room: Recording, name: str) -> None:
+    env = gym.make("crowdloc/CrowdedRoom-v0", localizer=name)
+    _, info = env.reset(seed=6, options={"robot_pose": ROOM_START})
+    driver = room_driver(env.unwrapped)
+    driver.reset(env.unwrapped)
+    online = [info["estimate"].as_array()]
+    for _ in range(room.steps - 1):
+        _, _, _, _, info = env.step(driver.act(env.unwrapped))
+        online.append(info["estimate"].as_array())
+    env.close()
+    replayed = replay(room, name, rng_seed=[6, _SEED_SALT])
+    np.testing.assert_array_equal(replayed.estimates, np.array(online))
+    assert replayed.updated is not None and 3 <= replayed.updated.sum() < room.steps
+    assert replayed.fed.shape == (room.steps, 0)
+    # reading only at the updates changes nothing where both read
+    sparse = replay(room, name, rng_seed=[6, _SEED_SALT], read="updates")
+    np.testing.assert_array_equal(sparse.estimates[sparse.updated], replayed.estimates[replayed.updated])
+    assert np.isnan(sparse.estimates[~sparse.updated]).all()
+
+
+def test_scans_are_the_lidar_leaves(room: Recording) -> None:
+    assert room.lidar is not None and room.lidar_angles_rad is not None and room.landmarks.shape == (room.steps, 0)
+    fed = scans(room)
+    assert len(fed) == room.steps and fed[5].max_range_m == room.lidar_max_range_m == 30.0
+    np.testing.assert_array_equal(fed[5].ranges_m, room.lidar[5].astype(np.float64))
+    np.testing.assert_array_equal(fed[5].angles_rad, room.lidar_angles_rad)
+    with pytest.raises(ValueError, match="no LIDAR"):
+        scans(exp1(max_steps=3))
+    with pytest.raises(ValueError, match="updates counter"):
+        replay(exp1(max_steps=3), "candidate_sets", rng_seed=0, read="updates")
