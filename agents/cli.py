@@ -11,17 +11,9 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from agents.util import positive_int
+
 DEFAULT_RESULTS = Path("results")
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
-    return value
 
 
 def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
@@ -38,13 +30,13 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         description="Drive every registered world at several crowd densities with a random-walk policy; "
         "report steps per second and landmark / wall visibility, and save one frame per world.",
     )
-    demo.add_argument("--steps", type=_positive_int, default=3000, help="steps per (world, density) run (default 3000)")
+    demo.add_argument("--steps", type=positive_int, default=3000, help="steps per (world, density) run (default 3000)")
     demo.add_argument("--seed", type=int, default=0, help="seed of the env and the policy (default 0)")
     demo.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "demo", help="output folder (default results/demo)")
     demo.add_argument("--active-seeds", type=int, default=10,
                       help="held-out seeds per cell of the active-localization part (default 10; 0 skips it)")
     demo.add_argument("--model", type=Path, default=None, help="the PPO model to evaluate (default: the shipped one)")
-    demo.add_argument("--workers", type=_positive_int, default=None, help="worker processes (default: the core count)")
+    demo.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: the core count)")
 
     sub.add_parser("worlds", help="list the registered env ids and their worlds")
 
@@ -55,9 +47,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         "active-localization reward. Writes checkpoints, TensorBoard logs and run.json under --out.",
     )
     train.add_argument("config", help="experiment YAML path or name under configs/experiments/")
-    train.add_argument("--total-timesteps", type=_positive_int, help="override total_timesteps")
+    train.add_argument("--total-timesteps", type=positive_int, help="override total_timesteps")
     train.add_argument("--seed", type=int, help="override the run seed")
-    train.add_argument("--n-envs", type=_positive_int, help="override the number of parallel envs")
+    train.add_argument("--n-envs", type=positive_int, help="override the number of parallel envs")
     train.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                        help="override any config field, e.g. --set ppo.learning_rate=1e-3 (repeatable)")
     train.add_argument("--resume", metavar="CHECKPOINT", help="a checkpoint .zip to resume from, or 'latest'")
@@ -75,10 +67,10 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     ev.add_argument("--localizers", nargs="+", metavar="NAME", help="registered localizers (default: candidate_sets)")
     ev.add_argument("--crowd-sizes", "--densities", dest="crowd_sizes", nargs="+", type=int, metavar="N",
                     help="crowd sizes (default: 2 6 10)")
-    ev.add_argument("--seeds", type=_positive_int, default=10, help="held-out seeds per cell (default 10)")
-    ev.add_argument("--episode-steps", type=_positive_int, default=450, help="steps per episode (default 450 = 15 s)")
+    ev.add_argument("--seeds", type=positive_int, default=10, help="held-out seeds per cell (default 10)")
+    ev.add_argument("--episode-steps", type=positive_int, default=450, help="steps per episode (default 450 = 15 s)")
     ev.add_argument("--env-id", default="crowdloc/RoboCupCrowded-v0", help="a bearing env id (default: RoboCupCrowded-v0)")
-    ev.add_argument("--workers", type=_positive_int, help="local worker processes (default: the core count)")
+    ev.add_argument("--workers", type=positive_int, help="local worker processes (default: the core count)")
     ev.add_argument("--ray-address", help="run the episodes on this Ray cluster (e.g. auto)")
     ev.add_argument("--gif-cell", metavar="POLICY,LOCALIZER,CROWD", help="the episode to animate (default: the first)")
     ev.add_argument("--no-gif", action="store_true", help="write no GIF")

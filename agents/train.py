@@ -33,6 +33,7 @@ import torch
 
 import envs  # noqa: F401  (registers the ids)
 from agents.rewards import ActiveLocalizationReward, RewardWeights
+from agents.util import jsonable
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, parse_yaml, replace_checked
 
 EXPERIMENT_DIR = Path(__file__).resolve().parent.parent / "configs" / "experiments"
@@ -202,8 +203,18 @@ def run_dir(config: TrainConfig, out: Path) -> Path:
     return out / config.name / f"seed_{config.seed}"
 
 
-def train(config: TrainConfig, out: Path, resume: Path | None = None, progress_bar: bool = True, verbose: int = 0) -> Path:
-    """Train (or resume) and return the path of the final ``model.zip``."""
+def train(
+    config: TrainConfig,
+    out: Path,
+    resume: Path | None = None,
+    progress_bar: bool = True,
+    verbose: int = 0,
+    extra_callbacks: Sequence[Any] = (),
+) -> Path:
+    """Train (or resume) and return the path of the final ``model.zip``.
+
+    ``extra_callbacks`` are stable-baselines3 callbacks run beside the checkpointing (timing, logging).
+    """
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.utils import set_random_seed
@@ -269,7 +280,7 @@ def train(config: TrainConfig, out: Path, resume: Path | None = None, progress_b
     if remaining > 0:
         model.learn(
             total_timesteps=remaining,
-            callback=Checkpoints(),
+            callback=[Checkpoints(), *extra_callbacks],
             reset_num_timesteps=resume is None,
             progress_bar=progress_bar,
             tb_log_name="ppo",
@@ -308,7 +319,7 @@ def _write_run_json(config: TrainConfig, directory: Path) -> None:
     import stable_baselines3
 
     record = {
-        "config": _jsonable(asdict(config)),
+        "config": jsonable(asdict(config)),
         "seed": config.seed,
         "command": sys.argv,
         "versions": {
@@ -320,11 +331,3 @@ def _write_run_json(config: TrainConfig, directory: Path) -> None:
         },
     }
     (directory / "run.json").write_text(json.dumps(record, indent=2) + "\n")
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    return value

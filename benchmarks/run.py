@@ -9,13 +9,14 @@ import platform
 import sys
 from pathlib import Path
 
-from benchmarks import bench_envs, bench_lidar, bench_localizers
+from benchmarks import bench_envs, bench_lidar, bench_localizers, bench_train
 from benchmarks.common import Result
 
 SUITES = {
     "envs": bench_envs.run_all,
     "localizers": bench_localizers.run_all,
     "lidar": bench_lidar.run_all,
+    "training": bench_train.run_all,
 }
 
 HEADER = """# Benchmarks

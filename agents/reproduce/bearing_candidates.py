@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from agents import metrics
+from agents.util import jsonable, positive_int
 
 Array = NDArray[np.float64]
 
@@ -907,27 +908,10 @@ def write_report(
         "",
     ]
     out.mkdir(parents=True, exist_ok=True)
-    (out / "results.json").write_text(json.dumps(_jsonable(summary), indent=1, allow_nan=False))
+    (out / "results.json").write_text(json.dumps(jsonable(summary), indent=1, allow_nan=False))
     report = out / "report.md"
     report.write_text("\n".join(lines) + "\n")
     return report
-
-
-def _jsonable(o: Any) -> Any:
-    """Plain JSON values: arrays to lists, non-finite floats to None."""
-    if isinstance(o, dict):
-        return {str(k): _jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return _jsonable(o.tolist())
-    if isinstance(o, (np.floating, float)):
-        return float(o) if math.isfinite(o) else None
-    if isinstance(o, (np.integer, np.bool_)):
-        return o.item()
-    if isinstance(o, (int, bool, str)) or o is None:
-        return o
-    return str(o)
 
 
 # ------------------------------------------------------------------------------------ figures
@@ -993,23 +977,13 @@ def make_figures(out: Path, results: Sequence[JobResult]) -> dict[str, Path]:
 # ------------------------------------------------------------------------------------ CLI
 
 
-def _positive(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
-    return v
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The experiment's own options."""
-    parser.add_argument("--seeds", type=_positive, default=20, help="seeds of Exp 1 and Exp 2/3 (default 20)")
-    parser.add_argument("--sweep-seeds", type=_positive, default=5, help="seeds per point of the density and false-detection sweeps (default 5)")
-    parser.add_argument("--push-seeds", type=_positive, default=10, help="seeds of the shove-recovery study (default 10)")
+    parser.add_argument("--seeds", type=positive_int, default=20, help="seeds of Exp 1 and Exp 2/3 (default 20)")
+    parser.add_argument("--sweep-seeds", type=positive_int, default=5, help="seeds per point of the density and false-detection sweeps (default 5)")
+    parser.add_argument("--push-seeds", type=positive_int, default=10, help="seeds of the shove-recovery study (default 10)")
     parser.add_argument("--quick", action="store_true", help="tiny smoke run: 2 seeds, short episodes, 2 sweep points")
-    parser.add_argument("--workers", type=_positive, default=min(2, os.cpu_count() or 1),
+    parser.add_argument("--workers", type=positive_int, default=min(2, os.cpu_count() or 1),
                         help="worker processes over seeds (default min(2, cpu count))")  # fmt: skip
 
 
