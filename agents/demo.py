@@ -240,8 +240,26 @@ def run_active(out_dir: Path, seeds: int, model: Path | None, workers: int | Non
     elif seeds < MIN_VERDICT_SEEDS:
         lines.append(f"With {seeds} seed(s) per cell the intervals mean nothing: no verdict (use >= {MIN_VERDICT_SEEDS}).")
     else:
-        lines += ["### Trained policy against the best fixed policy", "", *verdict(result, ppo)]
+        lines += ["### Trained policy against the best fixed policy", "", *verdict(result, ppo), "", *caveats(result)]
     return "\n".join(lines) + "\n"
+
+
+def caveats(result: EvalResult) -> list[str]:
+    """Plain-language reasons a verdict cannot be reached, read off the results."""
+    notes = []
+    for localizer in ACTIVE_LOCALIZERS:
+        fixes = {r.stats["first_fix_s"].mean for r in result.summary if r.localizer == localizer}
+        if len(fixes) == 1:
+            notes.append(
+                f"- With `{localizer}` every policy has its first fix at {fixes.pop():.2f} s: with three or more "
+                "landmarks in view at the start the localizer fixes on the first frame whatever the robot does, "
+                "so time to first fix cannot separate policies in this setting."
+            )
+    notes.append(
+        "- Mean error: intervals come from the held-out seeds of each cell; a lower mean whose interval "
+        "overlaps the best fixed policy's is reported as no significant difference."
+    )
+    return notes
 
 
 def verdict(result: EvalResult, ppo: str) -> list[str]:
