@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -15,6 +16,16 @@ from numpy.typing import NDArray  # noqa: E402
 
 Array = NDArray[np.float64]
 
+
+
+def save_figure(fig: Any, path: Path, title: str | None = None) -> Path:
+    """Give ``fig`` its title, lay it out, write it to ``path`` and close it; returns ``path``."""
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 def trajectory_panels(
     path: Path,
@@ -74,12 +85,7 @@ def trajectory_panels(
         ax.set_title(label, fontsize=9)
         ax.tick_params(labelsize=7)
     axes[0, 0].legend(fontsize=7, loc="lower left")
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 
 def sweep_figure(
@@ -119,12 +125,7 @@ def sweep_figure(
     ax1.grid(alpha=0.3)
     ax2.grid(alpha=0.3)
     ax1.legend(fontsize=7)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 
 def recovery_figure(
@@ -166,12 +167,7 @@ def recovery_figure(
         ax.grid(alpha=0.3)
     for ax in axes[:, 0]:
         ax.set_ylabel("position error [m]", fontsize=8)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 
 def errorbar_sweep(
@@ -211,10 +207,7 @@ def errorbar_sweep(
     ax.legend(fontsize=8)
     if title:
         ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def scan_snapshot(
@@ -257,9 +250,4 @@ def scan_snapshot(
         ax.set_aspect("equal")
         ax.set_title(f"{name} ({pts.shape[0]} points)", fontsize=9)
         ax.tick_params(labelsize=7)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)

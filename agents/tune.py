@@ -756,6 +756,8 @@ def plot_importances(path: Path, importances: Mapping[str, float], title: str) -
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from agents.plots import save_figure
+
     names = list(importances)[::-1]
     fig, ax = plt.subplots(figsize=(6.0, 0.5 * max(len(names), 2) + 1.2))
     ax.barh(names, [importances[n] for n in names], color="tab:blue")
@@ -766,10 +768,7 @@ def plot_importances(path: Path, importances: Mapping[str, float], title: str) -
     ax.set_xlabel("importance (PED-ANOVA, normalized)")
     ax.set_xlim(0.0, 1.15)
     ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_history(path: Path, study: optuna.Study, title: str) -> Path:
@@ -778,6 +777,8 @@ def plot_history(path: Path, study: optuna.Study, title: str) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from agents.plots import save_figure
 
     State = optuna.trial.TrialState
     fig, ax = plt.subplots(figsize=(7.0, 3.8))
@@ -802,10 +803,7 @@ def plot_history(path: Path, study: optuna.Study, title: str) -> Path:
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def _spread(values: Sequence[float]) -> dict[str, float]:
