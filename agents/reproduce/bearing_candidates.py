@@ -18,7 +18,6 @@ import os
 import time
 import warnings
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from agents import metrics
+from agents.sweep import run_tasks
 from agents.util import jsonable, positive_int
 
 Array = NDArray[np.float64]
@@ -333,27 +333,8 @@ def make_jobs(plan: Plan) -> list[Job]:
 
 
 def run_jobs(jobs: Sequence[Job], workers: int) -> list[JobResult]:
-    """Run the jobs, in a process pool when ``workers > 1``, with a progress bar."""
-    from tqdm import tqdm
-
-    results: list[JobResult] = []
-    bar = tqdm(total=len(jobs), desc="bearing-candidates runs (seeds x points)", unit="run")
-    if workers <= 1:
-        for job in jobs:
-            results.append(run_job(job))
-            bar.set_postfix_str(f"{job.study} seed {job.seed}")
-            bar.update()
-    else:
-        import multiprocessing
-
-        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = [pool.submit(run_job, job) for job in jobs]
-            for fut in as_completed(futures):
-                res = fut.result()
-                results.append(res)
-                bar.set_postfix_str(f"{res.job.study} seed {res.job.seed}")
-                bar.update()
-    bar.close()
+    """Run the jobs (:func:`agents.sweep.run_tasks`: a process pool when ``workers > 1``), sorted by study, point, seed."""
+    results = run_tasks(run_job, list(jobs), workers=workers, desc="bearing-candidates runs (seeds x points)")
     return sorted(results, key=lambda r: (r.job.study, r.job.point, r.job.seed))
 
 
