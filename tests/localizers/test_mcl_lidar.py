@@ -21,7 +21,6 @@ import envs  # noqa: F401  (registers the env ids)
 from localizers.base import LandmarkMap, Localizer, MeasurementError, OdometryDelta, PoseEstimate, ScanMeasurement
 from localizers.geometry import between, wrap_angle
 from localizers.mcl_lidar import (
-    CACHE_ENV,
     BeamModel,
     LidarMCL,
     LidarMCLParams,
@@ -51,16 +50,6 @@ BEAMS = np.linspace(-0.75 * math.pi, 0.75 * math.pi, 1081)  # UTM-30LX: 270 deg,
 MAX_RANGE = 30.0
 ODOMETRY_ALPHAS = np.array([0.01, 0.005, 0.005, 0.005])  # configs/worlds/crowded_room.yaml
 
-
-@pytest.fixture(scope="session")
-def cache_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """One table cache for the session: each table is built once."""
-    return tmp_path_factory.mktemp("crowdloc_cache")
-
-
-@pytest.fixture(autouse=True)
-def _cache_env(monkeypatch: pytest.MonkeyPatch, cache_root: Path) -> None:
-    monkeypatch.setenv(CACHE_ENV, str(cache_root))
 
 
 def room(walls: np.ndarray = ROOM) -> LandmarkMap:

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from localizers.base import LandmarkMap, Localizer, MeasurementError, OdometryDelta, PoseEstimate, ScanMeasurement
 from localizers.geometry import between, compose, wrap_angle
-from localizers.mcl_lidar import CACHE_ENV, LidarMCLParams
+from localizers.mcl_lidar import LidarMCLParams
 from localizers.motion import sample_odometry
 from localizers.raycast import cast_rays
 from localizers.registry import load_params, make_localizer
@@ -26,15 +26,6 @@ ROOM = np.array([[0, 0, 7, 0], [7, 0, 7, 7], [7, 7, 0, 7], [0, 7, 0, 0]], dtype=
 BEAMS = np.linspace(-0.75 * math.pi, 0.75 * math.pi, 1081)
 MAX_RANGE = 30.0
 
-
-@pytest.fixture(scope="session")
-def cache_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tmp_path_factory.mktemp("crowdloc_cache")
-
-
-@pytest.fixture(autouse=True)
-def _cache_env(monkeypatch: pytest.MonkeyPatch, cache_root: Path) -> None:
-    monkeypatch.setenv(CACHE_ENV, str(cache_root))
 
 
 def ranges_from(pose: np.ndarray, centres: np.ndarray | None = None, radii: np.ndarray | None = None) -> np.ndarray:
