@@ -48,7 +48,12 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     )
     train.add_argument("config", help="experiment YAML path or name under configs/experiments/")
     train.add_argument("--total-timesteps", type=positive_int, help="override total_timesteps")
-    train.add_argument("--seed", type=int, help="override the run seed")
+    seeds = train.add_mutually_exclusive_group()
+    seeds.add_argument("--seed", type=int, help="override the run seed")
+    seeds.add_argument("--seeds", type=int, nargs="+", metavar="SEED",
+                       help="train one run per seed, side by side (a local process pool, or Ray with --ray-address)")
+    train.add_argument("--workers", type=positive_int, help="with --seeds: runs at a time (default: the core count)")
+    train.add_argument("--ray-address", help="with --seeds: run the training runs on this Ray cluster (e.g. auto)")
     train.add_argument("--n-envs", type=positive_int, help="override the number of parallel envs")
     train.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                        help="override any config field, e.g. --set ppo.learning_rate=1e-3 (repeatable)")
@@ -69,7 +74,12 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                     help="crowd sizes (default: 2 6 10)")
     ev.add_argument("--seeds", type=positive_int, default=10, help="held-out seeds per cell (default 10)")
     ev.add_argument("--episode-steps", type=positive_int, default=450, help="steps per episode (default 450 = 15 s)")
-    ev.add_argument("--env-id", default="crowdloc/RoboCupCrowded-v0", help="a bearing env id (default: RoboCupCrowded-v0)")
+    ev.add_argument("--env-id", help="a bearing env id (default: RoboCupCrowded-v0, or the --conditions one)")
+    ev.add_argument("--conditions", metavar="EXPERIMENT",
+                    help="evaluate in a training config's conditions: its env id, env_kwargs (camera, prior, ...) "
+                    "and reward (a path or a name under configs/experiments/)")
+    ev.add_argument("--env-set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a condition on top, e.g. --env-set camera.fov_rad=1.5708 or --env-set prior=none (repeatable)")
     ev.add_argument("--workers", type=positive_int, help="local worker processes (default: the core count)")
     ev.add_argument("--ray-address", help="run the episodes on this Ray cluster (e.g. auto)")
     ev.add_argument("--gif-cell", metavar="POLICY,LOCALIZER,CROWD", help="the episode to animate (default: the first)")
@@ -124,6 +134,10 @@ def main(argv: list[str] | None = None) -> int:
         from agents.train import latest_checkpoint, load_train_config, parse_overrides, train
         from localizers.schema import ConfigError
 
+        if args.seeds and args.resume:
+            parser.error("--resume continues one run; give --seed, not --seeds")
+        if (args.workers or args.ray_address) and not args.seeds:
+            parser.error("--workers and --ray-address spread several runs: give --seeds")
         try:
             overrides = parse_overrides(args.overrides)
             for key, value in (("total_timesteps", args.total_timesteps), ("seed", args.seed), ("n_envs", args.n_envs)):
@@ -139,6 +153,16 @@ def main(argv: list[str] | None = None) -> int:
                 resume = Path(args.resume)
         except ConfigError as exc:
             parser.error(str(exc))
+        if args.seeds:
+            from agents.train import train_seeds
+
+            try:
+                models = train_seeds(config, args.out, args.seeds, workers=args.workers, ray_address=args.ray_address,
+                                     progress=not args.no_progress)  # fmt: skip
+            except ConfigError as exc:
+                parser.error(str(exc))
+            print("\n".join(f"wrote {m}" for m in models))
+            return 0
         model = train(config, args.out, resume=resume, progress_bar=not args.no_progress)
         print(f"wrote {model}")
         return 0

@@ -108,6 +108,9 @@ class EvalSpec:
         seeds: number of held-out seeds per cell (``EVAL_SEED_BASE + 0 .. seeds - 1``).
         episode_steps: steps per episode (450 = 15 s, the training episode length).
         env_id: a registered crowdloc id whose world has a bearing camera.
+        env_kwargs: the conditions: world section overrides for ``gym.make`` (e.g.
+            ``{"camera": {"fov_rad": 1.5708}}``) and ``prior`` (``"start"``: localizers get the
+            true start pose; ``"none"``: they start lost; default: each localizer's own).
         reward: the reward weights reported as the episode return.
         bootstrap_resamples: bootstrap resamples per confidence interval.
         bootstrap_seed: seeds the bootstrap's generator.
@@ -123,12 +126,14 @@ class EvalSpec:
     seeds: int = 10
     episode_steps: int = 450
     env_id: str = "crowdloc/RoboCupCrowded-v0"
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
     reward: RewardWeights = field(default_factory=RewardWeights)
     bootstrap_resamples: int = 2000
     bootstrap_seed: int = 0
 
     def __post_init__(self) -> None:
         from envs import ENV_WORLDS, load_world
+        from envs.localization_env import apply_overrides
         from localizers.registry import spec as localizer_spec
 
         for name in ("policies", "localizers", "crowd_sizes"):  # lists from Python callers become tuples
@@ -145,7 +150,12 @@ class EvalSpec:
             check_policy(policy)
         if self.env_id not in ENV_WORLDS:
             raise ConfigError(f"unknown env id {self.env_id!r}; known: {', '.join(ENV_WORLDS)}")
-        world = load_world(ENV_WORLDS[self.env_id])
+        conditions = dict(self.env_kwargs)
+        prior = conditions.pop("prior", None)
+        check(prior in (None, "start", "none"), f"env_kwargs prior must be 'start' or 'none', got {prior!r}")
+        for key in ("crowd_size", "max_episode_steps", "localizer", "localizer_params", "render_mode"):
+            check(key not in conditions, f"env_kwargs may not set {key!r}: the evaluation grid sets it")
+        world = apply_overrides(load_world(ENV_WORLDS[self.env_id]), **conditions)
         check(world.camera is not None, f"eval needs a bearing env (a world with a camera); {self.env_id} has none")
         for name in self.localizers:
             entry = localizer_spec(name)
@@ -160,6 +170,13 @@ class EvalSpec:
     def eval_seeds(self) -> tuple[int, ...]:
         """The held-out env seeds, ``EVAL_SEED_BASE + i``."""
         return tuple(EVAL_SEED_BASE + i for i in range(self.seeds))
+
+    def known_start(self, localizer: str) -> bool:
+        """Whether ``localizer`` gets the true start pose under these conditions."""
+        from localizers.registry import spec as localizer_spec
+
+        prior = self.env_kwargs.get("prior")
+        return localizer_spec(localizer).needs_prior if prior is None else prior == "start"
 
     def cells(self) -> list[Cell]:
         """Every (policy, localizer, crowd size, seed), grouped by the first three."""
@@ -267,6 +284,7 @@ def _make_env(spec: EvalSpec, cell: Cell, render_mode: str | None = None) -> gym
         localizer=cell.localizer,
         max_episode_steps=spec.episode_steps,
         render_mode=render_mode,
+        **dict(spec.env_kwargs),
     )
     return ActiveLocalizationReward(env, spec.reward)
 
@@ -336,8 +354,6 @@ def _rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> tuple[dict[str
 
 def run_episode(spec: EvalSpec, cell: Cell) -> Episode:
     """Play one cell of the grid and compute its bound and metrics."""
-    from localizers.registry import spec as localizer_spec
-
     data, _ = _rollout(spec, cell)
     lmap = data.pop("landmark_map")
     del data["dt_s"]
@@ -348,7 +364,7 @@ def run_episode(spec: EvalSpec, cell: Cell) -> Episode:
         lmap.positions_xy_m,
         data.pop("bearing_std_rad"),
         data.pop("alphas"),
-        known_start=localizer_spec(cell.localizer).needs_prior,
+        known_start=spec.known_start(cell.localizer),
         bounds_m=lmap.bounds_m,
     )
     values = episode_metrics(data["time_s"], data["true_pose"], data["estimates"], data["valid"],
@@ -717,9 +733,19 @@ def run_cli(args: Any) -> EvalResult:
     Raises:
         ConfigError: for a bad option value, before any episode runs.
     """
+    from agents.train import load_train_config, parse_overrides
+    from agents.util import merge_nested, nest
+
     given = {"policies": args.policies, "localizers": args.localizers, "crowd_sizes": args.crowd_sizes}
-    spec = EvalSpec(**{k: v for k, v in given.items() if v is not None}, seeds=args.seeds,
-                    episode_steps=args.episode_steps, env_id=args.env_id)  # fmt: skip
+    conditions: dict[str, Any] = {"env_id": args.env_id}
+    if args.conditions:
+        trained = load_train_config(args.conditions)
+        check(args.env_id in (None, trained.env_id),
+              f"--env-id {args.env_id} differs from the env of --conditions {args.conditions} ({trained.env_id})")  # fmt: skip
+        conditions = {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward}
+    conditions["env_kwargs"] = merge_nested(conditions.get("env_kwargs", {}), nest(parse_overrides(args.env_set)))
+    spec = EvalSpec(**{k: v for k, v in {**given, **conditions}.items() if v is not None}, seeds=args.seeds,
+                    episode_steps=args.episode_steps)  # fmt: skip
     gif_cell = parse_gif_cell(args.gif_cell, spec) if args.gif_cell else None
     result = evaluate(spec, workers=args.workers, ray_address=args.ray_address, progress=not args.no_progress)
     written = write_outputs(result, args.out, gif_cell=gif_cell, gif=not args.no_gif)

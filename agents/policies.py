@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import LandmarkMap
 from localizers.bounds import bearing_information
-from localizers.geometry import wrap_angle
+from localizers.geometry import in_field_of_view, wrap_angle
 from localizers.wrappers import decode_estimate
 
 Observation = dict[str, NDArray[np.float32]]
@@ -208,7 +208,9 @@ class _MapPolicy(FixedPolicy):
         seed: int | None = None,
         *,
         max_range_m: float = math.inf,
+        fov_rad: float = 2 * math.pi,
         speed: float = 0.6,
+        search_turn: float = 1.0,
         occluder_halfwidth_rad: float = 0.15,
     ) -> None:
         super().__init__(action_space, seed)
@@ -216,10 +218,13 @@ class _MapPolicy(FixedPolicy):
         if landmarks.count == 0:
             raise ValueError(f"{type(self).__name__} needs a map with landmarks")
         self.landmarks = landmarks
+        if not 0 < fov_rad <= 2 * math.pi:
+            raise ValueError(f"{type(self).__name__} fov_rad must be in (0, 2 pi], got {fov_rad}")
         self.max_range_m = max_range_m
+        self.fov_rad = fov_rad
         self.speed = speed
         self.occluder_halfwidth_rad = occluder_halfwidth_rad
-        self.search = SpinInPlace(action_space, seed)
+        self.search = SpinInPlace(action_space, seed, turn=search_turn)
 
     def _estimate(self, observation: Observation) -> NDArray[np.float64] | None:
         if "estimate" not in observation:
@@ -231,19 +236,32 @@ class _MapPolicy(FixedPolicy):
             return None
         return decode_estimate(observation["estimate"], self.landmarks.bounds_m)
 
-    def expected_visible(self, pose: NDArray[np.float64], spots: NDArray[np.float64], seen_now: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    def expected_visible(
+        self,
+        pose: NDArray[np.float64],
+        spots: NDArray[np.float64],
+        seen_now: NDArray[np.bool_],
+        headings: NDArray[np.float64] | None = None,
+    ) -> NDArray[np.bool_]:
         """``(C, L)``: landmarks expected in view from positions ``spots`` ``(C, 2)``.
 
-        In camera range, and either seen now or seen from a direction that has turned by more
-        than ``occluder_halfwidth_rad`` from the current one (whatever hides it now no longer
-        covers it).
+        In camera range, inside the camera's field of view around ``headings`` ``(C,)`` (a
+        narrow camera needs them), and either seen now or seen from a direction that has
+        turned by more than ``occluder_halfwidth_rad`` from the current one (whatever hides
+        it now no longer covers it). A landmark outside the field of view now is not known
+        to be hidden, so it counts as seen now.
         """
         lm = self.landmarks.positions_xy_m
         offsets = lm[None, :, :] - spots[:, None, :]
         in_range = np.linalg.norm(offsets, axis=-1) <= self.max_range_m
         now_dir = np.arctan2(lm[:, 1] - pose[1], lm[:, 0] - pose[0])
         turned = np.abs(wrap_angle(np.arctan2(offsets[..., 1], offsets[..., 0]) - now_dir)) > self.occluder_halfwidth_rad
-        return in_range & (seen_now | turned)
+        if self.fov_rad >= 2 * math.pi:
+            return in_range & (seen_now | turned)
+        if headings is None:
+            raise ValueError(f"{type(self).__name__}.expected_visible needs headings for a camera narrower than a full turn")
+        unseen_ok = seen_now | ~in_field_of_view(pose[:2], pose[2], lm, self.fov_rad)
+        return in_range & (unseen_ok | turned) & in_field_of_view(spots[:, None, :], np.asarray(headings)[:, None], lm, self.fov_rad)
 
     def _inside(self, xy: NDArray[np.float64], margin: float = 0.4) -> NDArray[np.bool_]:
         xmin, ymin, xmax, ymax = self.landmarks.bounds_m
@@ -275,7 +293,7 @@ class LandmarkSeeking(_MapPolicy):
         world_angles = pose[2] + self.angles
         spots = pose[:2] + self.lookahead_m * np.stack([np.cos(world_angles), np.sin(world_angles)], axis=1)
         seen_now = np.asarray(observation["landmarks"]).reshape(-1, 3)[:, 0] > 0.5
-        score = self.expected_visible(pose, spots, seen_now).sum(axis=1) + 0.01 * np.cos(self.angles)  # ties: straight
+        score = self.expected_visible(pose, spots, seen_now, world_angles).sum(axis=1) + 0.01 * np.cos(self.angles)  # ties: straight
         score = np.where(self._inside(spots), score, -np.inf)
         if not np.isfinite(score).any():
             centre = np.mean(np.reshape(self.landmarks.bounds_m, (2, 2)), axis=0)
@@ -338,7 +356,7 @@ class GreedyInformationGain(_MapPolicy):
         prior = np.diag([1.0 / pos_var, 1.0 / pos_var, 1.0 / head_var])
         lm = self.landmarks.positions_xy_m
         ends = self.end_poses(pose)
-        visible = self.expected_visible(pose, ends[:, :2], seen_now)
+        visible = self.expected_visible(pose, ends[:, :2], seen_now, ends[:, 2])
         scores = np.full(len(ends), -np.inf)
         for i, (end, expected) in enumerate(zip(ends, visible)):
             if not self._inside(end[:2]):
@@ -367,6 +385,7 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
     if name in ("landmark_seeking", "greedy_info_gain"):
         cam = base.config.camera
         kwargs.setdefault("max_range_m", cam.max_range_m if cam is not None else math.inf)
+        kwargs.setdefault("fov_rad", cam.fov_rad if cam is not None else 2 * math.pi)
         if name == "greedy_info_gain":
             kwargs.setdefault("max_speed_mps", base.config.robot.max_speed_mps)
             kwargs.setdefault("max_turn_rate_rps", base.config.robot.max_turn_rate_rps)

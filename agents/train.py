@@ -17,6 +17,7 @@ checkpoints then gives identical weights (a test proves it).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import pickle
 import platform
@@ -33,7 +34,7 @@ import torch
 
 import envs  # noqa: F401  (registers the ids)
 from agents.rewards import ActiveLocalizationReward, RewardWeights
-from agents.util import jsonable
+from agents.util import jsonable, nest
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, parse_yaml, replace_checked
 
 EXPERIMENT_DIR = Path(__file__).resolve().parent.parent / "configs" / "experiments"
@@ -105,22 +106,8 @@ def load_train_config(path_or_name: str | Path, overrides: Mapping[str, Any] | N
         path = EXPERIMENT_DIR / f"{path_or_name}.yaml"
     config = from_mapping(TrainConfig, load_yaml(path), where=str(path))
     if overrides:
-        config = replace_checked(config, _nest(overrides), where=f"overrides of {path}")
+        config = replace_checked(config, nest(overrides), where=f"overrides of {path}")
     return config
-
-
-def _nest(dotted: Mapping[str, Any]) -> dict[str, Any]:
-    """``{"ppo.learning_rate": 1e-3}`` -> ``{"ppo": {"learning_rate": 1e-3}}``."""
-    out: dict[str, Any] = {}
-    for key, value in dotted.items():
-        parts = key.split(".")
-        node = out
-        for part in parts[:-1]:
-            node = node.setdefault(part, {})
-            if not isinstance(node, dict):
-                raise ConfigError(f"override {key!r} conflicts with another override")
-        node[parts[-1]] = value
-    return out
 
 
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
@@ -290,6 +277,35 @@ def train(
     save_checkpoint(model, directory / "checkpoints" / f"step_{model.num_timesteps}")
     venv.close()
     return final
+
+
+def train_seeds(
+    config: TrainConfig,
+    out: Path,
+    seeds: Sequence[int],
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    progress: bool = True,
+) -> list[Path]:
+    """Train ``config`` once per seed (``<out>/<name>/seed_<s>/``), the runs side by side.
+
+    The runs go through :func:`agents.sweep.run_tasks`: a local process pool (``workers``,
+    default the core count; each run still starts its own env processes) or a Ray cluster
+    (``ray_address``; ``out`` must then be a folder every node can write). Each run equals
+    ``train`` with that seed alone. Returns the ``model.zip`` paths in seed order.
+    """
+    from agents.sweep import run_tasks
+
+    check(len(seeds) >= 1, "train_seeds needs at least one seed")
+    check(len(set(seeds)) == len(seeds), f"seeds repeat: {list(seeds)}")
+    tasks = [(dataclasses.replace(config, seed=int(seed)), Path(out)) for seed in seeds]
+    return run_tasks(_train_task, tasks, workers=workers, ray_address=ray_address, desc="training runs", progress=progress)
+
+
+def _train_task(task: tuple[TrainConfig, Path]) -> Path:
+    config, out = task
+    return train(config, out, progress_bar=False)
 
 
 def save_checkpoint(model: Any, stem: Path) -> Path:

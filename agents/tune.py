@@ -57,6 +57,7 @@ from agents.replay import Recording, record, replay
 from agents.scenarios import SoccerDriver
 from agents.sweep import run_tasks
 from agents.train import EVAL_SEED_BASE
+from agents.util import flatten, nest
 from localizers.registry import LOCALIZERS, load_params, spec
 from localizers.schema import ConfigError, load_yaml
 
@@ -176,18 +177,6 @@ class SearchSpace:
                 value = getattr(value, part)
             out[name] = value
         return out
-
-
-def nest(flat: Mapping[str, Any]) -> dict[str, Any]:
-    """``{"mcl.hit_std_m": 0.3, "n": 1}`` -> ``{"mcl": {"hit_std_m": 0.3}, "n": 1}`` (localizer_params form)."""
-    out: dict[str, Any] = {}
-    for key, value in flat.items():
-        node = out
-        *parents, leaf = key.split(".")
-        for part in parents:
-            node = node.setdefault(part, {})
-        node[leaf] = value
-    return out
 
 
 def _unwrap_optional(tp: Any) -> Any:
@@ -562,20 +551,10 @@ class TuneResult:
     summary: dict[str, Any]
 
 
-def _flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, value in tree.items():
-        if isinstance(value, Mapping):
-            out.update(_flatten(value, f"{prefix}{key}."))
-        else:
-            out[f"{prefix}{key}"] = value
-    return out
-
-
 def default_study_name(localizer: str, setup: EpisodeSetup, crowd_size: int) -> str:
     """``candidate_sets-RoboCupCrowded-v0-crowd10-soccer`` (+ ``-camera.dropout_probability=0.5`` per world override)."""
     name = f"{localizer}-{setup.env_id.split('/')[-1]}-crowd{crowd_size}-{setup.scenario}"
-    for key, value in sorted(_flatten(setup.env_overrides).items()):
+    for key, value in sorted(flatten(setup.env_overrides).items()):
         name += f"-{key}={value}"
     return name
 

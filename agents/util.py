@@ -1,4 +1,4 @@
-"""Small helpers shared by the command-line tools: argparse types and JSON conversion."""
+"""Small helpers shared by the command-line tools: argparse types, dotted overrides, JSON conversion."""
 
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
+from localizers.schema import ConfigError
 
 
 def positive_int(text: str) -> int:
@@ -19,6 +21,48 @@ def positive_int(text: str) -> int:
     if value <= 0:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
     return value
+
+
+def nest(dotted: Mapping[str, Any]) -> dict[str, Any]:
+    """``{"ppo.learning_rate": 1e-3, "n": 1}`` -> ``{"ppo": {"learning_rate": 1e-3}, "n": 1}``.
+
+    Raises:
+        ConfigError: when one key is both a value and a section (``a=1`` and ``a.b=2``).
+    """
+    out: dict[str, Any] = {}
+    for key, value in dotted.items():
+        *parents, leaf = key.split(".")
+        node = out
+        for part in parents:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ConfigError(f"override {key!r} conflicts with another override")
+        if isinstance(node.get(leaf), dict):
+            raise ConfigError(f"override {key!r} conflicts with another override")
+        node[leaf] = value
+    return out
+
+
+def flatten(nested: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """The inverse of :func:`nest`: ``{"a": {"b": 1}}`` -> ``{"a.b": 1}``."""
+    out: dict[str, Any] = {}
+    for key, value in nested.items():
+        if isinstance(value, Mapping):
+            out.update(flatten(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def merge_nested(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` updated by ``extra``, mapping values merged key by key (neither is changed)."""
+    out = dict(base)
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = merge_nested(out[key], value)
+        else:
+            out[key] = value
+    return out
 
 
 def jsonable(o: Any) -> Any:

@@ -80,16 +80,19 @@ class OdometryConfig:
 
 @dataclass(frozen=True)
 class BearingCameraConfig:
-    """Omnidirectional camera reporting landmark bearings."""
+    """Camera reporting landmark bearings: omnidirectional (the papers' robots) or, with
+    ``fov_rad`` below a full turn, a forward-looking one that must be turned toward landmarks."""
 
     noise_std_rad: float = math.radians(1.0)
     max_range_m: float = math.inf  # applies to every landmark on top of its own max_range_m
+    fov_rad: float = 2 * math.pi  # horizontal field of view centred on the robot's heading
     dropout_probability: float = 0.0  # a visible landmark is missed in a frame
     false_detection_probability: float = 0.0  # per slot and frame: a wrong bearing is reported
 
     def __post_init__(self) -> None:
         check(self.noise_std_rad >= 0, f"camera.noise_std_rad must be >= 0, got {self.noise_std_rad}")
         check(self.max_range_m > 0, f"camera.max_range_m must be > 0, got {self.max_range_m}")
+        check(0 < self.fov_rad <= 2 * math.pi, f"camera.fov_rad must be in (0, 2 pi], got {self.fov_rad}")
         check(0 <= self.dropout_probability <= 1, f"camera.dropout_probability must be in [0, 1], got {self.dropout_probability}")
         check(
             0 <= self.false_detection_probability <= 1,

@@ -366,6 +366,12 @@ class Renderer:
 
         for j in visible:
             canvas.line(pose[:2], world.landmark_xy[j], SIGHT_LINE, 1)
+        camera = env.config.camera
+        if camera is not None and camera.fov_rad < 2 * np.pi:  # the edges of a narrow camera's view
+            reach = float(np.hypot(*np.ptp(world.seg_a, axis=0))) if len(world.seg_a) else 10.0
+            for side in (-0.5, 0.5):
+                edge = pose[2] + side * camera.fov_rad
+                canvas.line(pose[:2], pose[:2] + reach * np.array([np.cos(edge), np.sin(edge)]), SIGHT_LINE, 1)
         for xy, r in zip(world.positions[world.crowd_rows], world.radii_m[world.crowd_rows]):
             canvas.circle(xy[0], xy[1], r, self.crowd_fill, 0)
             canvas.circle(xy[0], xy[1], r, CROWD_OUTLINE, 1)

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from envs.config import BearingCameraConfig, LidarConfig, OdometryConfig
 from envs.world import World
+from localizers.geometry import in_field_of_view
 from localizers.motion import odometry_noise_std, sample_odometry
 from localizers.raycast import cast_rays, sight_lines_clear
 
@@ -73,7 +74,8 @@ class Odometry:
 
 
 class BearingCamera:
-    """Omnidirectional camera: a bearing per landmark whose line of sight is clear.
+    """Bearing camera: a bearing per landmark whose line of sight is clear, within range and,
+    for a camera narrower than a full turn, inside the field of view around the heading.
 
     Observation ``(3 L,)``: for each landmark slot in turn ``(visible, cos(bearing),
     sin(bearing))`` in the robot frame (a flat vector, as stable-baselines3 expects; reshape
@@ -95,8 +97,9 @@ class BearingCamera:
         pass
 
     def true_visibility(self, world: World) -> NDArray[np.bool_]:
-        """``(L,)`` landmarks whose line of sight is clear and within range (no dropout)."""
-        return sight_lines_clear(
+        """``(L,)`` landmarks in the field of view whose line of sight is clear and within
+        range (no dropout)."""
+        clear = sight_lines_clear(
             world.positions[0],
             world.landmark_xy,
             world.landmark_radius_m,
@@ -106,6 +109,11 @@ class BearingCamera:
             world.occluder_xy,
             world.occluder_radius_m,
         )
+        if self.config.fov_rad < 2 * math.pi:
+            clear &= in_field_of_view(
+                world.positions[0], world.angles[0], world.landmark_xy, self.config.fov_rad
+            )
+        return clear
 
     def observe(self, world: World, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
         cfg = self.config

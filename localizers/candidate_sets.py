@@ -18,15 +18,18 @@
 
 Implementation notes (ours):
 
-* All candidates of all sets live in flat arrays, grouped by set in creation order.
-  Propagation is lazy: with ``O(t) = d_1 (+) ... (+) d_t`` the running product of all
-  odometry increments (``geometry.compose``), a candidate is stored as
-  ``X = P (+) O(t_gen)^-1`` and its pose is ``X (+) O(t)``; by associativity of SE(2) this
-  equals composing every increment in the candidate's own frame, and ``predict`` is O(1).
+* All candidates of all sets live in one ``(6, capacity)`` store, grouped by set in
+  creation order; each step runs a few compiled (numba) kernels over it, so a frame costs
+  no per-candidate Python work. Propagation is lazy: with ``O(t) = d_1 (+) ... (+) d_t``
+  the running product of all odometry increments (the SE(2) product of
+  ``geometry.compose``), a candidate is stored as ``X = P (+) O(t_gen)^-1`` and its pose
+  is ``X (+) O(t)``; by associativity of SE(2) this equals composing every increment in
+  the candidate's own frame, and ``predict`` is O(1).
   ``cos``/``sin`` of each ``X``'s heading are stored once, so an update needs one
   ``arctan2`` per candidate and landmark and no other transcendental function.
-* Evaluation runs in float32 on ``(landmarks, candidates)`` buffers (bearing precision
-  ~1e-7 rad); accumulated errors and poses stay float64.
+* Evaluation runs in float32 (bearing precision ~1e-7 rad; ``arctan2`` is a branch-free
+  polynomial accurate to ~3 ulp, so the loops vectorize); accumulated errors and poses
+  stay float64.
 * At most one set is generated per frame (sets generated from one frame are identical);
   owed generations wait for the next frame with >= 2 landmarks. A set discarded at a frame
   is replaced from a later frame, never from the bearings that made it fail.
@@ -42,17 +45,15 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
-from localizers.geometry import between, circular_mean, compose, wrap_angle
-from localizers.resection import inscribed_arc_poses, resect_all_triples
+from localizers.geometry import between, compose
+from localizers.motion import _wrap
+from localizers.resection import _triples, inscribed_arc_poses, solve_triples
 from localizers.schema import check
-
-_PI32 = np.float32(np.pi)
-_TWO_PI32 = np.float32(2.0 * np.pi)
-_INV_TWO_PI32 = np.float32(1.0 / (2.0 * np.pi))
 
 
 @dataclass(frozen=True)
@@ -119,15 +120,357 @@ class CandidateSetParams:
 _ARC_OVERSAMPLING = 8
 """Arc points computed per kept candidate before clipping to the bounds (ours)."""
 
+# Rows of the candidate store (see CandidateSetLocalizer): base pose X, cos/sin of its heading, Error.
+_X, _Y, _TH, _COS, _SIN, _ERR = range(6)
+_ROWS = 6
 
-def _inside(landmarks: LandmarkMap, poses: NDArray[np.float64], margin_m: float) -> NDArray[np.bool_]:
-    """``(m,)`` finite poses within the map bounds grown by ``margin_m``."""
-    xmin, ymin, xmax, ymax = landmarks.bounds_m
-    return (
-        np.isfinite(poses).all(axis=1)
-        & (poses[:, 0] >= xmin - margin_m) & (poses[:, 0] <= xmax + margin_m)
-        & (poses[:, 1] >= ymin - margin_m) & (poses[:, 1] <= ymax + margin_m)
-    )  # fmt: skip
+_PI32 = np.float32(np.pi)
+_HALF_PI32 = np.float32(0.5 * np.pi)
+_QUARTER_PI32 = np.float32(0.25 * np.pi)
+_TWO_PI32 = np.float32(2.0 * np.pi)
+_INV_TWO_PI32 = np.float32(1.0 / (2.0 * np.pi))
+_TAN_PI_8_32 = np.float32(math.tan(math.pi / 8.0))
+# Cephes' atanf polynomial on [-tan(pi/8), tan(pi/8)] (relative error ~2e-7).
+_ATAN_C = tuple(np.float32(c) for c in (8.05374449538e-2, -1.38776856032e-1, 1.99777106478e-1, -3.33329491539e-1))
+_ONE32 = np.float32(1.0)
+_ZERO32 = np.float32(0.0)
+
+
+# ----------------------------------------------------------------------------- kernels
+
+
+@numba.njit(cache=True, inline="always")
+def _se2(x: float, y: float, th: float, c: float, s: float, dx: float, dy: float, dth: float) -> tuple[float, float, float]:
+    """``(x, y, th) (+) (dx, dy, dth)`` with ``c, s = cos th, sin th`` (:func:`geometry.compose` of one pose)."""
+    return x + c * dx - s * dy, y + s * dx + c * dy, _wrap(th + dth)
+
+
+@numba.njit(cache=True)
+def _compose_pose(pose: NDArray[np.float64], dx: float, dy: float, dth: float) -> tuple[float, float, float]:
+    """``pose (+) d`` for one ``(3,)`` pose."""
+    return _se2(pose[0], pose[1], pose[2], math.cos(pose[2]), math.sin(pose[2]), dx, dy, dth)
+
+
+@numba.njit(cache=True)
+def _accumulate(odo: NDArray[np.float64], dx: float, dy: float, dth: float) -> None:
+    """``O <- O (+) d`` in place."""
+    odo[0], odo[1], odo[2] = _compose_pose(odo, dx, dy, dth)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _atan2_f32(y: np.float32, x: np.float32) -> np.float32:
+    """float32 ``atan2`` (within ~3 ulp, like numpy's SIMD one), branch-free so that loops over it vectorize."""
+    ax = abs(x)
+    ay = abs(y)
+    hi = max(ax, ay)
+    lo = min(ax, ay)
+    a = lo / hi if hi > _ZERO32 else _ZERO32  # in [0, 1]
+    big = a > _TAN_PI_8_32
+    t = (a - _ONE32) / (a + _ONE32) if big else a  # atan(a) = pi/4 + atan(t)
+    z = t * t
+    r = (((_ATAN_C[0] * z + _ATAN_C[1]) * z + _ATAN_C[2]) * z + _ATAN_C[3]) * z * t + t
+    if big:
+        r = r + _QUARTER_PI32
+    if ay > ax:
+        r = _HALF_PI32 - r
+    if x < _ZERO32:
+        r = _PI32 - r
+    return math.copysign(r, y)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _evaluate(
+    store: NDArray[np.float64], m: int, ox: float, oy: float, ot: float,
+    lx32: NDArray[np.float32], ly32: NDArray[np.float32], ids: NDArray[np.int64], bearings: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """Add eq. (1) to the Error of the first ``m`` candidates (eq. (2)).
+
+    The current pose of a candidate is ``X (+) O``. Residuals ``e_k`` (predicted minus
+    measured bearing, wrapped) are computed in float32, landmark by landmark over all
+    candidates (loops that vectorize); the terms are ``|e_k|`` and, per pair,
+    ``|wrap(e_j - e_k)| = pi - |pi - |e_j - e_k||`` (valid for ``|e_j - e_k| <= 2 pi``).
+    """
+    n = ids.size
+    px = np.empty(m, dtype=np.float32)
+    py = np.empty(m, dtype=np.float32)
+    pt = np.empty(m, dtype=np.float32)
+    bx, by, bt, bc, bs, err = store[_X], store[_Y], store[_TH], store[_COS], store[_SIN], store[_ERR]
+    for i in range(m):
+        px[i] = np.float32(bx[i] + (ox * bc[i] - oy * bs[i]))
+        py[i] = np.float32(by[i] + (oy * bc[i] + ox * bs[i]))
+        pt[i] = np.float32(bt[i] + ot)
+    e = np.empty((n, m), dtype=np.float32)
+    for k in range(n):
+        lxk = lx32[ids[k]]
+        lyk = ly32[ids[k]]
+        bk = np.float32(bearings[k])
+        ek = e[k]
+        for i in range(m):
+            r = _atan2_f32(lyk - py[i], lxk - px[i]) - (pt[i] + bk)
+            r = r - np.rint(r * _INV_TWO_PI32) * _TWO_PI32
+            ek[i] = r
+            err[i] += abs(r)
+    for j in range(n):
+        ej = e[j]
+        for k in range(j + 1, n):
+            ek = e[k]
+            for i in range(m):
+                err[i] += _PI32 - abs(_PI32 - abs(ej[i] - ek[i]))
+
+
+@numba.njit(cache=True)
+def _best_of_set(err: NDArray[np.float64], lo: int, hi: int) -> int:
+    """Index of the least Error in ``lo:hi`` (the first one on ties)."""
+    best = lo
+    for i in range(lo + 1, hi):
+        if err[i] < err[best]:
+            best = i
+    return best
+
+
+@numba.njit(cache=True)
+def _current_pose(store: NDArray[np.float64], i: int, ox: float, oy: float, ot: float, out: NDArray[np.float64]) -> None:
+    """``X_i (+) O`` into ``out[:3]``."""
+    out[0], out[1], out[2] = _se2(store[_X, i], store[_Y, i], store[_TH, i], store[_COS, i], store[_SIN, i], ox, oy, ot)
+
+
+@numba.njit(cache=True)
+def _fuse(poses: NDArray[np.float64], median_threshold_m: float) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`fuse_poses` on validated ``(K, 3)`` poses, K >= 1."""
+    k = poses.shape[0]
+    pose = np.empty(3)
+    kept = np.ones(k, dtype=np.bool_)
+    if k == 1:
+        pose[0] = poses[0, 0]
+        pose[1] = poses[0, 1]
+        pose[2] = _wrap(poses[0, 2])
+        return pose, kept
+    median = np.empty(k)
+    others = np.empty(k - 1)
+    for a in range(k):
+        c = 0
+        for b in range(k):
+            if b != a:
+                others[c] = math.hypot(poses[a, 0] - poses[b, 0], poses[a, 1] - poses[b, 1])
+                c += 1
+        others.sort()
+        median[a] = 0.5 * (others[(k - 2) // 2] + others[(k - 1) // 2])  # of the K - 1 distances
+    n_kept = 0
+    for a in range(k):
+        kept[a] = median[a] < median_threshold_m
+        if kept[a]:
+            n_kept += 1
+    if n_kept == 0:
+        kept[np.argmin(median)] = True
+        n_kept = 1
+    sx = sy = ss = sc = 0.0
+    for a in range(k):
+        if kept[a]:
+            sx += poses[a, 0]
+            sy += poses[a, 1]
+            ss += math.sin(poses[a, 2])
+            sc += math.cos(poses[a, 2])
+    pose[0] = sx / n_kept
+    pose[1] = sy / n_kept
+    pose[2] = _wrap(math.atan2(ss, sc))  # circular mean of the kept headings
+    return pose, kept
+
+
+@numba.njit(cache=True)
+def _add_deviation(
+    cov: NDArray[np.float64], dev: NDArray[np.float64], pose: NDArray[np.float64], centre: NDArray[np.float64]
+) -> None:
+    """Add the outer product of ``pose - centre`` (heading wrapped) to ``cov``; ``dev`` is scratch."""
+    dev[0] = pose[0] - centre[0]
+    dev[1] = pose[1] - centre[1]
+    dev[2] = _wrap(pose[2] - centre[2])
+    for a in range(3):
+        for b in range(3):
+            cov[a, b] += dev[a] * dev[b]
+
+
+@numba.njit(cache=True)
+def _fused_output(
+    store: NDArray[np.float64], counts: NDArray[np.int64], n_sets: int, determined: NDArray[np.bool_],
+    ox: float, oy: float, ot: float, median_threshold_m: float, floors: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:  # fmt: skip
+    """Fuse the determined sets' poses now: ``(pose (3,), covariance (3, 3), whether any set is determined)``."""
+    err = store[_ERR]
+    n_det = 0
+    for s in range(n_sets):
+        if determined[s]:
+            n_det += 1
+    if n_det == 0:
+        return np.full(3, np.nan), np.full((3, 3), np.nan), False
+    best = np.empty((n_det, 3))
+    spans = np.empty((n_det, 2), dtype=np.int64)
+    lo = 0
+    d = 0
+    for s in range(n_sets):
+        hi = lo + counts[s]
+        if determined[s]:
+            _current_pose(store, _best_of_set(err, lo, hi), ox, oy, ot, best[d])
+            spans[d, 0] = lo
+            spans[d, 1] = hi
+            d += 1
+        lo = hi
+    pose, kept = _fuse(best, median_threshold_m)
+    cov = np.zeros((3, 3))
+    dev = np.empty(3)
+    n_kept = 0
+    for a in range(n_det):
+        if kept[a]:
+            n_kept += 1
+    if n_kept >= 2:  # sample covariance of the kept poses
+        for a in range(n_det):
+            if kept[a]:
+                _add_deviation(cov, dev, best[a], pose)
+        samples = n_kept
+    else:  # that of the candidates of the one kept set
+        a = np.argmax(kept)
+        p = np.empty(3)
+        for i in range(spans[a, 0], spans[a, 1]):
+            _current_pose(store, i, ox, oy, ot, p)
+            _add_deviation(cov, dev, p, pose)
+        samples = spans[a, 1] - spans[a, 0]
+    if samples >= 2:
+        for a in range(3):
+            for b in range(3):
+                cov[a, b] /= samples - 1
+    else:
+        cov[:, :] = 0.0
+    for a in range(3):
+        if cov[a, a] < floors[a]:  # (NaN stays NaN, like np.maximum)
+            cov[a, a] = floors[a]
+    return pose, cov, True
+
+
+@numba.njit(cache=True)
+def _prune_abort_determine(
+    store: NDArray[np.float64], m: int, counts: NDArray[np.int64], n_sets: int, determined: NDArray[np.bool_],
+    prune_error: float, abort_error: float, determine_below: int,
+    ox: float, oy: float, ot: float, median_threshold_m: float, floors: NDArray[np.float64],
+    snapshot: NDArray[np.float64],
+) -> tuple[int, int, int, int, bool]:  # fmt: skip
+    """After an evaluation: delete candidates over the prune threshold and sets over the
+    abort threshold (or that lost all their candidates), then determine the small sets.
+
+    When the last determined sets are discarded, the fused output computed just before
+    goes to ``snapshot`` (rows: pose, then the covariance) for coasting.
+
+    Returns:
+        ``(m, n_sets, sets discarded, sets newly determined, snapshot taken)``.
+    """
+    err = store[_ERR]
+    dead = np.zeros(n_sets, dtype=np.bool_)
+    n_dead = 0
+    any_pruned = False
+    live_determined = False
+    any_determined = False
+    lo = 0
+    for s in range(n_sets):
+        hi = lo + counts[s]
+        least = err[lo]
+        for i in range(lo + 1, hi):
+            v = err[i]
+            if v < least or v != v:  # NaN-propagating minimum, like np.minimum
+                least = v
+        dead[s] = least > abort_error or least > prune_error
+        if determined[s]:
+            any_determined = True
+            if not dead[s]:
+                live_determined = True
+        if dead[s]:
+            n_dead += 1
+            any_pruned = True
+        else:
+            for i in range(lo, hi):
+                if not err[i] <= prune_error:
+                    any_pruned = True
+                    break
+        lo = hi
+    snapped = False
+    if n_dead and any_determined and not live_determined:
+        pose, cov, _ = _fused_output(store, counts, n_sets, determined, ox, oy, ot, median_threshold_m, floors)
+        snapshot[0] = pose
+        snapshot[1:] = cov
+        snapped = True
+    if any_pruned:
+        w = 0
+        lo = 0
+        live = 0
+        for s in range(n_sets):
+            hi = lo + counts[s]
+            if not dead[s]:
+                kept = 0
+                for i in range(lo, hi):
+                    if err[i] <= prune_error:
+                        if w != i:
+                            for r in range(_ROWS):
+                                store[r, w] = store[r, i]
+                        w += 1
+                        kept += 1
+                counts[live] = kept  # >= 1: the least Error is within both thresholds
+                determined[live] = determined[s]
+                live += 1
+            lo = hi
+        m = w
+        n_sets = live
+    n_new = 0
+    for s in range(n_sets):
+        if not determined[s] and counts[s] < determine_below:
+            determined[s] = True
+            n_new += 1
+    return m, n_sets, n_dead, n_new, snapped
+
+
+@numba.njit(cache=True)
+def _append(store: NDArray[np.float64], m: int, poses: NDArray[np.float64], ox: float, oy: float, ot: float) -> None:
+    """Store ``(k, 3)`` current poses P as candidates ``m:m + k`` with base ``X = P (+) O^-1`` and Error 0."""
+    c = math.cos(ot)  # O^-1 = between(O, 0) (geometry.between)
+    s = math.sin(ot)
+    dx = -ox
+    dy = -oy
+    ix = c * dx + s * dy
+    iy = -s * dx + c * dy
+    it = _wrap(0.0 - ot)
+    for j in range(poses.shape[0]):
+        i = m + j
+        px, py, pt = poses[j, 0], poses[j, 1], poses[j, 2]
+        x, y, th = _se2(px, py, pt, math.cos(pt), math.sin(pt), ix, iy, it)
+        store[_X, i] = x
+        store[_Y, i] = y
+        store[_TH, i] = th
+        store[_COS, i] = math.cos(th)
+        store[_SIN, i] = math.sin(th)
+        store[_ERR, i] = 0.0
+
+
+@numba.njit(cache=True)
+def _inside(poses: NDArray[np.float64], xmin: float, ymin: float, xmax: float, ymax: float) -> NDArray[np.bool_]:
+    """``(m,)`` finite poses within ``[xmin, xmax] x [ymin, ymax]`` (the bounds grown by the margin)."""
+    out = np.empty(poses.shape[0], dtype=np.bool_)
+    for i in range(poses.shape[0]):
+        x, y, th = poses[i, 0], poses[i, 1], poses[i, 2]
+        out[i] = (
+            math.isfinite(x) and math.isfinite(y) and math.isfinite(th)
+            and x >= xmin and x <= xmax and y >= ymin and y <= ymax
+        )  # fmt: skip
+    return out
+
+
+@numba.njit(cache=True)
+def _triple_seeds(
+    observed_xy: NDArray[np.float64], bearings: NDArray[np.float64], triples: NDArray[np.int64],
+    min_conditioning: float, xmin: float, ymin: float, xmax: float, ymax: float,
+) -> NDArray[np.float64]:  # fmt: skip
+    """The ok Cassini solutions of every triple that lie inside the (grown) bounds, in triple order."""
+    poses, ok, _, _ = solve_triples(observed_xy, bearings, triples, min_conditioning)
+    keep = ok & _inside(poses, xmin, ymin, xmax, ymax)
+    return poses[keep]
+
+
+# ----------------------------------------------------------------------------- public helpers
 
 
 def generate_candidates(
@@ -161,12 +504,14 @@ def generate_candidates(
     idx = np.asarray(ids, dtype=np.int64)
     b = np.asarray(bearings, dtype=np.float64)
     pos = landmarks.positions_xy_m
+    if idx.ndim != 1 or idx.shape != b.shape:
+        raise ValueError(f"generate_candidates: ids and bearings must be 1-D of equal length, got {idx.shape} and {b.shape}")
     if idx.size < 2:
         return np.zeros((0, 3))
+    xmin, ymin, xmax, ymax = landmarks.bounds_m
+    box = (xmin - bounds_margin_m, ymin - bounds_margin_m, xmax + bounds_margin_m, ymax + bounds_margin_m)
     if idx.size >= 3:
-        res = resect_all_triples(pos, idx, b, min_conditioning=min_conditioning, inlier_radius_m=np.inf)
-        poses = res.poses[res.ok]
-        poses = poses[_inside(landmarks, poses, bounds_margin_m)]
+        poses = _triple_seeds(pos[idx], b, _triples(idx.size), float(min_conditioning), *box)  # (indexing checks the ids)
         if poses.shape[0]:
             return poses
     i, j = np.triu_indices(idx.size, 1)
@@ -175,7 +520,7 @@ def generate_candidates(
     # N candidates over the part of the arc inside the bounds (ours): oversample the arc,
     # keep the feasible positions and take N of them evenly by index.
     fine = inscribed_arc_poses(pos[idx[k]], pos[idx[m]], b[k], b[m], _ARC_OVERSAMPLING * candidates_per_arc)
-    fine = fine[_inside(landmarks, fine, bounds_margin_m)]
+    fine = fine[_inside(fine, *box)]
     if fine.shape[0] <= candidates_per_arc:
         return fine
     pick = np.round(np.linspace(0.0, fine.shape[0] - 1, candidates_per_arc)).astype(np.intp)
@@ -200,27 +545,7 @@ def fuse_poses(poses: ArrayLike, median_threshold_m: float) -> tuple[NDArray[np.
     p = np.asarray(poses, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] < 1:
         raise ValueError(f"fuse_poses: poses must have shape (K, 3) with K >= 1, got {p.shape}")
-    k = p.shape[0]
-    if k == 1:
-        return np.array([p[0, 0], p[0, 1], wrap_angle(p[0, 2])]), np.ones(1, dtype=bool)
-    diff = p[:, None, :2] - p[None, :, :2]
-    dist = np.hypot(diff[..., 0], diff[..., 1])  # (K, K)
-    others = np.sort(dist[~np.eye(k, dtype=bool)].reshape(k, k - 1), axis=1)
-    median = 0.5 * (others[:, (k - 2) // 2] + others[:, (k - 1) // 2])  # of the K - 1 distances
-    kept = median < median_threshold_m
-    if not kept.any():
-        kept = np.zeros(k, dtype=bool)
-        kept[int(np.argmin(median))] = True
-    xy = p[kept, :2].mean(axis=0)
-    return np.array([xy[0], xy[1], float(circular_mean(p[kept, 2]))]), kept
-
-
-def _pose_covariance(poses: NDArray[np.float64], centre: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Sample covariance of ``(m, 3)`` poses about ``centre`` (heading deviations wrapped)."""
-    if poses.shape[0] < 2:
-        return np.zeros((3, 3))
-    dev = np.column_stack([poses[:, :2] - centre[:2], wrap_angle(poses[:, 2] - centre[2])])
-    return dev.T @ dev / (poses.shape[0] - 1)
+    return _fuse(np.ascontiguousarray(p), float(median_threshold_m))
 
 
 class CandidateSetLocalizer:
@@ -243,8 +568,15 @@ class CandidateSetLocalizer:
         self._dt = float(dt_s)
         self._lx32 = landmarks.positions_xy_m[:, 0].astype(np.float32)
         self._ly32 = landmarks.positions_xy_m[:, 1].astype(np.float32)
-        self._weights: dict[int, NDArray[np.float32]] = {}
-        self._capacity = 0
+        self._floors = np.array([params.position_floor_m**2] * 2 + [params.heading_floor_rad**2])
+        # Candidates, grouped by set in creation order: column i holds candidate i's base pose
+        # X (rows _X, _Y, _TH), cos/sin of its heading and its accumulated Error (row _ERR).
+        # Only the first ``_m`` columns are live; the store grows up to max_live_candidates.
+        self._store = np.zeros((_ROWS, 0))
+        # Per live set (the first ``_n_sets`` entries), in creation order.
+        self._counts = np.zeros(params.max_sets, dtype=np.int64)
+        self._determined = np.zeros(params.max_sets, dtype=np.bool_)
+        self._snapshot = np.zeros((4, 3))  # fused output kept by the kernel for coasting
         self._started = False
         self._clear()
 
@@ -254,15 +586,8 @@ class CandidateSetLocalizer:
         self._odo = np.zeros(3)  # O(t): running product of the odometry increments
         self._path_m = 0.0  # distance travelled since reset
         self._turn_rad = 0.0  # |rotation| accumulated since reset
-        # Candidates, grouped by set: base poses X (rows x, y, theta), their cos/sin/1, errors, set index.
-        self._base = np.zeros((3, 0))
-        self._trig = np.zeros((3, 0))
-        self._err = np.zeros(0)
-        self._set = np.zeros(0, dtype=np.intp)
-        # Per live set, in creation order.
-        self._counts = np.zeros(0, dtype=np.intp)
-        self._starts = np.zeros(0, dtype=np.intp)
-        self._determined = np.zeros(0, dtype=bool)
+        self._m = 0
+        self._n_sets = 0
         self._pending = 1  # generations owed now (the first set is owed from the start)
         self._pending_next = 0  # generations owed from the next frame on (after an abort)
         # Last fused output, kept for coasting: base pose X, covariance, path/turn at the time.
@@ -281,39 +606,25 @@ class CandidateSetLocalizer:
             raise RuntimeError("CandidateSetLocalizer: call reset() before predict() or update()")
 
     def _ensure_capacity(self, m: int) -> None:
-        """Grow the scratch buffers (flat, viewed as ``(rows, m)`` blocks) to ``m`` candidates."""
-        if m <= self._capacity:
+        """Grow the candidate store to hold ``m`` candidates (m <= max_live_candidates)."""
+        cap = self._store.shape[1]
+        if m <= cap:
             return
-        self._capacity = cap = max(m, 2 * self._capacity)
-        n_max = max(self._map.count, 1)
-        self._buf_pose64 = np.empty(3 * cap)
-        self._buf_pose32 = np.empty(3 * cap, dtype=np.float32)
-        self._buf_dx = np.empty(n_max * cap, dtype=np.float32)
-        self._buf_dy = np.empty(n_max * cap, dtype=np.float32)
-        # Residuals e (n rows) followed by a cyclic copy of their first rows (see _evaluate).
-        self._buf_e = np.empty((n_max + (n_max - 1) // 2) * cap, dtype=np.float32)
-        # Error terms: theta_k (n rows) then |pi - |e_j - e_k|| (n (n - 1) / 2 rows).
-        self._buf_terms = np.empty((n_max + n_max * (n_max - 1) // 2) * cap, dtype=np.float32)
-
-    def _term_weights(self, n: int) -> NDArray[np.float32]:
-        """``(n + n (n - 1) / 2,)`` weights turning the term rows into eq. (1) (minus a constant)."""
-        w = self._weights.get(n)
-        if w is None:
-            w = np.concatenate([np.ones(n), -np.ones(n * (n - 1) // 2)]).astype(np.float32)
-            self._weights[n] = w
-        return w
+        grown = np.zeros((_ROWS, min(max(m, 2 * cap), self._params.max_live_candidates)))
+        grown[:, : self._m] = self._store[:, : self._m]
+        self._store = grown
 
     # ----------------------------------------------------------------------------- steps
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Propagate every candidate by the increment (lazily: one SE(2) product)."""
         self._require_reset()
-        d = odometry.as_array()
-        if not np.isfinite(d).all():
-            raise MeasurementError(f"candidate_sets: odometry increment {d.tolist()} is not finite")
-        self._odo = compose(self._odo, d)
-        self._path_m += math.hypot(d[0], d[1])
-        self._turn_rad += abs(d[2])
+        dx, dy, dth = float(odometry.dx_m), float(odometry.dy_m), float(odometry.dtheta_rad)
+        if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dth)):
+            raise MeasurementError(f"candidate_sets: odometry increment {[dx, dy, dth]} is not finite")
+        _accumulate(self._odo, dx, dy, dth)
+        self._path_m += math.hypot(dx, dy)
+        self._turn_rad += abs(dth)
         self._cached = None
 
     def update(self, measurement: BearingMeasurement) -> None:
@@ -329,95 +640,23 @@ class CandidateSetLocalizer:
         n = ids.size
         if n == 0:
             return
-        if self._err.size:
-            self._evaluate(ids, bearings)
-            self._prune_and_abort()
-            newly = ~self._determined & (self._counts < self._params.determine_below)
-            if newly.any():
-                self._determined |= newly
-                self._pending += int(newly.sum())
-        self._pending = min(self._pending, self._params.max_sets - self._counts.size)
-        if self._pending > 0 and n >= 2:
-            self._generate(ids, bearings)
-
-    def _evaluate(self, ids: NDArray[np.int64], bearings: NDArray[np.float64]) -> None:
-        """Add eq. (1) to every candidate's Error (eq. (2))."""
-        m, n = self._err.size, ids.size
-        pairs = n * (n - 1) // 2
-        self._ensure_capacity(m)
-        ox, oy, ot = self._odo.tolist()
-        # Current poses X (+) O of all candidates as one (3, 3) @ (3, m) product.
-        lin = np.array([[ox, -oy, 0.0], [oy, ox, 0.0], [0.0, 0.0, ot]])
-        pose64 = self._buf_pose64[: 3 * m].reshape(3, m)
-        np.matmul(lin, self._trig, out=pose64)
-        np.add(pose64, self._base, out=pose64)
-        pose32 = self._buf_pose32[: 3 * m].reshape(3, m)
-        np.copyto(pose32, pose64, casting="same_kind")
-        dx = self._buf_dx[: n * m].reshape(n, m)
-        dy = self._buf_dy[: n * m].reshape(n, m)
-        e = self._buf_e[: n * m].reshape(n, m)
-        terms = self._buf_terms[: (n + pairs) * m].reshape(n + pairs, m)
-        np.subtract(self._lx32[ids][:, None], pose32[0], out=dx)
-        np.subtract(self._ly32[ids][:, None], pose32[1], out=dy)
-        # e_ik = l'_ik - l_k: predicted minus measured bearing, wrapped to [-pi, pi].
-        np.arctan2(dy, dx, out=e)
-        np.add(pose32[2], bearings.astype(np.float32)[:, None], out=dx)  # theta_i + l_k
-        np.subtract(e, dx, out=e)
-        np.multiply(e, _INV_TWO_PI32, out=dx)
-        np.rint(dx, out=dx)
-        np.multiply(dx, _TWO_PI32, out=dx)
-        np.subtract(e, dx, out=e)
-        # eq. (1), first sum: theta_k = |l_k - l'_ik|.
-        np.abs(e, out=terms[:n])
-        if pairs:
-            # eq. (1), second sum: phi_kj = |psi_kj - psi'_kj| = |wrap(e_j - e_k)| over all pairs.
-            # The pairs are the cyclic shifts (j, j + s mod n), s = 1..(n - 1) // 2 (n pairs
-            # each), plus (j, j + n/2), j < n/2, for even n. With e's first rows copied after
-            # it, shift s reads rows s..s+n-1, so all shifts are one strided (S, n, m) view.
-            shifts = (n - 1) // 2
-            d = terms[n:]
-            if shifts:
-                self._buf_e[n * m : (n + shifts) * m] = self._buf_e[: shifts * m]
-                window = np.ndarray(
-                    (shifts, n, m), dtype=np.float32, buffer=self._buf_e, offset=4 * m, strides=(4 * m, 4 * m, 4)
-                )
-                np.subtract(window, e, out=d[: shifts * n].reshape(shifts, n, m))
-            if n % 2 == 0:
-                np.subtract(e[n // 2 :], e[: n // 2], out=d[shifts * n :])
-            # For |x| <= 2 pi, |wrap(x)| = pi - |pi - |x||: the pi's go into a constant.
-            np.abs(d, out=d)
-            np.subtract(_PI32, d, out=d)
-            np.abs(d, out=d)
-        self._err += self._term_weights(n) @ terms
-        if pairs:
-            self._err += pairs * np.pi
-
-    def _prune_and_abort(self) -> None:
-        """Delete candidates over the prune threshold and sets over the abort threshold."""
         p = self._params
-        err = self._err
-        mins = np.minimum.reduceat(err, self._starts)  # every live set is non-empty
-        dead = (mins > p.abort_error_rad) | (mins > p.prune_error_rad)
-        keep = err <= p.prune_error_rad
-        if dead.any():
-            if self._determined.any() and not (self._determined & ~dead).any():
-                self._snapshot_for_coasting()  # the last determined pose, before it is discarded
-            keep &= ~dead[self._set]
-            self._pending_next += int(dead.sum())  # replaced "the next time" (sec. 3), not from this frame
-        if keep.all():
-            return
-        alive = ~dead
-        remap = np.cumsum(alive) - 1
-        self._base = self._base[:, keep]
-        self._trig = self._trig[:, keep]
-        self._err = err[keep]
-        self._set = remap[self._set[keep]]
-        self._determined = self._determined[alive]
-        self._set_counts(np.bincount(self._set, minlength=int(alive.sum())))
-
-    def _set_counts(self, counts: NDArray[np.intp]) -> None:
-        self._counts = counts.astype(np.intp)
-        self._starts = np.concatenate(([0], np.cumsum(self._counts)[:-1])).astype(np.intp)
+        if self._m:
+            ox, oy, ot = self._odo.tolist()
+            _evaluate(self._store, self._m, ox, oy, ot, self._lx32, self._ly32, ids, bearings)
+            self._m, self._n_sets, n_dead, n_new, snapped = _prune_abort_determine(
+                self._store, self._m, self._counts, self._n_sets, self._determined,
+                p.prune_error_rad, p.abort_error_rad, p.determine_below,
+                ox, oy, ot, p.fusion_median_m, self._floors, self._snapshot,
+            )  # fmt: skip
+            if snapped:  # the last determined pose, before it was discarded
+                pose, cov = self._snapshot[0].copy(), self._snapshot[1:].copy()
+                self._coast = (compose(pose, between(self._odo, np.zeros(3))), cov, self._path_m, self._turn_rad)
+            self._pending_next += n_dead  # replaced "the next time" (sec. 3), not from this frame
+            self._pending += n_new
+        self._pending = min(self._pending, p.max_sets - self._n_sets)
+        if self._pending > 0 and n >= 2 and self._m < p.max_live_candidates:
+            self._generate(ids, bearings)
 
     def _generate(self, ids: NDArray[np.int64], bearings: NDArray[np.float64]) -> None:
         """Append one new set built from this frame's bearings, if the budget allows."""
@@ -428,52 +667,22 @@ class CandidateSetLocalizer:
             bounds_margin_m=p.bounds_margin_m,
         )  # fmt: skip
         m = poses.shape[0]
-        if m == 0 or self._err.size + m > p.max_live_candidates:
+        if m == 0 or self._m + m > p.max_live_candidates:
             return
-        base = compose(poses, between(self._odo, np.zeros(3)))  # X = P (+) O^-1
-        trig = np.stack([np.cos(base[:, 2]), np.sin(base[:, 2]), np.ones(m)])
-        self._base = np.concatenate([self._base, base.T], axis=1)
-        self._trig = np.concatenate([self._trig, trig], axis=1)
-        self._err = np.concatenate([self._err, np.zeros(m)])
-        self._set = np.concatenate([self._set, np.full(m, self._counts.size, dtype=np.intp)])
-        self._determined = np.append(self._determined, False)
-        self._set_counts(np.append(self._counts, m))
+        self._ensure_capacity(self._m + m)
+        ox, oy, ot = self._odo.tolist()
+        _append(self._store, self._m, poses, ox, oy, ot)
+        self._m += m
+        self._counts[self._n_sets] = m
+        self._determined[self._n_sets] = False
+        self._n_sets += 1
         self._pending -= 1
 
     # ----------------------------------------------------------------------------- output
 
-    def _candidate_poses(self, lo: int = 0, hi: int | None = None) -> NDArray[np.float64]:
-        """``(m, 3)`` current poses of candidates ``lo:hi``."""
-        return compose(self._base[:, lo:hi].T, self._odo)
-
-    def _best_per_set(self) -> NDArray[np.intp]:
-        """``(S,)`` index of each live set's least-Error candidate (the first one on ties)."""
-        mins = np.minimum.reduceat(self._err, self._starts)
-        hits = np.flatnonzero(self._err == np.repeat(mins, self._counts))
-        first = np.ones(hits.size, dtype=bool)
-        first[1:] = self._set[hits[1:]] != self._set[hits[:-1]]
-        return hits[first]
-
-    def _fused_output(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Fuse the determined sets' poses now: ``(pose (3,), covariance (3, 3))``."""
-        p = self._params
-        sets = np.flatnonzero(self._determined)
-        best = compose(self._base[:, self._best_per_set()[sets]].T, self._odo)
-        pose, kept = fuse_poses(best, p.fusion_median_m)
-        if kept.sum() >= 2:
-            cov = _pose_covariance(best[kept], pose)
-        else:
-            s = int(sets[int(np.argmax(kept))])
-            lo = int(self._starts[s])
-            cov = _pose_covariance(self._candidate_poses(lo, lo + int(self._counts[s])), pose)
-        floor = np.array([p.position_floor_m**2] * 2 + [p.heading_floor_rad**2])
-        cov[np.diag_indices(3)] = np.maximum(np.diag(cov), floor)
-        return pose, cov
-
-    def _snapshot_for_coasting(self) -> None:
-        """Keep the current fused pose (as a base pose ``X = pose (+) O^-1``) for dead reckoning."""
-        pose, cov = self._fused_output()
-        self._coast = (compose(pose, between(self._odo, np.zeros(3))), cov, self._path_m, self._turn_rad)
+    def _candidate_poses(self) -> NDArray[np.float64]:
+        """``(m, 3)`` current poses of the live candidates."""
+        return compose(self._store[_X : _TH + 1, : self._m].T, self._odo)
 
     @property
     def estimate(self) -> PoseEstimate:
@@ -484,9 +693,13 @@ class CandidateSetLocalizer:
         return PoseEstimate(e.x_m, e.y_m, e.theta_rad, e.covariance.copy(), e.valid)
 
     def _compute_estimate(self) -> PoseEstimate:
-        if self._determined.any():
-            (x, y, th), cov = self._fused_output()
-            return PoseEstimate(float(x), float(y), float(th), cov, True)
+        ox, oy, ot = self._odo.tolist()
+        pose, cov, determined = _fused_output(
+            self._store, self._counts, self._n_sets, self._determined, ox, oy, ot, self._params.fusion_median_m, self._floors
+        )
+        if determined:
+            x, y, th = pose.tolist()
+            return PoseEstimate(x, y, th, cov, True)
         if self._coast is None:
             return PoseEstimate.invalid()
         base, cov, path0, turn0 = self._coast
@@ -497,28 +710,28 @@ class CandidateSetLocalizer:
         cov[0, 0] = (math.sqrt(cov[0, 0]) + pos_sd) ** 2
         cov[1, 1] = (math.sqrt(cov[1, 1]) + pos_sd) ** 2
         cov[2, 2] = (math.sqrt(cov[2, 2]) + head_sd) ** 2
-        x, y, th = compose(base, self._odo)
-        return PoseEstimate(float(x), float(y), float(th), cov, True)
+        x, y, th = _compose_pose(base, *self._odo.tolist())
+        return PoseEstimate(x, y, th, cov, True)
 
     def overlay(self) -> Overlay:
         """Live candidates; weight ``1 - Error / prune_error_rad`` (low Error = high weight)."""
-        if self._err.size == 0:
+        if self._m == 0:
             return Overlay(label="candidate sets: none")
-        weights = np.clip(1.0 - self._err / self._params.prune_error_rad, 0.0, 1.0)
-        label = f"candidate sets: {self._counts.size} sets, {int(self._determined.sum())} determined"
+        weights = np.clip(1.0 - self._store[_ERR, : self._m] / self._params.prune_error_rad, 0.0, 1.0)
+        label = f"candidate sets: {self._n_sets} sets, {int(self._determined[: self._n_sets].sum())} determined"
         return Overlay(poses=self._candidate_poses(), weights=weights, label=label)
 
     @property
     def set_sizes(self) -> NDArray[np.intp]:
         """``(S,)`` live candidates per set, in creation order (for diagnostics and tests)."""
-        return self._counts.copy()
+        return self._counts[: self._n_sets].astype(np.intp)
 
     @property
     def sets_determined(self) -> NDArray[np.bool_]:
         """``(S,)`` whether each live set has determined a pose."""
-        return self._determined.copy()
+        return self._determined[: self._n_sets].copy()
 
     @property
     def candidate_errors(self) -> NDArray[np.float64]:
         """``(M,)`` accumulated Error of the live candidates, in the order of :meth:`overlay`."""
-        return self._err.copy()
+        return self._store[_ERR, : self._m].copy()

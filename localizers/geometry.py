@@ -101,3 +101,16 @@ def circular_mean(angles: ArrayLike, weights: ArrayLike | None = None, axis: int
     w = np.ones_like(a) if weights is None else np.broadcast_to(np.asarray(weights, dtype=np.float64), a.shape)
     mean = np.arctan2(np.sum(w * np.sin(a), axis=axis), np.sum(w * np.cos(a), axis=axis))
     return wrap_angle(mean)
+
+
+def in_field_of_view(
+    origin: NDArray[np.float64], heading: float | NDArray[np.float64], points_xy: NDArray[np.float64], fov_rad: float
+) -> NDArray[np.bool_]:
+    """Whether each point lies within ``fov_rad / 2`` of the heading as seen from ``origin``.
+
+    ``origin`` ``(..., 2)`` and ``heading`` ``(...)`` broadcast against ``points_xy`` ``(L, 2)``:
+    one pose gives ``(L,)``, ``C`` poses (``origin[:, None, :]``, ``heading[:, None]``) give ``(C, L)``.
+    """
+    offsets = points_xy - origin
+    bearing = np.arctan2(offsets[..., 1], offsets[..., 0]) - heading
+    return np.abs(wrap_angle(bearing)) <= 0.5 * fov_rad

@@ -51,6 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
 from localizers.geometry import circular_mean, wrap_angle
+from localizers.motion import _wrap
 from localizers.schema import check
 
 DEFAULT_MIN_CONDITIONING = 0.1
@@ -63,11 +64,6 @@ solutions that match a bearing only up to pi). Exact solutions do so to ~1e-12 r
 # Landmark order putting the pivot in the middle, indexed by the excluded pair
 # (0: pair (0, 1) -> pivot 2, 1: pair (1, 2) -> pivot 0, 2: pair (0, 2) -> pivot 1).
 _PIVOT_ORDER = np.array([[0, 2, 1], [1, 0, 2], [0, 1, 2]], dtype=np.intp)
-
-
-def _rot90(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``J v``: rotate ``(..., 2)`` vectors by +90 degrees."""
-    return np.stack([-v[..., 1], v[..., 0]], axis=-1)
 
 
 def _cassini(
@@ -176,6 +172,51 @@ def _cassini_kernel(
     return poses, cond, d_rms
 
 
+@numba.njit(cache=True)
+def _accept(poses: NDArray[np.float64], cond: NDArray[np.float64], min_conditioning: float) -> NDArray[np.bool_]:
+    """``(T,)`` ok flags of raw ``(T, 3)`` solutions: finite and conditioning >= ``min_conditioning``
+    (NaN conditioning fails). Sets the poses that are not ok to NaN, in place."""
+    ok = np.empty(cond.shape[0], dtype=np.bool_)
+    for t in range(cond.shape[0]):
+        good = cond[t] >= min_conditioning
+        for j in range(3):
+            good = good and math.isfinite(poses[t, j])
+        ok[t] = good
+        if not good:
+            poses[t, 0] = math.nan
+            poses[t, 1] = math.nan
+            poses[t, 2] = math.nan
+    return ok
+
+
+@numba.njit(cache=True, error_model="numpy")
+def solve_triples(
+    observed_xy: NDArray[np.float64], bearings: NDArray[np.float64], triples: NDArray[np.int64], min_conditioning: float
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]:
+    """Cassini solutions of the given triples of one frame (compiled; callable from other kernels).
+
+    Args:
+        observed_xy: ``(n, 2)`` positions of the observed landmarks; bearings: ``(n,)`` theirs.
+        triples: ``(T, 3)`` indices into them (:func:`_triples`).
+        min_conditioning: see :func:`cassini_resection`.
+
+    Returns:
+        ``poses (T, 3)`` (NaN where not ok), ``ok (T,)``, conditioning and RMS distance ``(T,)``.
+    """
+    count = triples.shape[0]
+    lm = np.empty((count, 3, 2))
+    b = np.empty((count, 3))
+    for t in range(count):
+        for j in range(3):
+            k = triples[t, j]
+            lm[t, j, 0] = observed_xy[k, 0]
+            lm[t, j, 1] = observed_xy[k, 1]
+            b[t, j] = bearings[k]
+    poses, cond, d_rms = _cassini_kernel(lm, b, _PIVOT_ORDER, RESIDUAL_TOL_RAD)
+    ok = _accept(poses, cond, min_conditioning)
+    return poses, ok, cond, d_rms
+
+
 @functools.lru_cache(maxsize=32)
 def _triples(n: int) -> NDArray[np.int64]:
     """``(C(n, 3), 3)`` index triples, read-only and cached per landmark count."""
@@ -217,8 +258,7 @@ def cassini_resection(
     if not min_conditioning > 0.0:
         raise ValueError(f"cassini_resection: min_conditioning must be > 0, got {min_conditioning!r}")
     poses, cond, _ = _cassini(lm, b)
-    ok = np.isfinite(poses).all(axis=-1) & (cond >= min_conditioning)  # NaN compares False
-    poses = np.where(ok[..., None], poses, np.nan)
+    ok = _accept(poses.reshape(-1, 3), cond.reshape(-1), min_conditioning).reshape(cond.shape)[()]  # NaN-ed in place
     return poses, ok
 
 
@@ -246,20 +286,36 @@ def inscribed_arc_poses(
         raise ValueError(f"inscribed_arc_poses: n must be >= 1, got {n!r}")
     a = np.asarray(l1_xy, dtype=np.float64).reshape(2)
     b = np.asarray(l2_xy, dtype=np.float64).reshape(2)
-    psi = float(wrap_angle(float(bearing2_rad) - float(bearing1_rad)))
-    chord = b - a
-    length = math.hypot(chord[0], chord[1])
+    return _arc_kernel(float(a[0]), float(a[1]), float(b[0]), float(b[1]), float(bearing1_rad), float(bearing2_rad), int(n))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _arc_kernel(ax: float, ay: float, bx: float, by: float, bearing1: float, bearing2: float, n: int) -> NDArray[np.float64]:
+    """:func:`inscribed_arc_poses` for checked arguments (compiled: candidate sets oversample arcs 8x)."""
+    out = np.empty((n, 3))
+    psi = _wrap(bearing2 - bearing1)
+    chord_x = bx - ax
+    chord_y = by - ay
+    length = math.hypot(chord_x, chord_y)
     if abs(math.sin(psi)) < 1e-9 or length == 0.0:
-        return np.full((n, 3), np.nan)
-    centre = 0.5 * (a + b) + 0.5 / math.tan(psi) * _rot90(chord)
+        out[:, :] = math.nan
+        return out
+    # centre m + cot(psi)/2 J (L2 - L1), with J (x, y) = (-y, x)
+    half_cot = 0.5 / math.tan(psi)
+    cx = 0.5 * (ax + bx) + half_cot * -chord_y
+    cy = 0.5 * (ay + by) + half_cot * chord_x
     radius = 0.5 * length / abs(math.sin(psi))
-    start = math.atan2(b[1] - centre[1], b[0] - centre[0])
+    start = math.atan2(by - cy, bx - cx)
     # From L2 the arc runs counter-clockwise to L1 for psi > 0, clockwise for psi < 0.
     sweep = math.copysign(2.0 * math.pi - 2.0 * abs(psi), psi)
-    ang = start + sweep * np.arange(1, n + 1) / (n + 1)
-    pos = centre + radius * np.stack([np.cos(ang), np.sin(ang)], axis=-1)
-    heading = wrap_angle(np.arctan2(a[1] - pos[:, 1], a[0] - pos[:, 0]) - float(bearing1_rad))
-    return np.concatenate([pos, np.reshape(heading, (n, 1))], axis=1)
+    for i in range(n):
+        ang = start + sweep * (i + 1) / (n + 1)
+        px = cx + radius * math.cos(ang)
+        py = cy + radius * math.sin(ang)
+        out[i, 0] = px
+        out[i, 1] = py
+        out[i, 2] = _wrap(math.atan2(ay - py, ax - px) - bearing1)
+    return out
 
 
 @dataclass(frozen=True)
@@ -321,9 +377,7 @@ def resect_all_triples(
             np.full(3, np.nan), False,
         )  # fmt: skip
     local = _triples(idx.size)  # (T, 3)
-    poses, cond, d_rms = _cassini(lm[idx[local]], b[local])
-    ok = np.isfinite(poses).all(axis=-1) & (cond >= min_conditioning)
-    poses = np.where(ok[:, None], poses, np.nan)
+    poses, ok, cond, d_rms = solve_triples(lm[idx], b, local, min_conditioning)  # (numpy indexing checks the ids)
     with np.errstate(all="ignore"):
         sens = np.where(ok, d_rms / cond, np.nan)
     inliers = np.zeros(ok.shape, dtype=bool)

@@ -31,3 +31,27 @@ def test_active_part_evaluates_every_policy_and_judges_only_with_enough_seeds(tm
         assert f"| ppo:{SHIPPED_MODEL} |" in section and "no verdict" in section
     else:
         assert "No trained policy" in section
+
+
+def test_verdict_compares_with_the_best_fixed_policy_of_each_metric() -> None:
+    from agents.demo import ACTIVE_DENSITIES, ACTIVE_LOCALIZERS, verdict
+    from agents.evaluate import EvalResult, EvalSpec, Stat, SummaryRow
+
+    def row(policy: str, localizer: str, crowd: int, error: tuple[float, float, float], fix: tuple[float, float, float]) -> SummaryRow:
+        return SummaryRow(policy, localizer, crowd, 10, {"position_error_mean_m": Stat(*error, 10), "first_fix_s": Stat(*fix, 10)})
+
+    rows = []
+    for localizer in ACTIVE_LOCALIZERS:
+        for crowd in ACTIVE_DENSITIES:
+            rows += [
+                row("ppo:m.zip", localizer, crowd, (0.05, 0.04, 0.06), (1.0, 0.9, 1.1)),
+                row("spin", localizer, crowd, (0.08, 0.07, 0.09), (2.0, 1.8, 2.2)),  # best on error
+                row("greedy_info_gain", localizer, crowd, (0.20, 0.10, 0.30), (1.05, 0.95, 1.15)),  # best on first fix
+            ]
+    result = EvalResult(EvalSpec(policies=("spin", "greedy_info_gain")), (), tuple(rows), 0.0)
+    lines = verdict(result, "ppo:m.zip")
+    error_lines = [line for line in lines if "position_error_mean_m" in line]
+    fix_lines = [line for line in lines if "first_fix_s" in line]
+    assert len(error_lines) == len(fix_lines) == len(ACTIVE_LOCALIZERS) * (len(ACTIVE_DENSITIES) - 1)
+    assert all("spin: 0.080" in line and "PPO better" in line for line in error_lines)
+    assert all("greedy_info_gain: 1.050" in line and "no significant difference" in line for line in fix_lines)

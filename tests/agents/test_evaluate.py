@@ -155,11 +155,54 @@ def test_eval_seeds_are_held_out_and_episodes_replay() -> None:
         ({"crowd_sizes": (15,)}, "crowd size 15 out of range 0..14"),
         ({"crowd_sizes": (-1,)}, "crowd size -1 out of range 0..14"),
         ({"seeds": 0}, "seeds must be an integer >= 1, got 0"),
+        ({"env_kwargs": {"prior": "maybe"}}, "prior must be 'start' or 'none', got 'maybe'"),
+        ({"env_kwargs": {"crowd_size": 3}}, "env_kwargs may not set 'crowd_size'"),
+        ({"env_kwargs": {"camera": {"fov_rad": 9.0}}}, "camera.fov_rad must be in (0, 2 pi], got 9.0"),
+        ({"env_kwargs": {"kamera": {}}}, "unknown env keyword 'kamera'"),
     ],
 )
 def test_bad_specs_are_refused_with_the_value(kwargs: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message.replace(".", r"\.").replace("(", r"\(")):
         EvalSpec(**kwargs)
+
+
+def test_conditions_reach_the_episode_and_the_bound() -> None:
+    from localizers.geometry import in_field_of_view
+
+    fov = 1.0
+    spec = EvalSpec(policies=("spin",), localizers=("mcl_bearing",), crowd_sizes=(0,), seeds=1, episode_steps=30,
+                    env_kwargs={"camera": {"fov_rad": fov}, "prior": "none"})  # fmt: skip
+    assert not spec.known_start("mcl_bearing")
+    assert EvalSpec(localizers=("kalman",)).known_start("kalman")  # the localizer's own default (the paper's KF)
+    assert not EvalSpec(localizers=("mcl_bearing",)).known_start("mcl_bearing")
+    episode = run_episode(spec, spec.cells()[0])
+    from envs import load_world
+
+    landmarks = np.array([(lm.x_m, lm.y_m) for lm in load_world("robocup_crowded").landmarks])
+    for pose, seen in zip(episode.true_pose, episode.visible):
+        assert np.array_equal(seen, in_field_of_view(pose[:2], pose[2], landmarks, fov))  # no crowd: only the view limits
+    assert 0 < episode.visible.sum(axis=1).max() < len(landmarks)
+    known = EvalSpec(policies=("spin",), localizers=("mcl_bearing",), crowd_sizes=(0,), seeds=1, episode_steps=30,
+                     env_kwargs={"camera": {"fov_rad": fov}, "prior": "start"})  # fmt: skip
+    # a known start makes the bound small from the first step; starting lost it is as wide as the field
+    assert run_episode(known, known.cells()[0]).bound_rmse_m[0] < 0.01 < episode.bound_rmse_m[0]
+
+
+def test_cli_takes_conditions_from_a_training_config_and_env_set(tmp_path: Path) -> None:
+    from agents.evaluate import run_cli
+
+    args = build_parser(["eval"]).parse_args(
+        ["eval", "--conditions", "ppo_candidate_sets", "--env-set", "camera.fov_rad=1.0", "--env-set", "camera.max_range_m=4",
+         "--policies", "spin", "--crowd-sizes", "0", "--seeds", "1", "--episode-steps", "3", "--no-gif", "--no-progress",
+         "--out", str(tmp_path)]  # fmt: skip
+    )
+    result = run_cli(args)
+    trained = load_train_config("ppo_candidate_sets")
+    assert result.spec.env_kwargs == {**trained.env_kwargs, "camera": {"fov_rad": 1.0, "max_range_m": 4}}
+    assert result.spec.reward == trained.reward
+    with pytest.raises(ConfigError, match="differs from the env of --conditions"):
+        run_cli(build_parser(["eval"]).parse_args(["eval", "--conditions", "ppo_candidate_sets", "--env-id",
+                                                   "crowdloc/RoboCupStatic-v0"]))  # fmt: skip
 
 
 def test_cli_refuses_a_missing_ppo_file_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:

@@ -93,6 +93,42 @@ def test_greedy_information_gain_prefers_the_motion_that_uncovers_landmarks() ->
     assert action[0] > 0  # it moves rather than standing still
 
 
+def test_greedy_information_gain_turns_a_narrow_camera_toward_the_landmarks() -> None:
+    # landmarks only on the left (x = 0); the robot in the middle faces +x with a 90 deg camera
+    landmarks = LandmarkMap(np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 3.0]]), ("a", "b", "c"), (0, 0, 4, 4))
+    from gymnasium import spaces
+
+    space = spaces.Box(-1, 1, (2,), np.float32)
+    policy = GreedyInformationGain(space, landmarks, max_speed_mps=1.0, max_turn_rate_rps=3.0, fov_rad=math.pi / 2)
+    pose = np.array([2.0, 2.0, 0.0])
+    seen = np.zeros(3, dtype=bool)  # nothing in view: none of them is known to be hidden
+    ends = policy.end_poses(pose)
+    visible = policy.expected_visible(pose, ends[:, :2], seen, ends[:, 2])
+    standing = int(np.flatnonzero((policy.candidates[:, 0] == 0) & (policy.candidates[:, 1] == 0))[0])
+    assert not visible[standing].any()  # still facing away
+    full_turn = int(np.flatnonzero((policy.candidates[:, 0] == 0) & (policy.candidates[:, 1] == 1))[0])
+    assert visible[full_turn].all()  # 3 rad of turn brings all three into the 90 deg view
+    obs = {
+        "landmarks": np.zeros(9, np.float32),
+        "estimate": np.array([0.0, 0.0, 1.0, 0.0], np.float32),  # (2, 2) facing +x
+        "estimate_valid": np.ones(1, np.float32),
+        "estimate_spread": np.array([0.05, 0.05], np.float32),
+    }
+    action, _ = policy.predict(obs)
+    assert abs(action[1]) == 1.0  # a full-rate turn
+    with pytest.raises(ValueError, match="headings"):
+        policy.expected_visible(pose, ends[:, :2], seen)
+    with pytest.raises(ValueError, match="fov_rad"):
+        GreedyInformationGain(space, landmarks, fov_rad=0.0)
+
+
+def test_make_policy_reads_the_camera_field_of_view() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer="candidate_sets", camera={"fov_rad": 1.5})
+    assert make_policy("greedy_info_gain", env).fov_rad == 1.5
+    assert make_policy("landmark_seeking", env).fov_rad == 1.5
+    env.close()
+
+
 def test_policies_are_seeded() -> None:
     env = gym.make("crowdloc/RoboCupCrowded-v0", localizer="mcl_bearing")
     obs, _ = env.reset(seed=0)

@@ -42,7 +42,7 @@ def _free_port() -> int:
 
 
 @pytest.mark.slow
-def test_ray_cluster_runs_the_tasks() -> None:
+def test_ray_cluster_runs_the_tasks_and_a_multi_seed_training(tmp_path: Path) -> None:
     import ray  # noqa: F401  (the [distributed] extra, installed by make)
     ray_cli = shutil.which("ray", path=str(Path(sys.executable).parent))
     assert ray_cli is not None
@@ -59,6 +59,13 @@ def test_ray_cluster_runs_the_tasks() -> None:
         results = run_tasks(square_and_pid, list(range(5)), ray_address=f"127.0.0.1:{port}", progress=False)
         assert [r[0] for r in results] == [0, 1, 4, 9, 16]
         assert os.getpid() not in {r[1] for r in results}
+        from agents.train import load_train_config, train_seeds
+
+        config = load_train_config("ppo_candidate_sets", {
+            "total_timesteps": 64, "n_envs": 2, "vec_env": "dummy", "crowd_sizes": [3], "ppo.n_steps": 32,
+            "ppo.batch_size": 32, "ppo.n_epochs": 1, "ppo.net_arch": [16]})  # fmt: skip
+        models = train_seeds(config, tmp_path, [0, 1], ray_address=f"127.0.0.1:{port}", progress=False)
+        assert [m.parent.name for m in models] == ["seed_0", "seed_1"] and all(m.is_file() for m in models)
     finally:
         import ray
 

@@ -71,6 +71,34 @@ def test_bad_training_configs_name_the_problem(overrides: dict, needle: str) -> 
         load_train_config("ppo_candidate_sets", overrides)
 
 
+def test_multi_seed_training_equals_the_single_runs(tmp_path: Path) -> None:
+    from agents.train import train_seeds
+
+    config = tiny(64)
+    models = train_seeds(config, tmp_path / "sweep", [3, 4], workers=2, progress=False)
+    assert [m.parent.name for m in models] == ["seed_3", "seed_4"]
+    alone = train(tiny(64, seed=4), tmp_path / "alone", progress_bar=False)
+    for x, y in zip(weights(models[1]), weights(alone)):  # a run in the pool is the same run
+        torch.testing.assert_close(x, y, rtol=0, atol=0)
+    assert any(not torch.equal(x, y) for x, y in zip(weights(models[0]), weights(models[1])))
+    with pytest.raises(ConfigError, match="seeds repeat"):
+        train_seeds(config, tmp_path, [1, 1])
+
+
+def test_train_cli_refuses_options_that_do_not_fit(capsys: pytest.CaptureFixture[str]) -> None:
+    from agents.cli import main
+
+    for argv, needle in (
+        (["train", "ppo_candidate_sets", "--seeds", "1", "2", "--resume", "latest"], "--resume continues one run"),
+        (["train", "ppo_candidate_sets", "--workers", "2"], "give --seeds"),
+        (["train", "ppo_candidate_sets", "--seed", "1", "--seeds", "2"], "not allowed with argument"),
+    ):
+        with pytest.raises(SystemExit) as exit_info:
+            main(argv)
+        assert exit_info.value.code == 2
+        assert needle in capsys.readouterr().err
+
+
 def test_overrides_parse_as_yaml_values() -> None:
     assert parse_overrides(["ppo.learning_rate=1e-3", "crowd_sizes=[2, 4]"]) == {"ppo.learning_rate": 1e-3, "crowd_sizes": [2, 4]}
     with pytest.raises(ConfigError, match="KEY=VALUE"):

@@ -97,6 +97,21 @@ def test_occluded_landmark_is_grey_and_visible_landmarks_are_coloured() -> None:
     env.close()
 
 
+def test_a_narrow_camera_draws_the_edges_of_its_view() -> None:
+    from envs.render import SIGHT_LINE
+
+    frames = {}
+    for fov in (2 * np.pi, np.pi / 2):
+        env = _static_env(crowd_size=0, camera={"fov_rad": fov})
+        env.reset(seed=0, options={"robot_pose": [2.5, 5.0, 0.0]})
+        frames[fov] = env.render()
+        # around a point on the left edge of a 90 deg view facing +x, 2.8 m out (a 1-pixel line)
+        col, row = Renderer(env.unwrapped.config, "rgb_array", 30).to_pixel((4.5, 7.0))
+        patch = frames[fov][row - 1 : row + 2, col - 1 : col + 2].reshape(-1, 3)
+        assert any(tuple(p) == SIGHT_LINE for p in patch) == (fov < 2 * np.pi)
+        env.close()
+
+
 def test_overlay_is_called_with_a_canvas_and_drawn() -> None:
     calls: list[Any] = []
 

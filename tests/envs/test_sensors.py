@@ -105,6 +105,32 @@ def test_camera_range_limit_applies_to_every_landmark() -> None:
     env.close()
 
 
+@pytest.mark.parametrize(
+    ("theta_deg", "fov_deg", "expected"),
+    [
+        # from (2.5, 8): L5 (5, 10) at 38.7 deg, L6 (3.5, 10) at 63.4 deg, L7 (1.5, 10) at 116.6 deg
+        (90.0, 90.0, [0.0, 1.0, 1.0]),  # L5 is 51.3 deg off the heading
+        (90.0, 110.0, [1.0, 1.0, 1.0]),
+        (0.0, 90.0, [1.0, 0.0, 0.0]),
+        (-90.0, 90.0, [0.0, 0.0, 0.0]),  # facing away
+        (-90.0, 360.0, [1.0, 1.0, 1.0]),  # the omnidirectional default sees behind
+        (63.4, 1.0, [0.0, 1.0, 0.0]),
+    ],
+)
+def test_field_of_view_hides_landmarks_off_the_heading(theta_deg: float, fov_deg: float, expected: list[float]) -> None:
+    env = static_env(crowd_size=0, camera={"fov_rad": math.radians(fov_deg)})
+    obs, info = env.reset(seed=0, options={"robot_pose": [2.5, 8.0, math.radians(theta_deg)]})
+    assert slots(obs)[:, 0].tolist() == expected
+    assert info["visible_landmarks"].tolist() == np.flatnonzero(expected).tolist()
+    env.close()
+
+
+@pytest.mark.parametrize("fov", [0.0, -1.0, 7.0, math.nan])
+def test_bad_field_of_view_is_named(fov: float) -> None:
+    with pytest.raises(ValueError, match="camera.fov_rad"):
+        static_env(camera={"fov_rad": fov})
+
+
 @pytest.mark.parametrize("theta", [0.0, 1.0, -2.5, math.pi - 0.01])
 def test_noise_free_bearings_match_the_geometry(theta: float) -> None:
     env = static_env(crowd_size=0, camera={"noise_std_rad": 0.0})
