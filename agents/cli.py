@@ -33,8 +33,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     demo.add_argument("--steps", type=positive_int, default=3000, help="steps per (world, density) run (default 3000)")
     demo.add_argument("--seed", type=int, default=0, help="seed of the env and the policy (default 0)")
     demo.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "demo", help="output folder (default results/demo)")
-    demo.add_argument("--active-seeds", type=int, default=10,
-                      help="held-out seeds per cell of the active-localization part (default 10; 0 skips it)")
+    demo.add_argument("--active-seeds", type=int, default=20,
+                      help="held-out seeds per cell of the active-localization part (default 20; 0 skips it)")
     demo.add_argument("--model", type=Path, default=None, help="the PPO model to evaluate (default: the shipped one)")
     demo.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: the core count)")
 

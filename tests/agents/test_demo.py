@@ -55,3 +55,22 @@ def test_verdict_compares_with_the_best_fixed_policy_of_each_metric() -> None:
     assert len(error_lines) == len(fix_lines) == len(ACTIVE_LOCALIZERS) * (len(ACTIVE_DENSITIES) - 1)
     assert all("spin: 0.080" in line and "PPO better" in line for line in error_lines)
     assert all("greedy_info_gain: 1.050" in line and "no significant difference" in line for line in fix_lines)
+
+
+def test_caveats_report_identical_first_fixes_and_the_spread_of_episode_errors() -> None:
+    from types import SimpleNamespace
+
+    from agents.demo import ACTIVE_DENSITIES, ACTIVE_LOCALIZERS, caveats
+    from agents.evaluate import Cell, EvalResult, EvalSpec, Stat, SummaryRow
+
+    rows, episodes = [], []
+    for localizer in ACTIVE_LOCALIZERS:
+        for crowd in ACTIVE_DENSITIES:
+            for policy, error in (("spin", 0.05), ("greedy_info_gain", 0.7)):
+                fix = 0.03 if localizer == "candidate_sets" else 1.0 + error  # identical only for candidate_sets
+                rows.append(SummaryRow(policy, localizer, crowd, 1, {"first_fix_s": Stat(fix, fix, fix, 1)}))
+                episodes.append(SimpleNamespace(cell=Cell(policy, localizer, crowd, 0), metrics={"position_error_mean_m": error}))
+    notes = "\n".join(caveats(EvalResult(EvalSpec(), tuple(episodes), tuple(rows), 0.0)))  # type: ignore[arg-type]
+    assert "With `candidate_sets` every policy has its first fix at 0.03 s" in notes
+    assert "With `mcl_bearing` every policy" not in notes
+    assert "run from 0.050 to 0.700 m" in notes
