@@ -150,6 +150,7 @@ class EvalSpec:
             check_policy(policy)
         if self.env_id not in ENV_WORLDS:
             raise ConfigError(f"unknown env id {self.env_id!r}; known: {', '.join(ENV_WORLDS)}")
+        check(isinstance(self.env_kwargs, Mapping), f"env_kwargs must be a mapping, got {self.env_kwargs!r}")
         conditions = dict(self.env_kwargs)
         prior = conditions.pop("prior", None)
         check(prior in (None, "start", "none"), f"env_kwargs prior must be 'start' or 'none', got {prior!r}")

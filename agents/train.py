@@ -291,7 +291,7 @@ def train_seeds(
     """Train ``config`` once per seed (``<out>/<name>/seed_<s>/``), the runs side by side.
 
     The runs go through :func:`agents.sweep.run_tasks`: a local process pool (``workers``,
-    default the core count; each run still starts its own env processes) or a Ray cluster
+    default the core count; each run steps its envs as its ``vec_env`` says) or a Ray cluster
     (``ray_address``; ``out`` must then be a folder every node can write). Each run equals
     ``train`` with that seed alone. Returns the ``model.zip`` paths in seed order.
     """

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.demo import SHIPPED_MODEL, run_active, run_worlds
+from agents.demo import SHIPPED_MODELS, run_active, run_worlds
 from agents.policies import FIXED_POLICIES
 
 
@@ -20,41 +20,53 @@ def test_worlds_part_reports_speed_visibility_and_frames(tmp_path: Path) -> None
 
 @pytest.mark.parametrize("with_model", [False, True])
 def test_active_part_evaluates_every_policy_and_judges_only_with_enough_seeds(tmp_path: Path, with_model: bool) -> None:
-    model = SHIPPED_MODEL if with_model else tmp_path / "missing.zip"
     if with_model:
-        assert SHIPPED_MODEL.is_file(), "the shipped PPO policy is part of the repository"
-    section = run_active(tmp_path, seeds=1, model=model, workers=1, episode_steps=20)
+        for path in SHIPPED_MODELS.values():
+            assert path.is_file(), f"the shipped PPO policy {path} is part of the repository"
+    models = SHIPPED_MODELS if with_model else {loc: tmp_path / "missing.zip" for loc in SHIPPED_MODELS}
+    section = run_active(tmp_path, seeds=1, models=models, workers=1, episode_steps=20)
     for policy in FIXED_POLICIES:
         assert f"| {policy} | candidate_sets | 10 |" in section
     assert (tmp_path / "episode.gif").is_file() and (tmp_path / "summary.csv").is_file()
     if with_model:
-        assert f"| ppo:{SHIPPED_MODEL} |" in section and "no verdict" in section
+        for path in SHIPPED_MODELS.values():
+            assert f"| ppo:{path} | mcl_bearing | 6 |" in section  # every policy runs with every localizer
+        assert "no verdict" in section and "No trained policy" not in section
     else:
-        assert "No trained policy" in section
+        assert "No trained policy" in section and "ppo:" not in section
 
 
 def test_verdict_compares_with_the_best_fixed_policy_of_each_metric() -> None:
     from agents.demo import ACTIVE_DENSITIES, ACTIVE_LOCALIZERS, verdict
     from agents.evaluate import EvalResult, EvalSpec, Stat, SummaryRow
 
-    def row(policy: str, localizer: str, crowd: int, error: tuple[float, float, float], fix: tuple[float, float, float]) -> SummaryRow:
-        return SummaryRow(policy, localizer, crowd, 10, {"position_error_mean_m": Stat(*error, 10), "first_fix_s": Stat(*fix, 10)})
+    def row(policy: str, localizer: str, crowd: int, error: tuple[float, float, float], fix: tuple[float, float, float],
+            available: tuple[float, float, float]) -> SummaryRow:  # fmt: skip
+        stats = {"position_error_mean_m": Stat(*error, 10), "first_fix_s": Stat(*fix, 10), "availability": Stat(*available, 10)}
+        return SummaryRow(policy, localizer, crowd, 10, stats)
 
     rows = []
     for localizer in ACTIVE_LOCALIZERS:
         for crowd in ACTIVE_DENSITIES:
             rows += [
-                row("ppo:m.zip", localizer, crowd, (0.05, 0.04, 0.06), (1.0, 0.9, 1.1)),
-                row("spin", localizer, crowd, (0.08, 0.07, 0.09), (2.0, 1.8, 2.2)),  # best on error
-                row("greedy_info_gain", localizer, crowd, (0.20, 0.10, 0.30), (1.05, 0.95, 1.15)),  # best on first fix
+                row("ppo:m.zip", localizer, crowd, (0.05, 0.04, 0.06), (1.0, 0.9, 1.1), (0.5, 0.4, 0.6)),
+                row("spin", localizer, crowd, (0.08, 0.07, 0.09), (2.0, 1.8, 2.2), (0.3, 0.2, 0.35)),  # best on error
+                # best on first fix and availability (higher is better)
+                row("greedy_info_gain", localizer, crowd, (0.20, 0.10, 0.30), (1.05, 0.95, 1.15), (0.9, 0.85, 0.95)),
+                row("ppo:other.zip", localizer, crowd, (0.01, 0.00, 0.02), (0.1, 0.0, 0.2), (1.0, 1.0, 1.0)),  # not fixed
             ]
     result = EvalResult(EvalSpec(policies=("spin", "greedy_info_gain")), (), tuple(rows), 0.0)
-    lines = verdict(result, "ppo:m.zip")
+    lines = verdict(result, dict.fromkeys(ACTIVE_LOCALIZERS, "ppo:m.zip"))
     error_lines = [line for line in lines if "position_error_mean_m" in line]
     fix_lines = [line for line in lines if "first_fix_s" in line]
     assert len(error_lines) == len(fix_lines) == len(ACTIVE_LOCALIZERS) * (len(ACTIVE_DENSITIES) - 1)
     assert all("spin: 0.080" in line and "PPO better" in line for line in error_lines)
     assert all("greedy_info_gain: 1.050" in line and "no significant difference" in line for line in fix_lines)
+    available = [line for line in lines if "availability" in line]
+    assert len(available) == len(error_lines)
+    assert all("greedy_info_gain: 0.900" in line and "PPO worse" in line for line in available)
+    only = verdict(result, {"candidate_sets": "ppo:m.zip"})  # a localizer without its own policy is not judged
+    assert any("| candidate_sets |" in line for line in only) and not any("| mcl_bearing |" in line for line in only)
 
 
 def test_caveats_report_identical_first_fixes_and_the_spread_of_episode_errors() -> None:

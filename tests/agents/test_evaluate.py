@@ -159,6 +159,7 @@ def test_eval_seeds_are_held_out_and_episodes_replay() -> None:
         ({"env_kwargs": {"crowd_size": 3}}, "env_kwargs may not set 'crowd_size'"),
         ({"env_kwargs": {"camera": {"fov_rad": 9.0}}}, "camera.fov_rad must be in (0, 2 pi], got 9.0"),
         ({"env_kwargs": {"kamera": {}}}, "unknown env keyword 'kamera'"),
+        ({"env_kwargs": "fov=1"}, "env_kwargs must be a mapping, got 'fov=1'"),
     ],
 )
 def test_bad_specs_are_refused_with_the_value(kwargs: dict, message: str) -> None:
