@@ -323,7 +323,7 @@ def verdict(result: EvalResult, ppo_for: Mapping[str, str]) -> list[str]:
     and the medium and high densities: does that policy beat the best fixed policy on each
     verdict metric (the fixed policy with the best mean of that metric) with non-overlapping
     95 % intervals? Availability (higher is better) is judged beside them."""
-    from agents.evaluate import PPO_PREFIX, Stat, SummaryRow
+    from agents.evaluate import PPO_PREFIX
 
     lines = ["| localizer | crowd | metric | PPO | best fixed policy | verdict |", "|---|---:|---|---|---|---|"]
     for localizer in ACTIVE_LOCALIZERS:
@@ -334,23 +334,18 @@ def verdict(result: EvalResult, ppo_for: Mapping[str, str]) -> list[str]:
             mine = next(r for r in rows if r.policy == ppo_for[localizer])
             fixed = [r for r in rows if not r.policy.startswith(PPO_PREFIX)]
             for key in (*VERDICT_METRICS, *EXTRA_METRICS):  # against the best fixed policy of each metric
-                sign = -1.0 if key in HIGHER_IS_BETTER else 1.0
-
-                def badness(r: SummaryRow, key: str = key, sign: float = sign) -> float:
-                    mean = r.stats[key].mean
-                    return sign * mean if math.isfinite(mean) else math.inf
-
-                best = min(fixed, key=badness)
+                sign = -1.0 if key in HIGHER_IS_BETTER else 1.0  # sign * value: lower is better
+                best = min(fixed, key=lambda r: sign * r.stats[key].mean if math.isfinite(r.stats[key].mean) else math.inf)
                 a, b = mine.stats[key], best.stats[key]
-                if sign < 0:  # compare as "lower is better"
-                    a, b = Stat(-a.mean, -a.high, -a.low, a.n), Stat(-b.mean, -b.high, -b.low, b.n)
-                if a.high < b.low:
+                # the intervals of sign * value: (low, high) of a higher-is-better metric swap ends
+                a_lo, a_hi = sorted((sign * a.low, sign * a.high))
+                b_lo, b_hi = sorted((sign * b.low, sign * b.high))
+                if a_hi < b_lo:
                     word = "PPO better (intervals do not overlap)"
-                elif b.high < a.low:
+                elif b_hi < a_lo:
                     word = "PPO worse (intervals do not overlap)"
                 else:
                     word = "no significant difference"
-                a, b = mine.stats[key], best.stats[key]
                 lines.append(
                     f"| {localizer} | {crowd} | {key} | {a.mean:.3f} [{a.low:.3f}, {a.high:.3f}] | "
                     f"{best.policy}: {b.mean:.3f} [{b.low:.3f}, {b.high:.3f}] | {word} |"

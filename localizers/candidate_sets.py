@@ -51,8 +51,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
 from localizers.geometry import between, compose
-from localizers.motion import _wrap
-from localizers.resection import _triples, inscribed_arc_poses, solve_triples
+from localizers.motion import wrap_scalar
+from localizers.resection import inscribed_arc_poses, solve_triples, triple_indices
 from localizers.schema import check
 
 
@@ -142,7 +142,7 @@ _ZERO32 = np.float32(0.0)
 @numba.njit(cache=True, inline="always")
 def _se2(x: float, y: float, th: float, c: float, s: float, dx: float, dy: float, dth: float) -> tuple[float, float, float]:
     """``(x, y, th) (+) (dx, dy, dth)`` with ``c, s = cos th, sin th`` (:func:`geometry.compose` of one pose)."""
-    return x + c * dx - s * dy, y + s * dx + c * dy, _wrap(th + dth)
+    return x + c * dx - s * dy, y + s * dx + c * dy, wrap_scalar(th + dth)
 
 
 @numba.njit(cache=True)
@@ -243,7 +243,7 @@ def _fuse(poses: NDArray[np.float64], median_threshold_m: float) -> tuple[NDArra
     if k == 1:
         pose[0] = poses[0, 0]
         pose[1] = poses[0, 1]
-        pose[2] = _wrap(poses[0, 2])
+        pose[2] = wrap_scalar(poses[0, 2])
         return pose, kept
     median = np.empty(k)
     others = np.empty(k - 1)
@@ -272,7 +272,7 @@ def _fuse(poses: NDArray[np.float64], median_threshold_m: float) -> tuple[NDArra
             sc += math.cos(poses[a, 2])
     pose[0] = sx / n_kept
     pose[1] = sy / n_kept
-    pose[2] = _wrap(math.atan2(ss, sc))  # circular mean of the kept headings
+    pose[2] = wrap_scalar(math.atan2(ss, sc))  # circular mean of the kept headings
     return pose, kept
 
 
@@ -283,7 +283,7 @@ def _add_deviation(
     """Add the outer product of ``pose - centre`` (heading wrapped) to ``cov``; ``dev`` is scratch."""
     dev[0] = pose[0] - centre[0]
     dev[1] = pose[1] - centre[1]
-    dev[2] = _wrap(pose[2] - centre[2])
+    dev[2] = wrap_scalar(pose[2] - centre[2])
     for a in range(3):
         for b in range(3):
             cov[a, b] += dev[a] * dev[b]
@@ -433,7 +433,7 @@ def _append(store: NDArray[np.float64], m: int, poses: NDArray[np.float64], ox: 
     dy = -oy
     ix = c * dx + s * dy
     iy = -s * dx + c * dy
-    it = _wrap(0.0 - ot)
+    it = wrap_scalar(0.0 - ot)
     for j in range(poses.shape[0]):
         i = m + j
         px, py, pt = poses[j, 0], poses[j, 1], poses[j, 2]
@@ -511,7 +511,7 @@ def generate_candidates(
     xmin, ymin, xmax, ymax = landmarks.bounds_m
     box = (xmin - bounds_margin_m, ymin - bounds_margin_m, xmax + bounds_margin_m, ymax + bounds_margin_m)
     if idx.size >= 3:
-        poses = _triple_seeds(pos[idx], b, _triples(idx.size), float(min_conditioning), *box)  # (indexing checks the ids)
+        poses = _triple_seeds(pos[idx], b, triple_indices(idx.size), float(min_conditioning), *box)  # (indexing checks the ids)
         if poses.shape[0]:
             return poses
     i, j = np.triu_indices(idx.size, 1)

@@ -30,7 +30,8 @@ _TWO_PI = 2.0 * math.pi
 
 
 @numba.njit(cache=True, inline="always")
-def _wrap(a: float) -> float:
+def wrap_scalar(a: float) -> float:
+    """One angle wrapped to ``[-pi, pi)`` inside compiled code (``geometry.wrap_angle`` for arrays)."""
     return (a + _PI) % _TWO_PI - _PI
 
 
@@ -43,11 +44,11 @@ def _decompose(delta: NDArray[np.float64]) -> NDArray[np.float64]:
         trans = math.sqrt(dx * dx + dy * dy)
         rot1 = math.atan2(dy, dx) if trans > 1e-12 else 0.0
         if abs(rot1) > _PI / 2:
-            rot1 = _wrap(rot1 - _PI)
+            rot1 = wrap_scalar(rot1 - _PI)
             trans = -trans
         out[i, 0] = rot1
         out[i, 1] = trans
-        out[i, 2] = _wrap(dth - rot1)
+        out[i, 2] = wrap_scalar(dth - rot1)
     return out
 
 
@@ -58,7 +59,7 @@ def _compose(rtr: NDArray[np.float64]) -> NDArray[np.float64]:
     for i in range(rtr.shape[0]):
         out[i, 0] = rtr[i, 1] * math.cos(rtr[i, 0])
         out[i, 1] = rtr[i, 1] * math.sin(rtr[i, 0])
-        out[i, 2] = _wrap(rtr[i, 0] + rtr[i, 2])
+        out[i, 2] = wrap_scalar(rtr[i, 0] + rtr[i, 2])
     return out
 
 

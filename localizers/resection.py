@@ -51,7 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
 from localizers.geometry import circular_mean, wrap_angle
-from localizers.motion import _wrap
+from localizers.motion import wrap_scalar
 from localizers.schema import check
 
 DEFAULT_MIN_CONDITIONING = 0.1
@@ -146,10 +146,10 @@ def _cassini_kernel(
             rows[j, 0] = dy / r2[j]
             rows[j, 1] = -dx / r2[j]
             rows[j, 2] = -1.0
-        heading = (math.atan2(sin_sum, cos_sum) + math.pi) % (2.0 * math.pi) - math.pi
+        heading = wrap_scalar(math.atan2(sin_sum, cos_sum))
         residual = 0.0
         for j in range(3):
-            e = (world_dir[j] - heading - bb[j] + math.pi) % (2.0 * math.pi) - math.pi
+            e = wrap_scalar(world_dir[j] - heading - bb[j])
             # NaN-propagating maximum, like np.max
             if abs(e) > residual or e != e:
                 residual = abs(e)
@@ -197,7 +197,7 @@ def solve_triples(
 
     Args:
         observed_xy: ``(n, 2)`` positions of the observed landmarks; bearings: ``(n,)`` theirs.
-        triples: ``(T, 3)`` indices into them (:func:`_triples`).
+        triples: ``(T, 3)`` indices into them (:func:`triple_indices`).
         min_conditioning: see :func:`cassini_resection`.
 
     Returns:
@@ -218,7 +218,7 @@ def solve_triples(
 
 
 @functools.lru_cache(maxsize=32)
-def _triples(n: int) -> NDArray[np.int64]:
+def triple_indices(n: int) -> NDArray[np.int64]:
     """``(C(n, 3), 3)`` index triples, read-only and cached per landmark count."""
     out = np.array(list(combinations(range(n), 3)), dtype=np.int64)
     out.setflags(write=False)
@@ -293,7 +293,7 @@ def inscribed_arc_poses(
 def _arc_kernel(ax: float, ay: float, bx: float, by: float, bearing1: float, bearing2: float, n: int) -> NDArray[np.float64]:
     """:func:`inscribed_arc_poses` for checked arguments (compiled: candidate sets oversample arcs 8x)."""
     out = np.empty((n, 3))
-    psi = _wrap(bearing2 - bearing1)
+    psi = wrap_scalar(bearing2 - bearing1)
     chord_x = bx - ax
     chord_y = by - ay
     length = math.hypot(chord_x, chord_y)
@@ -314,7 +314,7 @@ def _arc_kernel(ax: float, ay: float, bx: float, by: float, bearing1: float, bea
         py = cy + radius * math.sin(ang)
         out[i, 0] = px
         out[i, 1] = py
-        out[i, 2] = _wrap(math.atan2(ay - py, ax - px) - bearing1)
+        out[i, 2] = wrap_scalar(math.atan2(ay - py, ax - px) - bearing1)
     return out
 
 
@@ -376,7 +376,7 @@ def resect_all_triples(
             np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), np.zeros(0, bool),
             np.full(3, np.nan), False,
         )  # fmt: skip
-    local = _triples(idx.size)  # (T, 3)
+    local = triple_indices(idx.size)  # (T, 3)
     poses, ok, cond, d_rms = solve_triples(lm[idx], b, local, min_conditioning)  # (numpy indexing checks the ids)
     with np.errstate(all="ignore"):
         sens = np.where(ok, d_rms / cond, np.nan)

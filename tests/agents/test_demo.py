@@ -86,3 +86,14 @@ def test_caveats_report_identical_first_fixes_and_the_spread_of_episode_errors()
     assert "With `candidate_sets` every policy has its first fix at 0.03 s" in notes
     assert "With `mcl_bearing` every policy" not in notes
     assert "run from 0.050 to 0.700 m" in notes
+
+
+def test_every_shipped_policy_was_trained_in_the_conditions_the_demo_evaluates() -> None:
+    from agents.demo import SHIPPED_CONFIG, SHIPPED_MODELS
+    from agents.train import load_train_config
+
+    conditions = load_train_config(SHIPPED_CONFIG).env_kwargs
+    for localizer in SHIPPED_MODELS:
+        config = load_train_config(f"ppo_{localizer}")
+        assert config.localizer == localizer and config.env_kwargs == conditions
+
