@@ -74,6 +74,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     ev.add_argument("--crowd-sizes", "--densities", dest="crowd_sizes", nargs="+", type=int, metavar="N",
                     help="crowd sizes (default: 2 6 10)")
     ev.add_argument("--seeds", type=positive_int, default=10, help="held-out seeds per cell (default 10)")
+    ev.add_argument("--first-seed", type=int, default=0, metavar="K",
+                    help="held-out seeds start at 2**31 + K (default 0: the test seeds of make demo; pick between "
+                         "trained policies on another range, e.g. 1000)")
     ev.add_argument("--episode-steps", type=positive_int, default=450, help="steps per episode (default 450 = 15 s)")
     ev.add_argument("--env-id", help="a bearing env id (default: RoboCupCrowded-v0, or the --conditions one)")
     ev.add_argument("--conditions", metavar="EXPERIMENT",

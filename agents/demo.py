@@ -311,6 +311,14 @@ def caveats(result: EvalResult) -> list[str]:
                 f"{np.median(errors):.3f} m): a few episodes in which the localizer is pushed off or fixes wrongly "
                 "dominate the means, which is what keeps the intervals wide."
             )
+    if "sonar" in result.spec.env_kwargs:
+        from agents.policies import CLEARANCE_M
+
+        notes.append(
+            "- Sensors: every policy gets the same observation, the sonar ring included. The PPO policies learned "
+            "to read it; landmark seeking and greedy information gain use it only to avoid driving into what it "
+            f"reads closer than {CLEARANCE_M} m; spin, random walk, stop-and-go and patrol ignore it."
+        )
     notes.append(
         "- How the shipped policies were trained, the reward and budget variants tried and what each changed: "
         "`models/README.md`."

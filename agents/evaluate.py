@@ -50,6 +50,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 import envs  # noqa: F401  (registers the crowdloc ids)
@@ -105,7 +106,10 @@ class EvalSpec:
             ``"ppo:PATH/model.zip"`` (a stable-baselines3 PPO model).
         localizers: registered localizer names.
         crowd_sizes: crowd sizes (densities) of the world.
-        seeds: number of held-out seeds per cell (``EVAL_SEED_BASE + 0 .. seeds - 1``).
+        seeds: number of held-out seeds per cell (``EVAL_SEED_BASE + first_seed + 0 .. seeds - 1``).
+        first_seed: offset of the first held-out seed. The default 0 gives the test seeds that
+            ``make demo`` reports on; choosing between trained policies (validation) uses
+            another range, e.g. ``first_seed=1000``, so the test seeds play no part in the choice.
         episode_steps: steps per episode (450 = 15 s, the training episode length).
         env_id: a registered crowdloc id whose world has a bearing camera.
         env_kwargs: the conditions: world section overrides for ``gym.make`` (e.g.
@@ -124,6 +128,7 @@ class EvalSpec:
     localizers: tuple[str, ...] = ("candidate_sets",)
     crowd_sizes: tuple[int, ...] = (2, 6, 10)
     seeds: int = 10
+    first_seed: int = 0
     episode_steps: int = 450
     env_id: str = "crowdloc/RoboCupCrowded-v0"
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
@@ -139,6 +144,8 @@ class EvalSpec:
         for name in ("policies", "localizers", "crowd_sizes"):  # lists from Python callers become tuples
             object.__setattr__(self, name, tuple(getattr(self, name)))
         check(isinstance(self.seeds, int) and self.seeds >= 1, f"seeds must be an integer >= 1, got {self.seeds!r}")
+        check(isinstance(self.first_seed, int) and 0 <= self.first_seed <= 2**30,
+              f"first_seed must be an integer from 0 to {2**30}, got {self.first_seed!r}")  # fmt: skip
         check(isinstance(self.episode_steps, int) and self.episode_steps >= 1,
               f"episode_steps must be an integer >= 1, got {self.episode_steps!r}")  # fmt: skip
         check(self.bootstrap_resamples >= 1, f"bootstrap_resamples must be >= 1, got {self.bootstrap_resamples}")
@@ -162,6 +169,12 @@ class EvalSpec:
             entry = localizer_spec(name)
             check(entry.measurement != "scan" or world.lidar is not None,
                   f"localizer {name!r} needs a LIDAR; {self.env_id} has none")  # fmt: skip
+        ppo = [policy for policy in self.policies if policy.startswith(PPO_PREFIX)]
+        if ppo:
+            env = gym.make(self.env_id, localizer=self.localizers[0], **dict(self.env_kwargs))
+            for policy in ppo:
+                check_observation_space(policy, _load_ppo(policy[len(PPO_PREFIX):]).observation_space, env.observation_space)
+            env.close()
         limit = world.crowd.max_count
         for size in self.crowd_sizes:
             check(isinstance(size, (int, np.integer)) and 0 <= size <= limit,
@@ -169,8 +182,8 @@ class EvalSpec:
 
     @property
     def eval_seeds(self) -> tuple[int, ...]:
-        """The held-out env seeds, ``EVAL_SEED_BASE + i``."""
-        return tuple(EVAL_SEED_BASE + i for i in range(self.seeds))
+        """The held-out env seeds, ``EVAL_SEED_BASE + first_seed + i``."""
+        return tuple(EVAL_SEED_BASE + self.first_seed + i for i in range(self.seeds))
 
     def known_start(self, localizer: str) -> bool:
         """Whether ``localizer`` gets the true start pose under these conditions."""
@@ -207,6 +220,20 @@ class Cell:
     def stem(self) -> str:
         """A file-name stem naming this episode."""
         return f"{slug(self.policy)}__{self.localizer}__crowd{self.crowd_size}__seed{self.seed}"
+
+
+def check_observation_space(policy: str, expected: spaces.Space[Any], given: spaces.Space[Any]) -> None:
+    """Raise a ConfigError unless the env's observation space is the one ``policy`` was trained on."""
+    if expected == given:
+        return
+    want = {k: v.shape for k, v in expected.spaces.items()} if isinstance(expected, spaces.Dict) else {"": expected.shape}
+    have = {k: v.shape for k, v in given.spaces.items()} if isinstance(given, spaces.Dict) else {"": given.shape}
+    diffs = [f"{k}: policy {want.get(k, 'absent')}, env {have.get(k, 'absent')}" for k in sorted(set(want) | set(have))
+             if want.get(k) != have.get(k)] or ["same keys and shapes, different bounds"]  # fmt: skip
+    raise ConfigError(
+        f"policy {policy!r} was trained on other observations than these conditions give ({'; '.join(diffs)}): "
+        "evaluate it in its training conditions (crowdloc eval --conditions <its training config>)"
+    )
 
 
 def check_policy(policy: str) -> None:
@@ -608,7 +635,7 @@ def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
         "# crowdloc eval",
         "",
         f"{s.env_id}, {s.episode_steps} steps per episode, {s.seeds} held-out seeds "
-        f"({EVAL_SEED_BASE} + 0..{s.seeds - 1}) per cell, {len(result.episodes)} episodes in {result.wall_s:.0f} s.",
+        f"({EVAL_SEED_BASE} + {s.first_seed}..{s.first_seed + s.seeds - 1}) per cell, {len(result.episodes)} episodes in {result.wall_s:.0f} s.",
         "",
         summary_markdown(result),
         "",
@@ -746,7 +773,7 @@ def run_cli(args: Any) -> EvalResult:
         conditions = {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward}
     conditions["env_kwargs"] = merge_nested(conditions.get("env_kwargs", {}), nest(parse_overrides(args.env_set)))
     spec = EvalSpec(**{k: v for k, v in {**given, **conditions}.items() if v is not None}, seeds=args.seeds,
-                    episode_steps=args.episode_steps)  # fmt: skip
+                    first_seed=args.first_seed, episode_steps=args.episode_steps)  # fmt: skip
     gif_cell = parse_gif_cell(args.gif_cell, spec) if args.gif_cell else None
     result = evaluate(spec, workers=args.workers, ray_address=args.ray_address, progress=not args.no_progress)
     written = write_outputs(result, args.out, gif_cell=gif_cell, gif=not args.no_gif)

@@ -14,6 +14,9 @@ the estimate need the wrapped observation and say so when it is missing.
 - :class:`LandmarkSeeking`: head for the nearby spot from which most landmarks are in range.
 - :class:`GreedyInformationGain`: one-step look-ahead over a set of motions maximizing the
   Fisher information of the bearings expected to be visible from the estimated pose.
+
+The last two also keep clear of the crowd when the robot has a sonar ring (observation key
+``sonar``): they do not drive toward a direction whose sonar reads closer than ``clearance_m``.
 """
 
 from __future__ import annotations
@@ -32,6 +35,9 @@ from localizers.geometry import in_field_of_view, wrap_angle
 from localizers.wrappers import decode_estimate
 
 Observation = dict[str, NDArray[np.float32]]
+
+#: map policies do not drive toward a sonar reading closer than this (two robot radii and a margin)
+CLEARANCE_M = 0.7
 
 
 class FixedPolicy:
@@ -212,6 +218,7 @@ class _MapPolicy(FixedPolicy):
         speed: float = 0.6,
         search_turn: float = 1.0,
         occluder_halfwidth_rad: float = 0.15,
+        clearance_m: float = CLEARANCE_M,
     ) -> None:
         super().__init__(action_space, seed)
         _check_command(f"{type(self).__name__} speed", speed)
@@ -224,6 +231,9 @@ class _MapPolicy(FixedPolicy):
         self.fov_rad = fov_rad
         self.speed = speed
         self.occluder_halfwidth_rad = occluder_halfwidth_rad
+        if not clearance_m >= 0:
+            raise ValueError(f"{type(self).__name__} clearance_m must be >= 0, got {clearance_m}")
+        self.clearance_m = clearance_m
         self.search = SpinInPlace(action_space, seed, turn=search_turn)
 
     def _estimate(self, observation: Observation) -> NDArray[np.float64] | None:
@@ -263,14 +273,31 @@ class _MapPolicy(FixedPolicy):
         unseen_ok = seen_now | ~in_field_of_view(pose[:2], pose[2], lm, self.fov_rad)
         return in_range & (unseen_ok | turned) & in_field_of_view(spots[:, None, :], np.asarray(headings)[:, None], lm, self.fov_rad)
 
+    def blocked(self, observation: Observation, directions_rad: ArrayLike) -> NDArray[np.bool_]:
+        """Which travel directions (relative to the heading) the sonar finds obstructed.
+
+        A direction is obstructed when a sonar cone within 45 deg of it reads closer than
+        ``clearance_m``. Sensors are spread evenly from the heading counter-clockwise (the
+        ``sonar`` observation's layout). Without a sonar nothing is obstructed.
+        """
+        directions = np.asarray(directions_rad, dtype=np.float64)
+        if "sonar" not in observation:
+            return np.zeros(directions.shape, dtype=bool)
+        ranges = np.asarray(observation["sonar"], dtype=np.float64)
+        sensors = 2 * math.pi * np.arange(ranges.shape[0]) / ranges.shape[0]
+        near = np.abs(wrap_angle(sensors - directions[..., None])) <= math.pi / 4
+        return np.any(near & (ranges < self.clearance_m), axis=-1)
+
     def _inside(self, xy: NDArray[np.float64], margin: float = 0.4) -> NDArray[np.bool_]:
         xmin, ymin, xmax, ymax = self.landmarks.bounds_m
         return (xy[..., 0] > xmin + margin) & (xy[..., 0] < xmax - margin) & (xy[..., 1] > ymin + margin) & (xy[..., 1] < ymax - margin)
 
-    def _steer(self, pose: NDArray[np.float64], direction_rad: float) -> NDArray[np.float64]:
-        """Turn toward ``direction_rad`` and drive forward once roughly facing it."""
+    def _steer(self, observation: Observation, pose: NDArray[np.float64], direction_rad: float) -> NDArray[np.float64]:
+        """Turn toward ``direction_rad`` and drive forward once roughly facing it (unless the
+        way ahead is obstructed)."""
         error = float(wrap_angle(direction_rad - pose[2]))
-        return np.array([self.speed * max(0.0, math.cos(error)) ** 2, float(np.clip(2.0 * error, -1.0, 1.0))])
+        speed = 0.0 if self.blocked(observation, 0.0) else self.speed * max(0.0, math.cos(error)) ** 2
+        return np.array([speed, float(np.clip(2.0 * error, -1.0, 1.0))])
 
 
 class LandmarkSeeking(_MapPolicy):
@@ -294,11 +321,11 @@ class LandmarkSeeking(_MapPolicy):
         spots = pose[:2] + self.lookahead_m * np.stack([np.cos(world_angles), np.sin(world_angles)], axis=1)
         seen_now = np.asarray(observation["landmarks"]).reshape(-1, 3)[:, 0] > 0.5
         score = self.expected_visible(pose, spots, seen_now, world_angles).sum(axis=1) + 0.01 * np.cos(self.angles)  # ties: straight
-        score = np.where(self._inside(spots), score, -np.inf)
+        score = np.where(self._inside(spots) & ~self.blocked(observation, self.angles), score, -np.inf)
         if not np.isfinite(score).any():
             centre = np.mean(np.reshape(self.landmarks.bounds_m, (2, 2)), axis=0)
-            return self._steer(pose, math.atan2(centre[1] - pose[1], centre[0] - pose[0]))
-        return self._steer(pose, float(world_angles[int(np.argmax(score))]))
+            return self._steer(observation, pose, math.atan2(centre[1] - pose[1], centre[0] - pose[0]))
+        return self._steer(observation, pose, float(world_angles[int(np.argmax(score))]))
 
 
 class GreedyInformationGain(_MapPolicy):
@@ -357,15 +384,17 @@ class GreedyInformationGain(_MapPolicy):
         lm = self.landmarks.positions_xy_m
         ends = self.end_poses(pose)
         visible = self.expected_visible(pose, ends[:, :2], seen_now, ends[:, 2])
+        # a motion drives along its mid-arc heading; standing and turning is never obstructed
+        obstructed = (self.candidates[:, 0] > 0) & self.blocked(observation, 0.5 * (ends[:, 2] - pose[2]))
         scores = np.full(len(ends), -np.inf)
         for i, (end, expected) in enumerate(zip(ends, visible)):
-            if not self._inside(end[:2]):
+            if obstructed[i] or not self._inside(end[:2]):
                 continue
             info = prior + bearing_information(end, lm[expected], self.bearing_std_rad) if expected.any() else prior
             scores[i] = np.linalg.slogdet(info)[1] + 1e-3 * self.candidates[i, 0]  # ties: keep moving
         if not np.isfinite(scores).any():
             centre = np.mean(np.reshape(self.landmarks.bounds_m, (2, 2)), axis=0)
-            return self._steer(pose, math.atan2(centre[1] - pose[1], centre[0] - pose[0]))
+            return self._steer(observation, pose, math.atan2(centre[1] - pose[1], centre[0] - pose[0]))
         return self.candidates[int(np.argmax(scores))].copy()
 
 

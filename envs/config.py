@@ -126,6 +126,35 @@ class LidarConfig:
 
 
 @dataclass(frozen=True)
+class SonarConfig:
+    """A ring of sonar range sensors around the body: how near the walls and the crowd are.
+
+    ``sensors`` transducers, evenly spaced from the heading counter-clockwise, each report
+    the nearest wall or moving body inside its cone (``cone_rad`` wide, sampled by
+    ``rays_per_cone`` rays), measured from the robot's centre; ``max_range_m`` when
+    nothing is within range. None of the papers' worlds has one: it is the obstacle
+    awareness a learned policy may use (add it with the env kwarg ``sonar={}``).
+    """
+
+    sensors: int = 12
+    cone_rad: float = math.radians(30.0)
+    rays_per_cone: int = 5
+    max_range_m: float = 2.0
+    range_std_m: float = 0.02
+
+    def __post_init__(self) -> None:
+        check(self.sensors >= 1, f"sonar.sensors must be >= 1, got {self.sensors}")
+        spacing = 2 * math.pi / self.sensors
+        check(
+            0 < self.cone_rad <= spacing + 1e-12,
+            f"sonar.cone_rad must be in (0, 2 pi / sensors = {spacing:.4f}] (cones may not overlap), got {self.cone_rad}",
+        )
+        check(self.rays_per_cone >= 1, f"sonar.rays_per_cone must be >= 1, got {self.rays_per_cone}")
+        check(self.max_range_m > 0, f"sonar.max_range_m must be > 0, got {self.max_range_m}")
+        check(self.range_std_m >= 0, f"sonar.range_std_m must be >= 0, got {self.range_std_m}")
+
+
+@dataclass(frozen=True)
 class SoccerCrowdConfig:
     """Other soccer robots and a ball (candidate-set paper, Exp 2)."""
 
@@ -222,6 +251,7 @@ class WorldConfig:
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
     camera: BearingCameraConfig | None = None
     lidar: LidarConfig | None = None
+    sonar: SonarConfig | None = None
     crowd: CrowdConfig = field(default_factory=CrowdConfig)
 
     def __post_init__(self) -> None:

@@ -4,7 +4,8 @@ Observation (a ``spaces.Dict``, float32, every bound finite):
 
 - ``odometry``: ``(3,)`` noisy commanded increment ``(dx, dy, dtheta)`` since the last step;
 - ``landmarks``: ``(3 L,)`` per-landmark ``(visible, cos, sin)`` of the bearing, flattened (worlds with a camera);
-- ``lidar``: ``(B,)`` ranges (worlds with a LIDAR).
+- ``lidar``: ``(B,)`` ranges (worlds with a LIDAR);
+- ``sonar``: ``(S,)`` nearest range in each sonar cone (with a sonar ring, e.g. ``sonar={}``).
 
 Action: ``Box(-1, 1, (2,))``, scaled to the world's forward speed and turn rate limits.
 Ground truth (``true_pose``, ``visible_landmarks``, ``false_detections``, ``contacts``) is in
@@ -24,13 +25,13 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from envs.config import WorldConfig, load_world
-from envs.sensors import BearingCamera, Lidar, Odometry, Sensor
+from envs.sensors import BearingCamera, Lidar, Odometry, Sensor, Sonar
 from envs.world import World
 from localizers.base import LandmarkMap
 from localizers.schema import ConfigError, replace_checked
 
 #: keyword overrides accepted by the env (besides ``world`` and ``render_mode``)
-OVERRIDE_SECTIONS = ("robot", "odometry", "camera", "lidar", "crowd")
+OVERRIDE_SECTIONS = ("robot", "odometry", "camera", "lidar", "sonar", "crowd")
 
 Overlay = Callable[[Any], None]
 
@@ -42,8 +43,10 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         world: a shipped world name (``"robocup_crowded"``), a YAML path or a ``WorldConfig``.
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
         crowd_size: number of moving obstacles (robots or people), the crowd density.
-        robot, odometry, camera, lidar, crowd: mappings overriding fields of that section of
-            the world config, for example ``camera={"noise_std_rad": 0.0}``.
+        robot, odometry, camera, lidar, sonar, crowd: mappings overriding fields of that
+            section of the world config, for example ``camera={"noise_std_rad": 0.0}``; a
+            sensor the world lacks is added with its defaults and the overrides
+            (``sonar={}`` gives a robot a sonar ring).
 
     Raises:
         ConfigError: for an unknown keyword, key or value, naming it.
@@ -77,6 +80,9 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         self.lidar = Lidar(config.lidar, self.world) if config.lidar is not None else None
         if self.lidar is not None:
             self.sensors.append(self.lidar)
+        self.sonar = Sonar(config.sonar, self.world) if config.sonar is not None else None
+        if self.sonar is not None:
+            self.sensors.append(self.sonar)
         self.observation_space = spaces.Dict({s.key: s.space() for s in self.sensors})
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self._overlays: list[Overlay] = []
@@ -217,9 +223,7 @@ def apply_overrides(config: WorldConfig, crowd_size: int | None = None, **overri
             continue
         if not isinstance(value, Mapping):
             raise ConfigError(f"env kwarg {section!r} must be a mapping of overrides, got {type(value).__name__} {value!r}")
-        current = getattr(config, section)
-        if current is None:
-            raise ConfigError(f"env kwarg {section!r}: world {config.name!r} has no {section}")
+        # a sensor the world lacks (camera, lidar, sonar) is added: its defaults, then the overrides
         changes[section] = dict(value)
     if crowd_size is not None:
         crowd = dict(changes.get("crowd", {}))

@@ -77,6 +77,7 @@ ROBOT_FILL: Color = (250, 250, 250)
 ROBOT_OUTLINE: Color = (220, 0, 0)
 SIGHT_LINE: Color = (255, 255, 160)
 LIDAR_HIT: Color = (255, 20, 20)
+SONAR_HIT: Color = (0, 200, 255)  # sonar readings, drawn at each cone's centre
 
 
 def landmark_color(index: int) -> Color:
@@ -381,13 +382,10 @@ class Renderer:
         self._draw_landmarks(canvas, world.landmark_xy, world.landmark_radius_m, visible)
         canvas.circle(pose[0], pose[1], world.radii_m[0], ROBOT_FILL, 0)
         canvas.pose(pose[0], pose[1], pose[2], ROBOT_OUTLINE, world.radii_m[0], 2)
-        scan = env.last_observation.get("lidar")
-        if env.lidar is not None and scan is not None:
-            ranges = np.asarray(scan, dtype=np.float64)
-            hit = ranges < env.lidar.config.max_range_m
-            angles = env.lidar.relative_angles[hit] + pose[2]
-            r = ranges[hit]
-            canvas.points(pose[:2] + np.stack([r * np.cos(angles), r * np.sin(angles)], axis=1), LIDAR_HIT, 2)
+        for sensor, colour, size in ((env.lidar, LIDAR_HIT, 2), (env.sonar, SONAR_HIT, 4)):
+            scan = env.last_observation.get(sensor.key) if sensor is not None else None
+            if scan is not None:
+                canvas.points(sensor.hit_points(scan, pose), colour, size)
 
         for draw in overlays:
             draw(canvas)

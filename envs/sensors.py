@@ -19,7 +19,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from envs.config import BearingCameraConfig, LidarConfig, OdometryConfig
+from envs.config import BearingCameraConfig, LidarConfig, OdometryConfig, SonarConfig
 from envs.world import World
 from localizers.geometry import in_field_of_view
 from localizers.motion import odometry_noise_std, sample_odometry
@@ -155,28 +155,34 @@ def _bearing_slots(
     return obs, visible_ids, false_ids
 
 
-class Lidar:
-    """2-D scanning range finder; beams hit walls and crowd members (not landmark poles)."""
+class _RangeSensor:
+    """Rays cast from the robot's centre; they hit walls and everything that moves, the ball
+    too (not landmark poles). Subclasses say where the rays go and how they become readings."""
 
-    key = "lidar"
+    key: str
 
-    def __init__(self, config: LidarConfig, world: World) -> None:
+    def __init__(self, config: LidarConfig | SonarConfig, world: World, ray_angles: NDArray[np.float64], reading_angles: NDArray[np.float64]) -> None:
         self.config = config
-        lo, hi = config.relative_angles_rad
-        self.relative_angles = np.linspace(lo, hi, config.beams)
-        # everything that moves is seen by the lidar, the ball too
+        #: ``(R,)`` ray directions relative to the heading, ascending, spanning less than a turn
+        self.relative_angles = ray_angles
+        #: ``(B,)`` the direction of each reading relative to the heading
+        self.reading_angles = reading_angles
         self.rows = np.arange(1, world.body_count)
 
     def space(self) -> spaces.Box:
-        return spaces.Box(0.0, self.config.max_range_m, shape=(self.config.beams,), dtype=np.float32)
+        return spaces.Box(0.0, self.config.max_range_m, shape=(self.reading_angles.shape[0],), dtype=np.float32)
 
     def reset(self) -> None:
         pass
 
+    def readings(self, rays: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The ``(B,)`` readings from the ``(R,)`` ranges of the rays."""
+        return rays
+
     def observe(self, world: World, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
         cfg = self.config
         pose = world.robot_pose
-        ranges = cast_rays(
+        rays = cast_rays(
             world.positions[0],
             self.relative_angles + pose[2],
             cfg.max_range_m,
@@ -185,7 +191,46 @@ class Lidar:
             world.positions[self.rows],
             world.radii_m[self.rows],
         )
+        ranges = self.readings(rays)
         hit = ranges < cfg.max_range_m
         if cfg.range_std_m > 0:
             ranges = np.where(hit, ranges + rng.standard_normal(ranges.shape[0]) * cfg.range_std_m, ranges)
         return np.clip(ranges, 0.0, cfg.max_range_m).astype(np.float32), {}
+
+    def hit_points(self, ranges: NDArray[np.floating[Any]], pose: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``(H, 2)`` world points of the readings that hit something (for drawing)."""
+        r = np.asarray(ranges, dtype=np.float64)
+        hit = r < self.config.max_range_m
+        angles = self.reading_angles[hit] + pose[2]
+        return np.asarray(pose[:2] + r[hit, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1))
+
+
+class Lidar(_RangeSensor):
+    """2-D scanning range finder: one reading per beam."""
+
+    key = "lidar"
+
+    def __init__(self, config: LidarConfig, world: World) -> None:
+        lo, hi = config.relative_angles_rad
+        beams = np.linspace(lo, hi, config.beams)
+        super().__init__(config, world, beams, beams)
+
+
+class Sonar(_RangeSensor):
+    """Ring of sonar range sensors: each reads the nearest hit among the rays of its cone.
+
+    Observation ``(sensors,)``: ranges from the robot's centre, in sensor order from the
+    heading counter-clockwise; ``max_range_m`` where the cone is clear.
+    """
+
+    key = "sonar"
+
+    def __init__(self, config: SonarConfig, world: World) -> None:
+        k = config.rays_per_cone
+        offsets = ((np.arange(k) + 0.5) / k - 0.5) * config.cone_rad
+        centres = np.arange(config.sensors) * (2 * math.pi / config.sensors)
+        # cones do not overlap (SonarConfig checks it), so the rays are ascending within a turn
+        super().__init__(config, world, (centres[:, None] + offsets[None, :]).reshape(-1), centres)
+
+    def readings(self, rays: NDArray[np.float64]) -> NDArray[np.float64]:
+        return rays.reshape(self.reading_angles.shape[0], -1).min(axis=1)

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import gymnasium as gym
 import pytest
 
+import envs  # noqa: F401  (registers crowdloc/*)
 from agents.demo import SHIPPED_MODELS, run_active, run_worlds
 from agents.policies import FIXED_POLICIES
 
@@ -86,14 +88,23 @@ def test_caveats_report_identical_first_fixes_and_the_spread_of_episode_errors()
     assert "With `candidate_sets` every policy has its first fix at 0.03 s" in notes
     assert "With `mcl_bearing` every policy" not in notes
     assert "run from 0.050 to 0.700 m" in notes
+    assert "sonar" not in notes
+    with_sonar = EvalResult(EvalSpec(env_kwargs={"sonar": {}}), tuple(episodes), tuple(rows), 0.0)  # type: ignore[arg-type]
+    assert "the sonar ring included" in "\n".join(caveats(with_sonar))
 
 
 def test_every_shipped_policy_was_trained_in_the_conditions_the_demo_evaluates() -> None:
     from agents.demo import SHIPPED_CONFIG, SHIPPED_MODELS
     from agents.train import load_train_config
 
+    from stable_baselines3 import PPO
+
     conditions = load_train_config(SHIPPED_CONFIG).env_kwargs
-    for localizer in SHIPPED_MODELS:
+    for localizer, path in SHIPPED_MODELS.items():
         config = load_train_config(f"ppo_{localizer}")
         assert config.localizer == localizer and config.env_kwargs == conditions
+        # and the zip is not stale: it observes what an env in those conditions gives (the sonar too)
+        env = gym.make(config.env_id, localizer=localizer, **dict(config.env_kwargs))
+        assert PPO.load(path, device="cpu").observation_space == env.observation_space, path
+        env.close()
 

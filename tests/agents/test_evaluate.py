@@ -144,6 +144,11 @@ def test_eval_seeds_are_held_out_and_episodes_replay() -> None:
     other = run_episode(spec, spec.cells()[1])
     assert not np.array_equal(a.true_pose, other.true_pose)
     assert a.true_pose.shape == (21, 3) and a.odometry.shape == (20, 3) and a.rewards.shape == (20,)
+    # validation seeds: another range, disjoint from the test seeds, and other episodes
+    validation = EvalSpec(policies=("random_walk",), crowd_sizes=(3,), seeds=3, first_seed=1000, episode_steps=20)
+    assert validation.eval_seeds == (EVAL_SEED_BASE + 1000, EVAL_SEED_BASE + 1001, EVAL_SEED_BASE + 1002)
+    assert not set(validation.eval_seeds) & set(spec.eval_seeds)
+    assert not np.array_equal(run_episode(validation, validation.cells()[0]).true_pose, a.true_pose)
 
 
 @pytest.mark.parametrize(
@@ -155,6 +160,7 @@ def test_eval_seeds_are_held_out_and_episodes_replay() -> None:
         ({"crowd_sizes": (15,)}, "crowd size 15 out of range 0..14"),
         ({"crowd_sizes": (-1,)}, "crowd size -1 out of range 0..14"),
         ({"seeds": 0}, "seeds must be an integer >= 1, got 0"),
+        ({"first_seed": -5}, "first_seed must be an integer from 0 to 1073741824, got -5"),
         ({"env_kwargs": {"prior": "maybe"}}, "prior must be 'start' or 'none', got 'maybe'"),
         ({"env_kwargs": {"crowd_size": 3}}, "env_kwargs may not set 'crowd_size'"),
         ({"env_kwargs": {"camera": {"fov_rad": 9.0}}}, "camera.fov_rad must be in (0, 2 pi], got 9.0"),
@@ -230,9 +236,13 @@ def test_every_command_has_help(command: str, capsys: pytest.CaptureFixture[str]
 def test_a_tiny_ppo_model_is_evaluated(tmp_path: Path) -> None:
     overrides = {"total_timesteps": 64, "n_envs": 2, "vec_env": "dummy", "crowd_sizes": [3], "ppo.n_steps": 32,
                  "ppo.batch_size": 32, "ppo.n_epochs": 1, "ppo.net_arch": [16]}  # fmt: skip
-    model = train(load_train_config("ppo_candidate_sets", overrides), tmp_path, progress_bar=False)
+    config = load_train_config("ppo_candidate_sets", overrides)
+    model = train(config, tmp_path, progress_bar=False)
     policy = f"ppo:{model}"
-    spec = EvalSpec(policies=(policy,), crowd_sizes=(3,), seeds=1, episode_steps=40)
+    # it was trained with a sonar ring: without one it has nothing to read, and says so up front
+    with pytest.raises(ConfigError, match=r"other observations than these conditions give \(sonar: policy \(12,\), env absent\)"):
+        EvalSpec(policies=(policy,), crowd_sizes=(3,), seeds=1)
+    spec = EvalSpec(policies=(policy,), crowd_sizes=(3,), seeds=1, episode_steps=40, env_kwargs=config.env_kwargs)
     result = evaluate(spec, workers=1, progress=False)
     (episode,) = result.episodes
     assert episode.cell == Cell(policy, "candidate_sets", 3, EVAL_SEED_BASE)

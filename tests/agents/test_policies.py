@@ -32,6 +32,18 @@ def test_every_fixed_policy_runs_on_every_bearing_env(env_id: str, name: str) ->
     env.close()
 
 
+@pytest.mark.parametrize("name", ["landmark_seeking", "greedy_info_gain"])
+def test_map_policies_run_with_a_sonar_ring_and_a_narrow_camera(name: str) -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer="candidate_sets", crowd_size=10, sonar={}, camera={"fov_rad": math.pi / 2})
+    policy = make_policy(name, env, seed=0)
+    obs, _ = env.reset(seed=0)
+    for _ in range(150):
+        action, _ = policy.predict(obs, deterministic=True)
+        assert env.action_space.contains(action), action
+        obs, *_ = env.step(action)
+    env.close()
+
+
 def test_a_planning_policy_without_a_localizer_says_what_is_missing() -> None:
     env = gym.make("crowdloc/RoboCupCrowded-v0")
     policy = make_policy("greedy_info_gain", env)
@@ -120,6 +132,41 @@ def test_greedy_information_gain_turns_a_narrow_camera_toward_the_landmarks() ->
         policy.expected_visible(pose, ends[:, :2], seen)
     with pytest.raises(ValueError, match="fov_rad"):
         GreedyInformationGain(space, landmarks, fov_rad=0.0)
+
+
+def test_map_policies_do_not_drive_into_what_the_sonar_reads() -> None:
+    # the first greedy test's situation (it drives forward to uncover the hidden pair), now
+    # with a robot 0.3 m straight ahead on sonar sensor 0 of 12
+    landmarks = LandmarkMap(np.array([[0.0, 0.0], [0.0, 4.0], [4.0, 0.0], [4.0, 4.0]]), ("a", "b", "c", "d"), (0, 0, 4, 4))
+    from gymnasium import spaces
+
+    from agents.policies import LandmarkSeeking
+
+    space = spaces.Box(-1, 1, (2,), np.float32)
+    greedy = GreedyInformationGain(space, landmarks, max_speed_mps=1.0, max_turn_rate_rps=1.0)
+    obs = {
+        "landmarks": np.array([1, math.cos(-2.0), math.sin(-2.0), 1, math.cos(2.0), math.sin(2.0), 0, 0, 0, 0, 0, 0], np.float32),
+        "estimate": np.array([-0.5, 0.0, 1.0, 0.0], np.float32),
+        "estimate_valid": np.ones(1, np.float32),
+        "estimate_spread": np.array([0.05, 0.05], np.float32),
+    }
+    assert greedy.predict(obs)[0].tolist() == [1.0, 0.0]  # straight ahead, without a sonar
+    sonar = np.full(12, 2.0, np.float32)
+    sonar[0] = 0.3
+    ahead = {**obs, "sonar": sonar}
+    # within 45 deg of sensor 0 (at 0 deg) is obstructed, beyond it is not
+    assert greedy.blocked(ahead, [0.0, 0.7, -0.7, 0.9, math.pi / 2, math.pi]).tolist() == [True, True, True, False, False, False]
+    assert not greedy.blocked(obs, [0.0]).any()
+    v, w = greedy.predict(ahead)[0]
+    mid_arc = 0.5 * w * greedy.max_turn_rate_rps * greedy.horizon_s
+    assert v == 0 or not greedy.blocked(ahead, mid_arc)
+    assert [v, w] != [1.0, 0.0]
+    seeking = LandmarkSeeking(space, landmarks)
+    assert seeking.predict(obs)[0][0] > 0
+    walled_in = {**obs, "sonar": np.full(12, 0.3, np.float32)}
+    assert seeking.predict(walled_in)[0][0] == 0  # turns in place at most
+    with pytest.raises(ValueError, match="clearance_m must be >= 0, got -1"):
+        LandmarkSeeking(space, landmarks, clearance_m=-1)
 
 
 def test_make_policy_reads_the_camera_field_of_view() -> None:

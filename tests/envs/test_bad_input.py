@@ -188,7 +188,10 @@ def test_boundary_actions_are_accepted(corner: tuple[float, float]) -> None:
         ({"odometry": {"alpha1": None}}, ["None", "alpha1"]),
         ({"robot": {"max_speed_mps": 0}}, ["max_speed_mps must be > 0, got 0"]),
         ({"camera": 0.0}, ["'camera'", "mapping", "0.0"]),
-        ({"lidar": {"beams": 10}}, ["'lidar'", "robocup_crowded", "no lidar"]),
+        # a sensor the world lacks is added (its defaults, then the overrides), checked the same way
+        ({"lidar": {"beams": 0}}, ["lidar.beams must be >= 1, got 0", "robocup_crowded"]),
+        ({"sonar": {"sensors": 0}}, ["sonar.sensors must be >= 1, got 0", "robocup_crowded"]),
+        ({"sonar": [12]}, ["'sonar'", "mapping", "[12]"]),
         ({"render_mode": "ascii"}, ["'ascii'", "render_mode"]),
     ],
 )

@@ -71,3 +71,12 @@ def test_stable_baselines3_check_env(env_id: str) -> None:
         run_without_warnings(lambda e: sb3_check_env(e, warn=True, skip_render_check=True), env)
     finally:
         env.close()
+
+
+def test_checkers_pass_with_an_added_sonar_ring() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", sonar={})
+    try:
+        run_without_warnings(lambda e: gym_check_env(e, skip_render_check=True), env.unwrapped)
+        run_without_warnings(lambda e: sb3_check_env(e, warn=True, skip_render_check=True), env)
+    finally:
+        env.close()

@@ -232,3 +232,21 @@ def test_record_video_writes_an_mp4(env_id: str, tmp_path: Path) -> None:
     env.close()
     video = folder / "rl-video-episode-0.mp4"
     assert video.is_file() and video.stat().st_size > 0
+
+
+def test_sonar_readings_are_drawn_where_they_hit() -> None:
+    from envs.render import SONAR_HIT
+
+    frames = []
+    for sonar in ({"range_std_m": 0.0}, None):
+        env = gym.make("crowdloc/RoboCupCrowded-v0", crowd_size=1, sonar=sonar, render_mode="rgb_array")
+        env.reset(seed=0, options={"robot_pose": [2.5, 2.5, 0.0]})
+        env.unwrapped.world.place_crowd_member(0, (3.5, 2.5))  # 1 m ahead: sensor 0 reads 1 m - radius
+        env.step(np.zeros(2, dtype=np.float32))
+        frames.append(env.render())
+        r = env.unwrapped.config.crowd.radius_m
+        col, row = Renderer(env.unwrapped.config, "rgb_array", 30).to_pixel((3.5 - r, 2.5))
+        env.close()
+    patch = frames[0][row - 2 : row + 3, col - 2 : col + 3].reshape(-1, 3)
+    assert any(tuple(p) == SONAR_HIT for p in patch)
+    assert not np.any(np.all(frames[1] == np.array(SONAR_HIT, dtype=np.uint8), axis=-1))  # no sonar, no sonar dots

@@ -218,3 +218,57 @@ def test_lidar_sees_a_person_in_front() -> None:
     assert obs["lidar"][ahead] == pytest.approx(2.0 - r, abs=1e-5)
     assert obs["lidar"][below] == pytest.approx(2.2 - r, abs=1e-5)
     env.close()
+
+
+def cone_rays(sensors: int, cone: float, per_cone: int) -> np.ndarray:
+    """``(sensors, per_cone)`` ray angles of a sonar ring, as SonarConfig documents them."""
+    centres = np.arange(sensors) * 2 * math.pi / sensors
+    return centres[:, None] + ((np.arange(per_cone) + 0.5) / per_cone - 0.5) * cone
+
+
+@pytest.mark.parametrize(("pose", "per_cone"), [((2.0, 3.0, 0.3), 1), ((5.5, 1.2, -2.8), 5), ((3.5, 3.5, math.pi / 2), 9)])
+def test_sonar_reads_the_nearest_wall_in_each_cone(pose: tuple[float, float, float], per_cone: int) -> None:
+    sonar = {"range_std_m": 0.0, "max_range_m": 20.0, "rays_per_cone": per_cone, "sensors": 8, "cone_rad": 0.6}
+    env = gym.make("crowdloc/CrowdedRoom-v0", crowd_size=0, sonar=sonar)
+    obs, _ = env.reset(seed=0, options={"robot_pose": list(pose)})
+    rays = cone_rays(8, 0.6, per_cone) + pose[2]
+    expected = box_ranges(pose[0], pose[1], rays.reshape(-1), env.unwrapped.config.size_m).reshape(8, per_cone).min(axis=1)
+    assert obs["sonar"].shape == (8,)
+    np.testing.assert_allclose(obs["sonar"], expected, atol=1e-5)
+    env.close()
+
+
+def test_sonar_cone_sees_a_robot_off_its_centre_line() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", crowd_size=1, sonar={"range_std_m": 0.0, "max_range_m": 1.5})
+    env.reset(seed=0, options={"robot_pose": [2.5, 2.5, 0.0]})
+    world = env.unwrapped.world
+    world.place_crowd_member(0, (2.5 + 1.0 * math.cos(0.2), 2.5 + 1.0 * math.sin(0.2)))  # 11 deg left, 1 m
+    obs, *_ = env.step(STILL)
+    r = env.unwrapped.config.crowd.radius_m
+    ranges = obs["sonar"]
+    assert ranges.shape == (12,)
+    # sensor 0 (cone -15..15 deg) sees the robot's near side along its nearest ray; its
+    # centre ray alone (1 m * cos 11 deg passes 0.2 m from the centre, inside the radius) reads more
+    assert 1.0 - r - 0.01 < ranges[0] < 1.0 - r + 0.03
+    # the robot subtends 11 +- 13 deg: sensor 1 (15..45 deg) sees its edge, the rest nothing
+    assert ranges[1] < 1.5
+    assert np.all(ranges[2:] == pytest.approx(1.5))
+    env.close()
+
+
+def test_sonar_is_added_to_a_world_without_one_and_bad_values_are_named() -> None:
+    from localizers.schema import ConfigError
+
+    plain = gym.make("crowdloc/RoboCupCrowded-v0")
+    assert "sonar" not in plain.observation_space.spaces
+    env = gym.make("crowdloc/RoboCupCrowded-v0", sonar={})
+    assert env.observation_space["sonar"].shape == (12,)
+    assert env.observation_space["sonar"].high.max() == pytest.approx(2.0)
+    obs, _ = env.reset(seed=3)
+    assert env.observation_space.contains(obs)
+    env.close()
+    plain.close()
+    with pytest.raises(ConfigError, match=r"sonar.cone_rad must be in \(0, 2 pi / sensors = 0.5236\].*got 1.0"):
+        gym.make("crowdloc/RoboCupCrowded-v0", sonar={"cone_rad": 1.0})
+    with pytest.raises(ConfigError, match="unknown key 'beams' for SonarConfig"):
+        gym.make("crowdloc/RoboCupCrowded-v0", sonar={"beams": 16})
