@@ -51,9 +51,9 @@ def test_tiny_run_trains_saves_loads_and_resumes_exactly(tmp_path: Path) -> None
     obs, _ = env.reset()
     action, _ = PPO.load(resumed, device="cpu").predict(obs, deterministic=True)
     assert env.action_space.contains(action)
-    run_json = (tmp_path / "straight" / config.name / "seed_0" / "run.json").read_text()
-    assert '"seed": 0' in run_json and "stable_baselines3" in run_json
-    assert any((tmp_path / "straight" / config.name / "seed_0" / "tb").rglob("events.out.tfevents*"))
+    run = tmp_path / "straight" / config.name / f"seed_{config.seed}"
+    assert f'"seed": {config.seed}' in (run / "run.json").read_text() and "stable_baselines3" in (run / "run.json").read_text()
+    assert any((run / "tb").rglob("events.out.tfevents*"))
 
 
 @pytest.mark.parametrize(
