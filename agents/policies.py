@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import LandmarkMap
 from localizers.bounds import bearing_information
-from localizers.geometry import in_field_of_view, wrap_angle
+from localizers.geometry import in_field_of_view, ring_directions, wrap_angle
 from localizers.wrappers import decode_estimate
 
 Observation = dict[str, NDArray[np.float32]]
@@ -284,13 +284,17 @@ class _MapPolicy(FixedPolicy):
         if "sonar" not in observation:
             return np.zeros(directions.shape, dtype=bool)
         ranges = np.asarray(observation["sonar"], dtype=np.float64)
-        sensors = 2 * math.pi * np.arange(ranges.shape[0]) / ranges.shape[0]
-        near = np.abs(wrap_angle(sensors - directions[..., None])) <= math.pi / 4
+        near = np.abs(wrap_angle(ring_directions(ranges.shape[0]) - directions[..., None])) <= math.pi / 4
         return np.any(near & (ranges < self.clearance_m), axis=-1)
 
     def _inside(self, xy: NDArray[np.float64], margin: float = 0.4) -> NDArray[np.bool_]:
         xmin, ymin, xmax, ymax = self.landmarks.bounds_m
         return (xy[..., 0] > xmin + margin) & (xy[..., 0] < xmax - margin) & (xy[..., 1] > ymin + margin) & (xy[..., 1] < ymax - margin)
+
+    def _head_for_centre(self, observation: Observation, pose: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The fallback when no motion qualifies: steer toward the middle of the map."""
+        centre = np.mean(np.reshape(self.landmarks.bounds_m, (2, 2)), axis=0)
+        return self._steer(observation, pose, math.atan2(centre[1] - pose[1], centre[0] - pose[0]))
 
     def _steer(self, observation: Observation, pose: NDArray[np.float64], direction_rad: float) -> NDArray[np.float64]:
         """Turn toward ``direction_rad`` and drive forward once roughly facing it (unless the
@@ -323,8 +327,7 @@ class LandmarkSeeking(_MapPolicy):
         score = self.expected_visible(pose, spots, seen_now, world_angles).sum(axis=1) + 0.01 * np.cos(self.angles)  # ties: straight
         score = np.where(self._inside(spots) & ~self.blocked(observation, self.angles), score, -np.inf)
         if not np.isfinite(score).any():
-            centre = np.mean(np.reshape(self.landmarks.bounds_m, (2, 2)), axis=0)
-            return self._steer(observation, pose, math.atan2(centre[1] - pose[1], centre[0] - pose[0]))
+            return self._head_for_centre(observation, pose)
         return self._steer(observation, pose, float(world_angles[int(np.argmax(score))]))
 
 
@@ -393,8 +396,7 @@ class GreedyInformationGain(_MapPolicy):
             info = prior + bearing_information(end, lm[expected], self.bearing_std_rad) if expected.any() else prior
             scores[i] = np.linalg.slogdet(info)[1] + 1e-3 * self.candidates[i, 0]  # ties: keep moving
         if not np.isfinite(scores).any():
-            centre = np.mean(np.reshape(self.landmarks.bounds_m, (2, 2)), axis=0)
-            return self._steer(observation, pose, math.atan2(centre[1] - pose[1], centre[0] - pose[0]))
+            return self._head_for_centre(observation, pose)
         return self.candidates[int(np.argmax(scores))].copy()
 
 

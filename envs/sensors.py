@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from envs.config import BearingCameraConfig, LidarConfig, OdometryConfig, SonarConfig
 from envs.world import World
-from localizers.geometry import in_field_of_view
+from localizers.geometry import in_field_of_view, ring_directions
 from localizers.motion import odometry_noise_std, sample_odometry
 from localizers.raycast import cast_rays, sight_lines_clear
 
@@ -228,7 +228,7 @@ class Sonar(_RangeSensor):
     def __init__(self, config: SonarConfig, world: World) -> None:
         k = config.rays_per_cone
         offsets = ((np.arange(k) + 0.5) / k - 0.5) * config.cone_rad
-        centres = np.arange(config.sensors) * (2 * math.pi / config.sensors)
+        centres = ring_directions(config.sensors)
         # cones do not overlap (SonarConfig checks it), so the rays are ascending within a turn
         super().__init__(config, world, (centres[:, None] + offsets[None, :]).reshape(-1), centres)
 

@@ -114,3 +114,9 @@ def in_field_of_view(
     offsets = points_xy - origin
     bearing = np.arctan2(offsets[..., 1], offsets[..., 0]) - heading
     return np.abs(wrap_angle(bearing)) <= 0.5 * fov_rad
+
+
+def ring_directions(count: int) -> NDArray[np.float64]:
+    """``(count,)`` directions spread evenly around a full turn, from 0 counter-clockwise: the
+    layout of a sensor ring (the sonar's cone centres, relative to the heading)."""
+    return np.arange(count) * (TWO_PI / count)
