@@ -16,6 +16,10 @@ Per episode the metrics are (``t0`` = the first step with a valid estimate, the 
 - ``first_fix_s`` / ``first_fix_distance_m``: time since reset and distance travelled until
   ``t0``. **Never fixed**: these and the error metrics are NaN; aggregates are taken over the
   episodes with a value (the summary shows how many), and ``fixed`` tells how often that was;
+- ``third_landmark_s``: time since reset until bearings of three distinct landmarks have
+  been in view (not necessarily at once): the search, the policy's part of the first fix
+  (NaN if it never happened); ``fix_after_third_s``: ``first_fix_s`` minus it, the
+  localizer's part (negative when a fix came from two landmarks and motion);
 - ``collisions``: contact events of our robot that began during the episode;
 - ``episode_return``: sum of the active-localization rewards;
 - ``bound_rmse_m``: RMS over the same steps as the errors of the posterior Cramer-Rao bound
@@ -88,6 +92,8 @@ METRICS: tuple[MetricInfo, ...] = (
     MetricInfo("fixed", "share of episodes with a fix", "{:.2f}", in_table=False),
     MetricInfo("first_fix_s", "first fix [s]", "{:.2f}"),
     MetricInfo("first_fix_distance_m", "first fix [m travelled]", "{:.2f}"),
+    MetricInfo("third_landmark_s", "third landmark seen [s]", "{:.2f}", in_table=False),
+    MetricInfo("fix_after_third_s", "first fix after the third landmark [s]", "{:.2f}", in_table=False),
     MetricInfo("collisions", "collisions", "{:.1f}"),
     MetricInfo("episode_return", "episode return", "{:.1f}"),
     MetricInfo("bound_rmse_m", "bound RMSE [m]", "{:.3f}", in_table=False),
@@ -396,7 +402,7 @@ def run_episode(spec: EvalSpec, cell: Cell) -> Episode:
         bounds_m=lmap.bounds_m,
     )
     values = episode_metrics(data["time_s"], data["true_pose"], data["estimates"], data["valid"],
-                             data["contacts"], data["rewards"], bound)  # fmt: skip
+                             data["contacts"], data["rewards"], bound, visible=data["visible"])  # fmt: skip
     return Episode(cell=cell, bound_rmse_m=bound, metrics=values, **data)
 
 
@@ -447,13 +453,15 @@ def episode_metrics(
     contacts: ArrayLike,
     rewards: ArrayLike,
     bound_rmse_m: ArrayLike,
+    *,
+    visible: ArrayLike,
 ) -> dict[str, float]:
     """The metrics of one episode (see the module docstring), keyed by :data:`METRIC_KEYS`.
 
     Args:
         time_s: ``(T,)``; true_pose, estimates: ``(T, 3)`` (NaN rows where invalid);
         valid: ``(T,)``; contacts: ``(T,)`` contact events begun per step; rewards: ``(T - 1,)``;
-        bound_rmse_m: ``(T,)``.
+        bound_rmse_m: ``(T,)``; visible: ``(T, L)`` landmarks in the camera's sight.
     """
     t = np.asarray(time_s, dtype=np.float64)
     truth = np.asarray(true_pose, dtype=np.float64)
@@ -461,6 +469,9 @@ def episode_metrics(
     t0 = metrics.first_fix(valid)
     pos = metrics.position_errors(est, truth)
     head = np.degrees(metrics.heading_errors(est, truth))
+    first_fix_s = float(t[t0] - t[0]) if t0 is not None else math.nan
+    t3 = metrics.distinct_seen(visible, 3)
+    third_s = float(t[t3] - t[0]) if t3 is not None else math.nan
     return {
         "position_error_mean_m": metrics.mean_sd(pos, t0)[0],
         "position_error_rms_m": metrics.rms(pos, t0),
@@ -469,8 +480,10 @@ def episode_metrics(
         "failure_rate": metrics.failure_rate(pos, t0, threshold=1.0),
         "availability": metrics.availability(valid),
         "fixed": float(t0 is not None),
-        "first_fix_s": float(t[t0] - t[0]) if t0 is not None else math.nan,
+        "first_fix_s": first_fix_s,
         "first_fix_distance_m": float(metrics.travelled(truth)[t0]) if t0 is not None else math.nan,
+        "third_landmark_s": third_s,
+        "fix_after_third_s": first_fix_s - third_s,
         "collisions": float(np.sum(contacts)),
         "episode_return": float(np.sum(rewards)),
         "bound_rmse_m": metrics.rms(bound_rmse_m, t0, np.isfinite(pos)),

@@ -39,6 +39,19 @@ def first_fix(valid: ArrayLike) -> int | None:
     return int(idx[0]) if idx.size else None
 
 
+def distinct_seen(visible: ArrayLike, count: int) -> int | None:
+    """First step by which ``count`` distinct landmarks have been in view, or ``None``.
+
+    ``visible`` is the ``(T, L)`` mask of the landmarks in sight at each step; a landmark
+    counts from the first step it is in view, whether or not it still is.
+    """
+    if count < 1:
+        raise ValueError(f"distinct_seen: count must be >= 1, got {count}")
+    seen = np.logical_or.accumulate(np.asarray(visible, dtype=bool), axis=0).sum(axis=1)
+    idx = np.flatnonzero(seen >= count)
+    return int(idx[0]) if idx.size else None
+
+
 def travelled(truth: ArrayLike) -> Array:
     """``(T,)`` distance travelled along the true path up to each step (0 at step 0)."""
     g = np.asarray(truth, dtype=np.float64)

@@ -71,6 +71,30 @@ def test_verdict_compares_with_the_best_fixed_policy_of_each_metric() -> None:
     assert any("| candidate_sets |" in line for line in only) and not any("| mcl_bearing |" in line for line in only)
 
 
+def test_first_fix_split_shows_the_trained_and_the_fastest_fixed_policy() -> None:
+    from agents.demo import ACTIVE_DENSITIES, ACTIVE_LOCALIZERS, first_fix_split
+    from agents.evaluate import EvalResult, EvalSpec, Stat, SummaryRow
+
+    def row(policy: str, localizer: str, crowd: int, fix: float, third: float) -> SummaryRow:
+        values = {"first_fix_s": fix, "third_landmark_s": third, "fix_after_third_s": fix - third}
+        return SummaryRow(policy, localizer, crowd, 10, {k: Stat(v, v - 0.1, v + 0.1, 10) for k, v in values.items()})
+
+    rows = [
+        row(policy, localizer, crowd, fix, third)
+        for localizer in ACTIVE_LOCALIZERS
+        for crowd in ACTIVE_DENSITIES
+        for policy, fix, third in (("ppo:m.zip", 1.0, 0.3), ("spin", 2.0, 0.9), ("landmark_seeking", 1.25, 0.5))
+    ]
+    lines = first_fix_split(EvalResult(EvalSpec(), (), tuple(rows), 0.0), {"candidate_sets": "ppo:m.zip"})
+    body = lines[2:]
+    assert len(body) == 2 * (len(ACTIVE_DENSITIES) - 1)  # the policy and the fastest fixed one per density
+    assert all("| candidate_sets |" in line for line in body)
+    assert "| candidate_sets | 6 | ppo:m.zip | 1.00 [0.90, 1.10] | 0.30 [0.20, 0.40] | 0.70 [0.60, 0.80] |" in body
+    assert "| candidate_sets | 6 | landmark_seeking | 1.25 [1.15, 1.35] | 0.50 [0.40, 0.60] | 0.75 [0.65, 0.85] |" in body
+    assert not any("spin" in line for line in body)
+    assert "third landmark seen [s]" in lines[0]
+
+
 def test_caveats_report_identical_first_fixes_and_the_spread_of_episode_errors() -> None:
     from types import SimpleNamespace
 

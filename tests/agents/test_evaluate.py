@@ -72,7 +72,10 @@ def test_metrics_of_a_hand_made_episode() -> None:
     valid = np.array([False, False, True, True, True])
     est = np.array([[99, 99, 99], [99, 99, 99], [2.3, 0.4, 0.1], [3.0, 0.0, -0.2], [5.2, 1.6, 0.0]], dtype=float)
     # position errors 0.5, 0, 2 m from the first fix (step 2); heading errors 0.1, 0.2, 0 rad
-    m = episode_metrics(time_s, truth, est, valid, [0, 1, 0, 2, 0], [-1.0, -1.0, 0.5, -0.5], np.full(5, 0.25))
+    # landmarks 0 and 1 in view at step 0, 2 at step 3 (the third distinct one), 0 again at step 4
+    visible = np.zeros((5, 4), bool)
+    visible[0, [0, 1]] = visible[3, 2] = visible[4, 0] = True
+    m = episode_metrics(time_s, truth, est, valid, [0, 1, 0, 2, 0], [-1.0, -1.0, 0.5, -0.5], np.full(5, 0.25), visible=visible)
     rms_pos = math.sqrt((0.25 + 0.0 + 4.0) / 3)
     assert m["position_error_mean_m"] == pytest.approx(2.5 / 3)
     assert m["position_error_rms_m"] == pytest.approx(rms_pos)
@@ -83,6 +86,8 @@ def test_metrics_of_a_hand_made_episode() -> None:
     assert m["fixed"] == 1.0
     assert m["first_fix_s"] == pytest.approx(1.0)
     assert m["first_fix_distance_m"] == pytest.approx(2.0)
+    assert m["third_landmark_s"] == pytest.approx(1.5)
+    assert m["fix_after_third_s"] == pytest.approx(-0.5)  # this fix came before the third landmark
     assert m["collisions"] == 3.0
     assert m["episode_return"] == pytest.approx(-2.0)
     assert m["bound_rmse_m"] == pytest.approx(0.25)
@@ -91,10 +96,13 @@ def test_metrics_of_a_hand_made_episode() -> None:
 
 def test_an_episode_without_a_fix_has_nan_errors_and_first_fix() -> None:
     truth = np.zeros((4, 3))
-    m = episode_metrics(np.arange(4.0), truth, np.full((4, 3), np.nan), np.zeros(4, bool), [0] * 4, [-1.0] * 3, np.ones(4))
+    visible = np.ones((4, 8), bool)
+    m = episode_metrics(np.arange(4.0), truth, np.full((4, 3), np.nan), np.zeros(4, bool), [0] * 4, [-1.0] * 3, np.ones(4),
+                        visible=visible)  # fmt: skip
+    assert m["third_landmark_s"] == 0.0
     assert m["fixed"] == 0.0 and m["availability"] == 0.0 and m["episode_return"] == -3.0
     for key in ("position_error_mean_m", "heading_error_rms_deg", "failure_rate", "first_fix_s", "first_fix_distance_m",
-                "error_bound_ratio"):  # fmt: skip
+                "fix_after_third_s", "error_bound_ratio"):  # fmt: skip
         assert math.isnan(m[key]), key
 
 

@@ -32,6 +32,20 @@ def test_first_fix_and_availability() -> None:
     assert metrics.availability(valid, start=2) == pytest.approx(5 / 6)
 
 
+def test_distinct_landmarks_count_from_their_first_sighting() -> None:
+    visible = np.zeros((6, 5), dtype=bool)
+    visible[1, 0] = True
+    visible[2, [0, 3]] = True  # 0 again: still two distinct landmarks
+    visible[3, 0] = True
+    visible[4, 4] = True  # the third, with the others out of view
+    assert metrics.distinct_seen(visible, 1) == 1
+    assert metrics.distinct_seen(visible, 2) == 2
+    assert metrics.distinct_seen(visible, 3) == 4
+    assert metrics.distinct_seen(visible, 4) is None
+    with pytest.raises(ValueError, match="count must be >= 1, got 0"):
+        metrics.distinct_seen(visible, 0)
+
+
 def test_statistics_start_at_the_first_fix_and_skip_invalid_steps() -> None:
     truth = straight_line()
     est = truth.copy()
