@@ -397,17 +397,16 @@ def first_fix_split(result: EvalResult, ppo_for: Mapping[str, str]) -> list[str]
     """The first fix of each trained policy and of the best fixed policy on first fix, split
     into the search (until three distinct landmarks have been in view) and what the localizer
     needs after it; medium and high densities."""
-    from agents.evaluate import METRICS
+    from agents.evaluate import METRICS, format_stat
 
-    labels = {m.key: m.label for m in METRICS}
+    infos = [next(m for m in METRICS if m.key == key) for key in FIX_SPLIT_METRICS]
     lines = [
-        "| localizer | crowd | policy | " + " | ".join(labels[k] for k in FIX_SPLIT_METRICS) + " |",
-        "|---|---:|---|" + "---|" * len(FIX_SPLIT_METRICS),
+        "| localizer | crowd | policy | " + " | ".join(m.label for m in infos) + " |",
+        "|---|---:|---|" + "---|" * len(infos),
     ]
     for localizer, crowd, rows, mine in _judged(result, ppo_for):
         for row in (mine, best_fixed(rows, "first_fix_s")):
-            stats = [row.stats[k] for k in FIX_SPLIT_METRICS]
-            cells = " | ".join(f"{st.mean:.2f} [{st.low:.2f}, {st.high:.2f}]" for st in stats)
+            cells = " | ".join(format_stat(m, row.stats[m.key], row.episodes) for m in infos)
             lines.append(f"| {localizer} | {crowd} | {row.policy} | {cells} |")
     return lines
 

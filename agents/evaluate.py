@@ -613,7 +613,8 @@ def read_tum(path: Path) -> tuple[Array, Array]:
     return table[:, 0], np.column_stack([table[:, 1], table[:, 2], quaternion_to_yaw(table[:, 4:8])])
 
 
-def _fmt(info: MetricInfo, stat: Stat, episodes: int) -> str:
+def format_stat(info: MetricInfo, stat: Stat, episodes: int) -> str:
+    """``mean [low, high]`` in the metric's format, ``(n/episodes)`` when some episodes had no value."""
     if not math.isfinite(stat.mean):
         return "–"
     text = f"{info.fmt.format(stat.mean)} [{info.fmt.format(stat.low)}, {info.fmt.format(stat.high)}]"
@@ -626,7 +627,7 @@ def summary_markdown(result: EvalResult) -> str:
     head = ["policy", "localizer", "crowd", *[m.label for m in shown]]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for row in result.summary:
-        cells = [row.policy, row.localizer, str(row.crowd_size), *[_fmt(m, row.stats[m.key], row.episodes) for m in shown]]
+        cells = [row.policy, row.localizer, str(row.crowd_size), *[format_stat(m, row.stats[m.key], row.episodes) for m in shown]]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
