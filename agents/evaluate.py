@@ -120,7 +120,8 @@ class EvalSpec:
         env_id: a registered crowdloc id whose world has a bearing camera.
         env_kwargs: the conditions: world section overrides for ``gym.make`` (e.g.
             ``{"camera": {"fov_rad": 1.5708}}``) and ``prior`` (``"start"``: localizers get the
-            true start pose; ``"none"``: they start lost; default: each localizer's own).
+            true start pose; ``"none"``: they start lost; default: each localizer's own) and
+            ``belief_spread`` (see ``localizers.wrappers``).
         reward: the reward weights reported as the episode return.
         bootstrap_resamples: bootstrap resamples per confidence interval.
         bootstrap_seed: seeds the bootstrap's generator.
@@ -167,6 +168,8 @@ class EvalSpec:
         conditions = dict(self.env_kwargs)
         prior = conditions.pop("prior", None)
         check(prior in (None, "start", "none"), f"env_kwargs prior must be 'start' or 'none', got {prior!r}")
+        belief = conditions.pop("belief_spread", False)
+        check(isinstance(belief, bool), f"env_kwargs belief_spread must be true or false, got {belief!r}")
         for key in ("crowd_size", "max_episode_steps", "localizer", "localizer_params", "render_mode"):
             check(key not in conditions, f"env_kwargs may not set {key!r}: the evaluation grid sets it")
         world = apply_overrides(load_world(ENV_WORLDS[self.env_id]), **conditions)
@@ -776,7 +779,8 @@ def run_cli(args: Any) -> EvalResult:
         ConfigError: for a bad option value, before any episode runs.
     """
     from agents.train import load_train_config, parse_overrides
-    from agents.util import merge_nested, nest
+    from agents.util import nest
+    from localizers.schema import merge_nested
 
     given = {"policies": args.policies, "localizers": args.localizers, "crowd_sizes": args.crowd_sizes}
     conditions: dict[str, Any] = {"env_id": args.env_id}

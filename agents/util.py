@@ -54,17 +54,6 @@ def flatten(nested: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
-def merge_nested(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
-    """``base`` updated by ``extra``, mapping values merged key by key (neither is changed)."""
-    out = dict(base)
-    for key, value in extra.items():
-        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
-            out[key] = merge_nested(out[key], value)
-        else:
-            out[key] = value
-    return out
-
-
 def jsonable(o: Any) -> Any:
     """Plain JSON values: mappings and sequences recursively, arrays to lists, numpy scalars
     to Python ones, non-finite floats to None, anything else to its ``str``."""

@@ -16,6 +16,7 @@ def make_env(
     localizer: str | None = None,
     localizer_params: Mapping[str, Any] | None = None,
     prior: str | None = None,
+    belief_spread: bool | None = None,
     **kwargs: Any,
 ) -> gym.Env[Any, Any]:
     """Build a :class:`LocalizationEnv` for a shipped world with keyword overrides.
@@ -27,13 +28,14 @@ def make_env(
             :class:`localizers.wrappers.LocalizationObservation` (estimate in the observation).
         localizer_params: overrides of that localizer's parameters.
         prior: ``"start"`` or ``"none"``: whether the localizer gets the true start pose.
+        belief_spread: also observe the spread of the localizer's hypotheses (default false).
         **kwargs: world overrides (``crowd_size``, ``camera={...}``, ...).
     """
     env = LocalizationEnv(world=world, render_mode=render_mode, **kwargs)
     if localizer is None:
-        if localizer_params is not None or prior is not None:
-            raise ValueError("localizer_params and prior need a localizer=... name")
+        if localizer_params is not None or prior is not None or belief_spread is not None:
+            raise ValueError("localizer_params, prior and belief_spread need a localizer=... name")
         return env
     from localizers.wrappers import LocalizationObservation  # envs -> localizers, never the reverse
 
-    return LocalizationObservation(env, localizer, localizer_params, prior)
+    return LocalizationObservation(env, localizer, localizer_params, prior, False if belief_spread is None else belief_spread)

@@ -50,7 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
-from localizers.geometry import between, compose
+from localizers.geometry import between, circular_std, compose
 from localizers.motion import wrap_scalar
 from localizers.resection import inscribed_arc_poses, solve_triples, triple_indices
 from localizers.schema import check
@@ -470,6 +470,30 @@ def _triple_seeds(
     return poses[keep]
 
 
+@numba.njit(cache=True)
+def _spread_sums(store: NDArray[np.float64], m: int, ox: float, oy: float, prune_error: float) -> tuple[float, float, float]:
+    """``(sum w, weighted position variance, R)`` of the live candidates, ``w`` their overlay
+    weight ``clip(1 - Error / prune_error, 0, 1)`` (what ``wrappers.hypothesis_spread`` computes
+    from :meth:`CandidateSetLocalizer.overlay`, without building the poses or any trig: the
+    heading's resultant length ``R`` is the same for ``X`` and ``X (+) O``)."""
+    sw = sx = sy = sxx = sc = ss = 0.0
+    for i in range(m):
+        w = min(max(1.0 - store[_ERR, i] / prune_error, 0.0), 1.0)
+        c, s = store[_COS, i], store[_SIN, i]
+        x = store[_X, i] + c * ox - s * oy
+        y = store[_Y, i] + s * ox + c * oy
+        sw += w
+        sx += w * x
+        sy += w * y
+        sxx += w * (x * x + y * y)
+        sc += w * c
+        ss += w * s
+    if not sw > 0.0:
+        return 0.0, math.nan, math.nan
+    mx, my = sx / sw, sy / sw
+    return sw, max(sxx / sw - mx * mx - my * my, 0.0), math.hypot(sc, ss) / sw
+
+
 # ----------------------------------------------------------------------------- public helpers
 
 
@@ -720,6 +744,14 @@ class CandidateSetLocalizer:
         weights = np.clip(1.0 - self._store[_ERR, : self._m] / self._params.prune_error_rad, 0.0, 1.0)
         label = f"candidate sets: {self._n_sets} sets, {int(self._determined[: self._n_sets].sum())} determined"
         return Overlay(poses=self._candidate_poses(), weights=weights, label=label)
+
+    def hypothesis_spread(self) -> tuple[float, float]:
+        """``wrappers.hypothesis_spread(self.overlay())``, computed in one pass over the store."""
+        ox, oy, _ = self._odo.tolist()
+        _, variance, r = _spread_sums(self._store, self._m, ox, oy, self._params.prune_error_rad)
+        if not math.isfinite(variance):
+            return math.nan, math.nan
+        return math.sqrt(variance), circular_std(r)
 
     @property
     def set_sizes(self) -> NDArray[np.intp]:

@@ -6,6 +6,8 @@ axes, so the same call serves one pose, 1000 particles or 3600 candidates.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -23,6 +25,13 @@ def wrap_angle(angle: ArrayLike) -> NDArray[np.float64] | float:
     """
     wrapped = np.mod(np.asarray(angle, dtype=np.float64) + np.pi, TWO_PI) - np.pi
     return float(wrapped) if wrapped.ndim == 0 else wrapped
+
+
+def circular_std(resultant_length: float) -> float:
+    """Circular standard deviation ``sqrt(-2 ln R)`` of angles whose mean resultant length is
+    ``R`` (``R`` above 1 by rounding counts as 1; inf for ``R = 0``, angles that cancel out)."""
+    r = min(resultant_length, 1.0)
+    return math.sqrt(-2.0 * math.log(r)) if r > 0.0 else math.inf
 
 
 def compose(pose: ArrayLike, delta: ArrayLike) -> NDArray[np.float64]:

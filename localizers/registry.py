@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from localizers.base import LandmarkMap, Localizer
-from localizers.schema import ConfigError, from_mapping, load_yaml
+from localizers.schema import ConfigError, from_mapping, load_yaml, merge_nested
 
 LOCALIZER_CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "localizers"
 
@@ -83,15 +83,6 @@ def params_path(name: str) -> Path:
     return LOCALIZER_CONFIG_DIR / f"{name}.yaml"
 
 
-def _merged(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
-    """``base`` with ``overrides`` applied; nested mappings (nested params) merge key by key."""
-    out = dict(base)
-    for key, value in overrides.items():
-        current = out.get(key)
-        out[key] = _merged(current, value) if isinstance(current, Mapping) and isinstance(value, Mapping) else value
-    return out
-
-
 def load_params(name: str, overrides: Mapping[str, Any] | None = None) -> Any:
     """The parameters of localizer ``name``: its YAML defaults with ``overrides`` applied."""
     s = spec(name)
@@ -101,7 +92,7 @@ def load_params(name: str, overrides: Mapping[str, Any] | None = None) -> Any:
     if overrides:
         if not isinstance(overrides, Mapping):
             raise ConfigError(f"localizer_params for {name!r} must be a mapping, got {type(overrides).__name__} {overrides!r}")
-        data = _merged(data, overrides)
+        data = merge_nested(data, overrides)
         where = f"{path} with localizer_params {dict(overrides)!r}"
     return from_mapping(_attr(s.module, s.params_cls), data, where=where)
 

@@ -80,10 +80,21 @@ def from_mapping(cls: type[T], data: Any, where: str) -> T:
     return _convert(cls, data, where)
 
 
+def merge_nested(base: Mapping[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` updated by ``extra``, mapping values merged key by key (neither is changed)."""
+    out = dict(base)
+    for key, value in extra.items():
+        current = out.get(key)
+        out[key] = merge_nested(current, value) if isinstance(current, Mapping) and isinstance(value, Mapping) else value
+    return out
+
+
 def replace_checked(obj: T, overrides: Mapping[str, Any], where: str) -> T:
     """``dataclasses.replace`` with the same checks as :func:`from_mapping`.
 
-    Nested dataclass fields may be overridden by a mapping, which is merged field by field.
+    Nested dataclass fields may be overridden by a mapping, which is merged field by field;
+    a mapping field (``env_kwargs``) is merged key by key (:func:`merge_nested`), so that an
+    override of one key keeps the others.
     """
     if not dataclasses.is_dataclass(obj) or isinstance(obj, type):
         raise TypeError(f"replace_checked needs a dataclass instance, got {type(obj).__name__}")
@@ -99,6 +110,8 @@ def replace_checked(obj: T, overrides: Mapping[str, Any], where: str) -> T:
         current = getattr(obj, key)
         if dataclasses.is_dataclass(current) and isinstance(value, Mapping):
             changes[key] = replace_checked(current, value, f"{where}.{key}")
+        elif isinstance(current, Mapping) and isinstance(value, Mapping):
+            changes[key] = _convert(hints[key], merge_nested(current, value), f"{where}.{key}")
         else:
             changes[key] = _convert(hints[key], value, f"{where}.{key}")
     try:

@@ -8,7 +8,13 @@ and adds to the observation:
   when there is no valid estimate;
 - ``estimate_valid`` ``(1,)``: 1 when the localizer claims a pose;
 - ``estimate_spread`` ``(2,)``: position spread over the field diagonal and heading spread
-  over pi, both clipped to ``[0, 1]`` (1 when unknown).
+  over pi, both clipped to ``[0, 1]`` (1 when unknown);
+- with ``belief_spread=True`` only, ``belief_spread`` ``(2,)``: the same two spreads of the
+  localizer's hypotheses (candidates, particles; :func:`hypothesis_spread`), whether or not it
+  claims a pose. Before a first fix it shows how far the localizer still is from one (an arc
+  of candidates being pruned, particles gathering); localizers without hypotheses give their
+  estimate's spread. A localizer may compute it itself with a ``hypothesis_spread()`` method
+  (the candidate sets do, in one pass); it must equal :func:`hypothesis_spread` of its overlay.
 
 ``info["estimate"]`` holds the :class:`PoseEstimate` in world units for metrics. The
 localizer draws from its own generator, seeded from the env seed, so filtering never
@@ -19,6 +25,7 @@ LIDAR's beam angles come from the base env's ``lidar_beam_angles_rad``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -27,7 +34,8 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
+from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, Overlay, PoseEstimate, ScanMeasurement
+from localizers.geometry import circular_std
 from localizers.registry import make_localizer, spec
 from localizers.schema import ConfigError
 
@@ -45,6 +53,21 @@ def encode_estimate(estimate: PoseEstimate, bounds_m: tuple[float, float, float,
         y = (estimate.y_m - (ymin + ymax) / 2) / ((ymax - ymin) / 2)
         out[:] = (min(max(x, -1.0), 1.0), min(max(y, -1.0), 1.0), np.cos(estimate.theta_rad), np.sin(estimate.theta_rad))
     return out
+
+
+def hypothesis_spread(overlay: Overlay) -> tuple[float, float]:
+    """``(position_m, heading_rad)`` spread of a localizer's hypotheses, weighted by the overlay's
+    weights: sqrt of the trace of the position covariance and the circular standard deviation
+    ``sqrt(-2 ln R)`` of the headings (inf when they cancel out); ``(nan, nan)`` without any
+    hypothesis or weight."""
+    poses = np.asarray(overlay.poses, dtype=np.float64)
+    w = np.asarray(overlay.weights, dtype=np.float64)
+    if poses.shape[0] == 0 or w.shape != (poses.shape[0],) or not w.sum() > 0.0:
+        return math.nan, math.nan
+    w = w / w.sum()
+    mean = w @ poses[:, :2]
+    position = math.sqrt(float(w @ np.sum((poses[:, :2] - mean) ** 2, axis=1)))
+    return position, circular_std(math.hypot(float(w @ np.cos(poses[:, 2])), float(w @ np.sin(poses[:, 2]))))
 
 
 def decode_estimate(encoded: NDArray[np.float32], bounds_m: tuple[float, float, float, float]) -> NDArray[np.float64]:
@@ -71,6 +94,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         localizer_params: overrides of the localizer's YAML parameters (names only).
         prior: ``"start"`` to give the localizer the true start pose (what the paper's dead
             reckoning and Kalman filter assume), ``"none"``; default: what the localizer needs.
+        belief_spread: also observe the spread of the localizer's hypotheses (module docstring).
 
     Raises:
         ConfigError: unknown localizer or parameter, or a world without the sensor it needs.
@@ -82,8 +106,14 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         localizer: str | Localizer = "candidate_sets",
         localizer_params: Mapping[str, Any] | None = None,
         prior: str | None = None,
+        belief_spread: bool = False,
     ) -> None:
-        gym.utils.RecordConstructorArgs.__init__(self, localizer=localizer, localizer_params=localizer_params, prior=prior)
+        gym.utils.RecordConstructorArgs.__init__(
+            self, localizer=localizer, localizer_params=localizer_params, prior=prior, belief_spread=belief_spread
+        )
+        if not isinstance(belief_spread, bool):
+            raise ConfigError(f"belief_spread must be true or false, got {belief_spread!r}")
+        self.belief_spread = belief_spread
         gym.ObservationWrapper.__init__(self, env)
         base = env.unwrapped
         if not isinstance(env.observation_space, spaces.Dict):
@@ -120,6 +150,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
                 "estimate": spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32),
                 "estimate_valid": spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32),
                 "estimate_spread": spaces.Box(0.0, 1.0, shape=(2,), dtype=np.float32),
+                **({"belief_spread": spaces.Box(0.0, 1.0, shape=(2,), dtype=np.float32)} if belief_spread else {}),
             }
         )
         self._rng = np.random.default_rng()
@@ -172,14 +203,25 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
     def observation(self, observation: dict[str, NDArray[np.float32]]) -> dict[str, NDArray[np.float32]]:
         est = self._estimate
         estimate = encode_estimate(est, self.landmark_map.bounds_m)
-        valid = np.zeros(1, dtype=np.float32)
-        spread = np.ones(2, dtype=np.float32)
-        if est.valid:
-            valid[0] = 1.0
-            pos, head = est.position_spread_m, est.heading_spread_rad
-            spread[0] = min(pos / self._diag, 1.0) if np.isfinite(pos) else 1.0
-            spread[1] = min(head / np.pi, 1.0) if np.isfinite(head) else 1.0
-        return {**observation, "estimate": estimate, "estimate_valid": valid, "estimate_spread": spread}
+        valid = np.array([1.0 if est.valid else 0.0], dtype=np.float32)
+        own = (est.position_spread_m, est.heading_spread_rad) if est.valid else (math.nan, math.nan)
+        out = {**observation, "estimate": estimate, "estimate_valid": valid, "estimate_spread": self._encode_spread(*own)}
+        if self.belief_spread:
+            own_spread = getattr(self.localizer, "hypothesis_spread", None)  # a faster route to the same numbers
+            position, heading = own_spread() if callable(own_spread) else hypothesis_spread(self.localizer.overlay())
+            out["belief_spread"] = self._encode_spread(position, heading) if math.isfinite(position) else out["estimate_spread"]
+        return out
+
+    def _encode_spread(self, position_m: float, heading_rad: float) -> NDArray[np.float32]:
+        """Position spread over the field diagonal, heading spread over pi, clipped to ``[0, 1]``;
+        1 for an unknown (non-finite) spread."""
+        return np.array(
+            [
+                min(position_m / self._diag, 1.0) if math.isfinite(position_m) else 1.0,
+                min(heading_rad / math.pi, 1.0) if math.isfinite(heading_rad) else 1.0,
+            ],
+            dtype=np.float32,
+        )
 
     @property
     def estimate(self) -> PoseEstimate:

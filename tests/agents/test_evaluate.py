@@ -247,8 +247,9 @@ def test_a_tiny_ppo_model_is_evaluated(tmp_path: Path) -> None:
     config = load_train_config("ppo_candidate_sets", overrides)
     model = train(config, tmp_path, progress_bar=False)
     policy = f"ppo:{model}"
-    # it was trained with a sonar ring: without one it has nothing to read, and says so up front
-    with pytest.raises(ConfigError, match=r"other observations than these conditions give \(sonar: policy \(12,\), env absent\)"):
+    # it was trained with a sonar ring and the belief spread: without them it has nothing to read, and says so up front
+    with pytest.raises(ConfigError, match=r"other observations than these conditions give "
+                       r"\(belief_spread: policy \(2,\), env absent; sonar: policy \(12,\), env absent\)"):  # fmt: skip
         EvalSpec(policies=(policy,), crowd_sizes=(3,), seeds=1)
     spec = EvalSpec(policies=(policy,), crowd_sizes=(3,), seeds=1, episode_steps=40, env_kwargs=config.env_kwargs)
     result = evaluate(spec, workers=1, progress=False)

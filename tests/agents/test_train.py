@@ -105,6 +105,12 @@ def test_overrides_parse_as_yaml_values() -> None:
         parse_overrides(["learning_rate"])
 
 
+def test_a_dotted_override_of_env_kwargs_keeps_the_other_conditions() -> None:
+    shipped = load_train_config("ppo_mcl_bearing")
+    config = load_train_config("ppo_mcl_bearing", {"env_kwargs.belief_spread": True, "env_kwargs.camera.fov_rad": 1.0})
+    assert config.env_kwargs == {**shipped.env_kwargs, "camera": {**shipped.env_kwargs["camera"], "fov_rad": 1.0}, "belief_spread": True}
+
+
 @pytest.mark.parametrize("name", ["ppo_candidate_sets", "ppo_mcl_bearing"])
 def test_shipped_experiment_configs_load(name: str) -> None:
     config = load_train_config(name)

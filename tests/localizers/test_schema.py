@@ -5,11 +5,12 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from collections.abc import Mapping
+from typing import Any, Literal
 
 import pytest
 
-from localizers.schema import ConfigError, check, from_mapping, load_yaml, replace_checked
+from localizers.schema import ConfigError, check, from_mapping, load_yaml, merge_nested, replace_checked
 
 
 @dataclass(frozen=True)
@@ -31,6 +32,7 @@ class Outer:
     limit: float | None = None
     inner: Inner = field(default_factory=Inner)
     inners: tuple[Inner, ...] = ()
+    extras: Mapping[str, Any] = field(default_factory=dict)
 
 
 def build(data: dict, where: str = "test.yaml") -> Outer:
@@ -118,6 +120,19 @@ def test_replace_checked_merges_nested_overrides() -> None:
     out = replace_checked(base, {"mode": "exact", "inner": {"steps": 9}}, where="kwargs")
     assert out == Outer(name="a", mode="exact", inner=Inner(gain=2.0, steps=9))
     assert base.inner.steps == 5  # the original is untouched
+
+
+def test_replace_checked_merges_a_mapping_field_key_by_key() -> None:
+    base = Outer(name="a", extras={"camera": {"fov_rad": 1.5, "noise": 0.1}, "prior": "none"})
+    out = replace_checked(base, {"extras": {"camera": {"fov_rad": 1.0}, "belief": True}}, where="kwargs")
+    assert out.extras == {"camera": {"fov_rad": 1.0, "noise": 0.1}, "prior": "none", "belief": True}
+    assert base.extras["camera"]["fov_rad"] == 1.5
+
+
+def test_merge_nested_merges_mappings_and_replaces_everything_else() -> None:
+    base = {"a": {"b": 1, "c": [1, 2]}, "d": 2}
+    assert merge_nested(base, {"a": {"c": [3]}, "d": {"e": 1}}) == {"a": {"b": 1, "c": [3]}, "d": {"e": 1}}
+    assert base == {"a": {"b": 1, "c": [1, 2]}, "d": 2}
 
 
 @pytest.mark.parametrize(

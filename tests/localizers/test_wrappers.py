@@ -11,10 +11,10 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import envs  # noqa: F401
-from localizers.base import PoseEstimate
+from localizers.base import Overlay, PoseEstimate
 from localizers.registry import LOCALIZERS
 from localizers.schema import ConfigError
-from localizers.wrappers import LocalizationObservation, bearing_measurement
+from localizers.wrappers import LocalizationObservation, bearing_measurement, hypothesis_spread
 
 BEARING_LOCALIZERS = sorted(name for name, s in LOCALIZERS.items() if s.measurement == "bearings")
 SOCCER_IDS = ["crowdloc/RoboCupStatic-v0", "crowdloc/RoboCupCrowded-v0"]
@@ -138,6 +138,7 @@ def test_bearing_measurement_reads_the_flat_camera_slots() -> None:
         ({"localizer": "kalmann"}, "kalmann"),
         ({"localizer": "candidate_sets", "localizer_params": {"max_setz": 3}}, "max_setz"),
         ({"localizer": "candidate_sets", "prior": "sometimes"}, "sometimes"),
+        ({"localizer": "candidate_sets", "belief_spread": "yes"}, "'yes'"),
     ],
 )
 def test_bad_localizer_arguments_name_the_bad_value(kwargs: dict, needle: str) -> None:
@@ -148,6 +149,70 @@ def test_bad_localizer_arguments_name_the_bad_value(kwargs: dict, needle: str) -
 def test_localizer_params_without_a_localizer_is_an_error() -> None:
     with pytest.raises(ValueError, match="localizer"):
         gym.make("crowdloc/RoboCupCrowded-v0", localizer_params={"max_sets": 3})
+    with pytest.raises(ValueError, match="belief_spread"):
+        gym.make("crowdloc/RoboCupCrowded-v0", belief_spread=True)
+
+
+def test_hypothesis_spread_is_the_weighted_position_and_circular_heading_spread() -> None:
+    poses = np.array([[0.0, 0.0, 0.3], [2.0, 0.0, -0.3], [5.0, 5.0, 3.0]])
+    # the third hypothesis has no weight: two points 2 m apart spread 1 m around their mean
+    position, heading = hypothesis_spread(Overlay(poses=poses, weights=np.array([1.0, 1.0, 0.0])))
+    assert position == pytest.approx(1.0)
+    assert heading == pytest.approx(np.sqrt(-2.0 * np.log(np.cos(0.3))))
+    position, heading = hypothesis_spread(Overlay(poses=poses[:1], weights=np.ones(1)))
+    assert position == 0.0 and heading == pytest.approx(0.0, abs=1e-7)
+    # opposite headings cancel: the circular spread is unbounded (larger than pi, up to rounding)
+    _, heading = hypothesis_spread(Overlay(poses=np.array([[0.0, 0.0, 0.0], [0.0, 0.0, np.pi]]), weights=np.ones(2)))
+    assert heading > np.pi
+    assert np.isnan(hypothesis_spread(Overlay())).all()
+    assert np.isnan(hypothesis_spread(Overlay(poses=poses, weights=np.zeros(3)))).all()
+
+
+def test_the_candidate_sets_own_hypothesis_spread_equals_the_generic_one() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer="candidate_sets", prior="none", camera={"fov_rad": np.pi / 2})
+    localizer = env.get_wrapper_attr("localizer")
+    env.reset(seed=11)
+    rng = np.random.default_rng(11)
+    compared = 0
+    for _ in range(200):
+        env.step(np.array([rng.uniform(-1, 1), 1.0], dtype=np.float32))  # turning: landmarks come into view
+        generic = hypothesis_spread(localizer.overlay())
+        if np.isfinite(generic[0]):
+            compared += 1
+        np.testing.assert_allclose(localizer.hypothesis_spread(), generic, rtol=1e-9, atol=1e-9)
+    assert compared > 100
+
+
+@pytest.mark.parametrize("name", ["candidate_sets", "mcl_bearing", "kalman"])
+def test_belief_spread_is_observed_only_when_asked_and_shows_the_hypotheses_before_a_fix(name: str) -> None:
+    kwargs = {"localizer": name, "prior": "none", "camera": {"fov_rad": np.pi / 2}}
+    plain = gym.make("crowdloc/RoboCupCrowded-v0", **kwargs)
+    env = gym.make("crowdloc/RoboCupCrowded-v0", belief_spread=True, **kwargs)
+    assert "belief_spread" not in plain.observation_space.spaces
+    assert env.observation_space["belief_spread"].shape == (2,)
+    base = env.unwrapped
+    diag = np.hypot(*np.subtract(base.landmark_map.bounds_m[2:], base.landmark_map.bounds_m[:2]))
+    localizer = env.get_wrapper_attr("localizer")
+    obs, info = env.reset(seed=6)
+    plain_obs, _ = plain.reset(seed=6)
+    rng = np.random.default_rng(6)
+    before_fix = []
+    for _ in range(150):
+        assert env.observation_space.contains(obs)
+        for key, leaf in plain_obs.items():  # the option only adds a key
+            np.testing.assert_array_equal(obs[key], leaf)
+        position, heading = hypothesis_spread(localizer.overlay())  # the definition, whatever route the wrapper takes
+        if np.isfinite(position):
+            np.testing.assert_allclose(obs["belief_spread"], [min(position / diag, 1), min(heading / np.pi, 1)], rtol=1e-6)
+        else:  # no hypotheses: the estimate's own spread
+            np.testing.assert_array_equal(obs["belief_spread"], obs["estimate_spread"])
+        if not info["estimate"].valid:
+            before_fix.append(obs["belief_spread"])
+        action = rng.uniform(-1, 1, 2).astype(np.float32)
+        obs, _, _, _, info = env.step(action)
+        plain_obs, *_ = plain.step(action)
+    if name != "kalman":  # the Kalman filter has no hypotheses and no pose without a prior
+        assert before_fix and np.min(before_fix) < 0.5, f"{name}: the hypotheses never narrowed before a fix"
 
 
 def test_a_bearing_localizer_on_a_lidar_world_is_refused() -> None:
