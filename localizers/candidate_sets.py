@@ -471,8 +471,8 @@ def _triple_seeds(
 
 
 @numba.njit(cache=True)
-def _spread_sums(store: NDArray[np.float64], m: int, ox: float, oy: float, prune_error: float) -> tuple[float, float, float]:
-    """``(sum w, weighted position variance, R)`` of the live candidates, ``w`` their overlay
+def _spread_sums(store: NDArray[np.float64], m: int, ox: float, oy: float, prune_error: float) -> tuple[float, float]:
+    """``(weighted position variance, R)`` of the live candidates (NaNs without any weight), ``w`` their overlay
     weight ``clip(1 - Error / prune_error, 0, 1)`` (what ``wrappers.hypothesis_spread`` computes
     from :meth:`CandidateSetLocalizer.overlay`, without building the poses or any trig: the
     heading's resultant length ``R`` is the same for ``X`` and ``X (+) O``)."""
@@ -489,9 +489,9 @@ def _spread_sums(store: NDArray[np.float64], m: int, ox: float, oy: float, prune
         sc += w * c
         ss += w * s
     if not sw > 0.0:
-        return 0.0, math.nan, math.nan
+        return math.nan, math.nan
     mx, my = sx / sw, sy / sw
-    return sw, max(sxx / sw - mx * mx - my * my, 0.0), math.hypot(sc, ss) / sw
+    return max(sxx / sw - mx * mx - my * my, 0.0), math.hypot(sc, ss) / sw
 
 
 # ----------------------------------------------------------------------------- public helpers
@@ -748,7 +748,7 @@ class CandidateSetLocalizer:
     def hypothesis_spread(self) -> tuple[float, float]:
         """``wrappers.hypothesis_spread(self.overlay())``, computed in one pass over the store."""
         ox, oy, _ = self._odo.tolist()
-        _, variance, r = _spread_sums(self._store, self._m, ox, oy, self._params.prune_error_rad)
+        variance, r = _spread_sums(self._store, self._m, ox, oy, self._params.prune_error_rad)
         if not math.isfinite(variance):
             return math.nan, math.nan
         return math.sqrt(variance), circular_std(r)

@@ -153,6 +153,8 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
                 **({"belief_spread": spaces.Box(0.0, 1.0, shape=(2,), dtype=np.float32)} if belief_spread else {}),
             }
         )
+        own_spread = getattr(self.localizer, "hypothesis_spread", None)  # a faster route to the same numbers
+        self._hypothesis_spread = own_spread if callable(own_spread) else lambda: hypothesis_spread(self.localizer.overlay())
         self._rng = np.random.default_rng()
         self._estimate = PoseEstimate.invalid()
         if hasattr(base, "add_overlay"):
@@ -207,8 +209,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         own = (est.position_spread_m, est.heading_spread_rad) if est.valid else (math.nan, math.nan)
         out = {**observation, "estimate": estimate, "estimate_valid": valid, "estimate_spread": self._encode_spread(*own)}
         if self.belief_spread:
-            own_spread = getattr(self.localizer, "hypothesis_spread", None)  # a faster route to the same numbers
-            position, heading = own_spread() if callable(own_spread) else hypothesis_spread(self.localizer.overlay())
+            position, heading = self._hypothesis_spread()
             out["belief_spread"] = self._encode_spread(position, heading) if math.isfinite(position) else out["estimate_spread"]
         return out
 

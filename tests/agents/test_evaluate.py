@@ -170,6 +170,7 @@ def test_eval_seeds_are_held_out_and_episodes_replay() -> None:
         ({"seeds": 0}, "seeds must be an integer >= 1, got 0"),
         ({"first_seed": -5}, "first_seed must be an integer from 0 to 1073741824, got -5"),
         ({"env_kwargs": {"prior": "maybe"}}, "prior must be 'start' or 'none', got 'maybe'"),
+        ({"env_kwargs": {"belief_spread": "yes"}}, "belief_spread must be true or false, got 'yes'"),
         ({"env_kwargs": {"crowd_size": 3}}, "env_kwargs may not set 'crowd_size'"),
         ({"env_kwargs": {"camera": {"fov_rad": 9.0}}}, "camera.fov_rad must be in (0, 2 pi], got 9.0"),
         ({"env_kwargs": {"kamera": {}}}, "unknown env keyword 'kamera'"),

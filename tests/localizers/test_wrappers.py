@@ -78,7 +78,8 @@ def test_the_estimate_is_reported_in_world_units_and_normalized_in_the_observati
 
 @pytest.mark.parametrize("name", BEARING_LOCALIZERS)
 def test_no_observation_leaf_holds_the_true_pose(name: str) -> None:
-    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer=name)
+    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer=name, belief_spread=True)  # every optional key too
+    assert "belief_spread" in env.observation_space.spaces
     for obs, info in rollout(env, seed=5, steps=100):
         truth = np.asarray(info["true_pose"])
         for key, leaf in obs.items():
