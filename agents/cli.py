@@ -35,6 +35,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     demo.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "demo", help="output folder (default results/demo)")
     demo.add_argument("--active-seeds", type=int, default=20,
                       help="held-out seeds per cell of the active-localization part (default 20; 0 skips it)")
+    demo.add_argument("--verdict-seeds", type=int, default=None,
+                      help="fresh test seeds, after the table's, on which the trained policies meet the best fixed "
+                      "policies of the table (default 100; 0 judges on the table's seeds)")
     demo.add_argument("--model", type=Path, default=None,
                       help="one PPO model to evaluate with every localizer (default: the shipped one per localizer)")
     demo.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: the core count)")
@@ -123,13 +126,16 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     if args.command == "demo":
-        from agents.demo import ACTIVE_LOCALIZERS, run_demo
+        from agents.demo import ACTIVE_LOCALIZERS, VERDICT_SEEDS, run_demo
 
         if args.active_seeds < 0:
             parser.error(f"--active-seeds must be >= 0, got {args.active_seeds}")
+        if args.verdict_seeds is not None and args.verdict_seeds < 0:
+            parser.error(f"--verdict-seeds must be >= 0, got {args.verdict_seeds}")
         if args.model is not None and not args.model.is_file():
             parser.error(f"--model {args.model}: no such file")
         run_demo(args.out, steps=args.steps, seed=args.seed, active_seeds=args.active_seeds,
+                 verdict_seeds=VERDICT_SEEDS if args.verdict_seeds is None else args.verdict_seeds,
                  models=None if args.model is None else dict.fromkeys(ACTIVE_LOCALIZERS, args.model), workers=args.workers)
         return 0
     if args.command == "train":

@@ -11,7 +11,8 @@ localizer, ``models/ppo_<localizer>.zip``) x two localizers x three crowd densit
 ``configs/experiments/ppo_candidate_sets.yaml``: a 90 deg forward camera, no start pose),
 evaluated by :mod:`agents.evaluate` on held-out seeds (bootstrap 95 % intervals), with the
 table, plots and a GIF; then the verdict on whether the policy trained for each localizer
-beats the best fixed one.
+beats the best fixed one: the table picks the best fixed policy of each metric, and that policy
+and the trained one meet again on fresh test seeds (:data:`VERDICT_SEEDS`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -34,7 +35,7 @@ from agents.policies import RandomWalk
 from localizers.raycast import cast_rays
 
 if TYPE_CHECKING:
-    from agents.evaluate import EvalResult, SummaryRow
+    from agents.evaluate import EvalResult, Stat, SummaryRow
 
 #: crowd densities visited per env id (the worlds' default density is marked in the report)
 DEFAULT_DENSITIES = {
@@ -198,6 +199,11 @@ VERDICT_METRICS = ("position_error_mean_m", "first_fix_s")
 EXTRA_METRICS = ("availability",)
 HIGHER_IS_BETTER = frozenset({"availability"})
 MIN_VERDICT_SEEDS = 5
+#: test seeds of the verdict, fresh ones after the table's (``EVAL_SEED_BASE + seeds + i``). The
+#: table picks the best fixed policy of each metric; these seeds then judge it against the
+#: trained policy, so the luck that made a fixed policy look best does not carry into the verdict.
+#: 20 episodes cannot resolve the few tenths of a second at stake (models/README.md).
+VERDICT_SEEDS = 100
 
 
 def run_demo(
@@ -208,6 +214,7 @@ def run_demo(
     active_seeds: int = 20,
     models: Mapping[str, Path] | None = None,
     workers: int | None = None,
+    verdict_seeds: int = VERDICT_SEEDS,
 ) -> Path:
     """Part 1 and part 2; writes ``out_dir/report.md`` and prints it.
 
@@ -215,23 +222,32 @@ def run_demo(
     """
     report = run_worlds(out_dir, steps=steps, seed=seed, densities=densities)
     if active_seeds > 0:
-        active = run_active(out_dir / "active", seeds=active_seeds, models=models, workers=workers)
+        active = run_active(out_dir / "active", seeds=active_seeds, models=models, workers=workers,
+                            verdict_seeds=verdict_seeds)  # fmt: skip
         report.write_text(report.read_text() + "\n" + active)
     print(report.read_text())
     return report
 
 
 def run_active(
-    out_dir: Path, seeds: int, models: Mapping[str, Path] | None = None, workers: int | None = None, episode_steps: int = 450
+    out_dir: Path,
+    seeds: int,
+    models: Mapping[str, Path] | None = None,
+    workers: int | None = None,
+    episode_steps: int = 450,
+    verdict_seeds: int = VERDICT_SEEDS,
 ) -> str:
     """Evaluate the fixed policies and the PPO policies that exist; return the report section.
 
     ``models`` maps a localizer to its PPO policy (default :data:`SHIPPED_MODELS`); each policy
     runs with every localizer, and the verdict for a localizer judges the policy trained for it.
+    The table covers ``seeds`` test seeds; the verdict runs the trained policies and the best
+    fixed policies of the table on ``verdict_seeds`` fresh ones after them (0: it judges on the
+    table's seeds).
     """
-    from agents.evaluate import Cell, EvalSpec, evaluate, summary_markdown, write_outputs
+    from agents.evaluate import Cell, EvalSpec, evaluate, summary_markdown, write_outputs, write_tables
     from agents.policies import FIXED_POLICIES
-    from agents.train import load_train_config
+    from agents.train import EVAL_SEED_BASE, load_train_config
 
     models = dict(SHIPPED_MODELS if models is None else models)
     policies = list(FIXED_POLICIES)
@@ -267,10 +283,30 @@ def run_active(
     missing = [f"`{models[loc]}`" for loc in ACTIVE_LOCALIZERS if loc in models and loc not in ppo_for]
     if missing:
         lines += [f"No trained policy at {', '.join(missing)}: run `make demo` from a checkout that ships it.", ""]
-    if ppo_for and seeds < MIN_VERDICT_SEEDS:
-        lines.append(f"With {seeds} seed(s) per cell the intervals mean nothing: no verdict (use >= {MIN_VERDICT_SEEDS}).")
+    judged_seeds = verdict_seeds or seeds
+    if ppo_for and min(seeds, judged_seeds) < MIN_VERDICT_SEEDS:
+        lines.append(f"With {min(seeds, judged_seeds)} seed(s) per cell the intervals mean nothing: no verdict "
+                     f"(use >= {MIN_VERDICT_SEEDS} for the table and the verdict).")  # fmt: skip
     elif ppo_for:
-        lines += ["### Trained policy against the best fixed policy", "", *verdict(result, ppo_for), "", *caveats(result)]
+        judged = result
+        if verdict_seeds:
+            judged = evaluate(replace(spec, crowd_sizes=ACTIVE_DENSITIES[1:], seeds=verdict_seeds, first_seed=seeds),
+                              workers=workers, groups=verdict_groups(result, ppo_for))  # fmt: skip
+            write_tables(judged, out_dir / "verdict")
+        first, last = judged.spec.first_seed, judged.spec.first_seed + judged.spec.seeds - 1
+        lines += [
+            "### Trained policy against the best fixed policy",
+            "",
+            "The best fixed policy of each metric is the one with the best mean in the table above. "
+            + (f"The verdict evaluates it and the trained policy again on {verdict_seeds} fresh test seeds "
+               f"({EVAL_SEED_BASE} + {first}..{last}, after the table's), so the luck that made a fixed policy look "
+               f"best there does not carry into the judgement; evaluated in {judged.wall_s:.0f} s, episodes in "
+               "`active/verdict/`." if verdict_seeds else "The verdict judges on the table's seeds."),
+            "",
+            *verdict(result, ppo_for, judged),
+            "",
+            *caveats(judged),
+        ]  # fmt: skip
         lines += [
             "",
             "### Where the time to first fix goes",
@@ -280,9 +316,9 @@ def run_active(
             "camera sees them one after another), which is the policy's part, and the time the localizer then "
             "needs to settle on one pose (the candidate sets prune an arc of candidates by their accumulated "
             "bearing errors; the MCL waits for its particles to gather). The trained policy and the best fixed "
-            "policy on first fix, mean [95 % bootstrap CI]:",
+            "policy on first fix, mean [95 % bootstrap CI], on the verdict's seeds:",
             "",
-            *first_fix_split(result, ppo_for),
+            *first_fix_split(result, ppo_for, judged),
         ]
     return "\n".join(lines) + "\n"
 
@@ -320,7 +356,7 @@ def caveats(result: EvalResult) -> list[str]:
         if errors.size >= 2:
             notes.append(
                 f"- With `{localizer}` at crowd {' and '.join(map(str, ACTIVE_DENSITIES[1:]))} the per-episode mean "
-                f"errors of all policies run from {errors.min():.3f} to {errors.max():.3f} m (median "
+                f"errors of the judged policies run from {errors.min():.3f} to {errors.max():.3f} m (median "
                 f"{np.median(errors):.3f} m): a few episodes in which the localizer is pushed off or fixes wrongly "
                 "dominate the means, which is what keeps the intervals wide."
             )
@@ -344,15 +380,14 @@ def _sign(key: str) -> float:
     return -1.0 if key in HIGHER_IS_BETTER else 1.0
 
 
-def _judged(result: EvalResult, ppo_for: Mapping[str, str]) -> Iterator[tuple[str, int, list[SummaryRow], SummaryRow]]:
-    """``(localizer, crowd, summary rows of that cell, the row of the policy trained for it)`` for
-    each localizer with a trained policy, at the medium and high densities."""
+def _judged(table: EvalResult, ppo_for: Mapping[str, str]) -> Iterator[tuple[str, int, list[SummaryRow]]]:
+    """``(localizer, crowd, the table's rows of that cell)`` for each localizer with a trained
+    policy, at the medium and high densities."""
     for localizer in ACTIVE_LOCALIZERS:
         if localizer not in ppo_for:
             continue
         for crowd in ACTIVE_DENSITIES[1:]:
-            rows = [r for r in result.summary if r.localizer == localizer and r.crowd_size == crowd]
-            yield localizer, crowd, rows, next(r for r in rows if r.policy == ppo_for[localizer])
+            yield localizer, crowd, [r for r in table.summary if r.localizer == localizer and r.crowd_size == crowd]
 
 
 def best_fixed(rows: Sequence[SummaryRow], key: str) -> SummaryRow:
@@ -363,29 +398,59 @@ def best_fixed(rows: Sequence[SummaryRow], key: str) -> SummaryRow:
     return min(fixed, key=lambda r: _sign(key) * r.stats[key].mean if math.isfinite(r.stats[key].mean) else math.inf)
 
 
-def verdict(result: EvalResult, ppo_for: Mapping[str, str]) -> list[str]:
+def verdict_groups(table: EvalResult, ppo_for: Mapping[str, str]) -> list[tuple[str, str, int]]:
+    """The ``(policy, localizer, crowd)`` groups a verdict on fresh seeds needs: each judged
+    localizer's trained policy and, picked on ``table``, the best fixed policy of each judged metric."""
+    groups: dict[tuple[str, str, int], None] = {}  # ordered, without repeats
+    for localizer, crowd, rows in _judged(table, ppo_for):
+        groups[(ppo_for[localizer], localizer, crowd)] = None
+        for key in (*VERDICT_METRICS, *EXTRA_METRICS):
+            groups[(best_fixed(rows, key).policy, localizer, crowd)] = None
+    return list(groups)
+
+
+def _pairs(
+    table: EvalResult, ppo_for: Mapping[str, str], judged: EvalResult | None, keys: Sequence[str]
+) -> Iterator[tuple[str, int, str, SummaryRow, SummaryRow]]:
+    """``(localizer, crowd, key, trained policy's row, best fixed policy's row)`` per judged cell
+    and metric: the best fixed policy on ``key`` is picked on ``table``, both rows come from
+    ``judged`` (default ``table``)."""
+    by_group = {(r.policy, r.localizer, r.crowd_size): r for r in (judged or table).summary}
+    for localizer, crowd, rows in _judged(table, ppo_for):
+        mine = by_group[(ppo_for[localizer], localizer, crowd)]
+        for key in keys:
+            yield localizer, crowd, key, mine, by_group[(best_fixed(rows, key).policy, localizer, crowd)]
+
+
+def outcome(key: str, mine: Stat, best: Stat) -> int:
+    """-1 if ``mine`` is better than ``best`` on ``key`` with non-overlapping 95 % intervals, 1 if
+    it is worse so, 0 if the intervals overlap."""
+    sign = _sign(key)
+    # the intervals of sign * value: (low, high) of a higher-is-better metric swap ends
+    a_lo, a_hi = sorted((sign * mine.low, sign * mine.high))
+    b_lo, b_hi = sorted((sign * best.low, sign * best.high))
+    return -1 if a_hi < b_lo else 1 if b_hi < a_lo else 0
+
+
+_OUTCOME_WORDS = {-1: "PPO better (intervals do not overlap)", 1: "PPO worse (intervals do not overlap)",
+                  0: "no significant difference"}  # fmt: skip
+
+
+def verdict(table: EvalResult, ppo_for: Mapping[str, str], judged: EvalResult | None = None) -> list[str]:
     """For each localizer with a trained policy (``ppo_for[localizer]``, a ``ppo:`` policy name)
     and the medium and high densities: does that policy beat the best fixed policy on each
-    verdict metric (the fixed policy with the best mean of that metric) with non-overlapping
-    95 % intervals? Availability (higher is better) is judged beside them."""
+    verdict metric (the fixed policy with the best mean of that metric in ``table``) with
+    non-overlapping 95 % intervals in ``judged`` (default ``table``; from :func:`verdict_groups`
+    on other seeds)? Availability (higher is better) is judged beside them."""
+    from agents.evaluate import METRICS, format_stat
+
     lines = ["| localizer | crowd | metric | PPO | best fixed policy | verdict |", "|---|---:|---|---|---|---|"]
-    for localizer, crowd, rows, mine in _judged(result, ppo_for):
-        for key in (*VERDICT_METRICS, *EXTRA_METRICS):  # against the best fixed policy of each metric
-            best, sign = best_fixed(rows, key), _sign(key)
-            a, b = mine.stats[key], best.stats[key]
-            # the intervals of sign * value: (low, high) of a higher-is-better metric swap ends
-            a_lo, a_hi = sorted((sign * a.low, sign * a.high))
-            b_lo, b_hi = sorted((sign * b.low, sign * b.high))
-            if a_hi < b_lo:
-                word = "PPO better (intervals do not overlap)"
-            elif b_hi < a_lo:
-                word = "PPO worse (intervals do not overlap)"
-            else:
-                word = "no significant difference"
-            lines.append(
-                f"| {localizer} | {crowd} | {key} | {a.mean:.3f} [{a.low:.3f}, {a.high:.3f}] | "
-                f"{best.policy}: {b.mean:.3f} [{b.low:.3f}, {b.high:.3f}] | {word} |"
-            )
+    for localizer, crowd, key, mine, best in _pairs(table, ppo_for, judged, (*VERDICT_METRICS, *EXTRA_METRICS)):
+        a, b = mine.stats[key], best.stats[key]
+        info = next(m for m in METRICS if m.key == key)
+        word = _OUTCOME_WORDS[outcome(key, a, b)]
+        lines.append(f"| {localizer} | {crowd} | {key} | {format_stat(info, a, mine.episodes)} | "
+                     f"{best.policy}: {format_stat(info, b, best.episodes)} | {word} |")  # fmt: skip
     return lines
 
 
@@ -393,10 +458,10 @@ def verdict(result: EvalResult, ppo_for: Mapping[str, str]) -> list[str]:
 FIX_SPLIT_METRICS = ("first_fix_s", "third_landmark_s", "fix_after_third_s")
 
 
-def first_fix_split(result: EvalResult, ppo_for: Mapping[str, str]) -> list[str]:
-    """The first fix of each trained policy and of the best fixed policy on first fix, split
-    into the search (until three distinct landmarks have been in view) and what the localizer
-    needs after it; medium and high densities."""
+def first_fix_split(table: EvalResult, ppo_for: Mapping[str, str], judged: EvalResult | None = None) -> list[str]:
+    """The first fix of each trained policy and of the best fixed policy on first fix (picked on
+    ``table``), split into the search (until three distinct landmarks have been in view) and what
+    the localizer needs after it, from ``judged`` (default ``table``); medium and high densities."""
     from agents.evaluate import METRICS, format_stat
 
     infos = [next(m for m in METRICS if m.key == key) for key in FIX_SPLIT_METRICS]
@@ -404,11 +469,22 @@ def first_fix_split(result: EvalResult, ppo_for: Mapping[str, str]) -> list[str]
         "| localizer | crowd | policy | " + " | ".join(m.label for m in infos) + " |",
         "|---|---:|---|" + "---|" * len(infos),
     ]
-    for localizer, crowd, rows, mine in _judged(result, ppo_for):
-        for row in (mine, best_fixed(rows, "first_fix_s")):
+    notes = []
+    for localizer, crowd, _, mine, best in _pairs(table, ppo_for, judged, ("first_fix_s",)):
+        for row in (mine, best):
             cells = " | ".join(format_stat(m, row.stats[m.key], row.episodes) for m in infos)
             lines.append(f"| {localizer} | {crowd} | {row.policy} | {cells} |")
-    return lines
+        if outcome("first_fix_s", mine.stats["first_fix_s"], best.stats["first_fix_s"]) < 0:
+            continue
+        fix, search, rest = (mine.stats[k].mean for k in FIX_SPLIT_METRICS)
+        other_search, other_rest = (best.stats[k].mean for k in FIX_SPLIT_METRICS[1:])
+        notes.append(
+            f"- `{localizer}`, crowd {crowd}, no significant gain on first fix: the trained policy's search took "
+            f"{search:.2f} s against {other_search:.2f} s for {best.policy}, the localizer's part after it "
+            f"{rest:.2f} s against {other_rest:.2f} s; the localizer's part is {100 * rest / fix:.0f} % of the "
+            "trained policy's first fix."
+        )
+    return lines + ([""] + notes if notes else [])
 
 
 def run_worlds(out_dir: Path, steps: int = 3000, seed: int = 0, densities: dict[str, tuple[int, ...]] | None = None) -> Path:

@@ -47,7 +47,7 @@ import functools
 import math
 import re
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -563,7 +563,14 @@ def summarize(episodes: Sequence[Episode], resamples: int = 2000, seed: int = 0)
     return tuple(rows)
 
 
-def evaluate(spec: EvalSpec, *, workers: int | None = None, ray_address: str | None = None, progress: bool = True) -> EvalResult:
+def evaluate(
+    spec: EvalSpec,
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    progress: bool = True,
+    groups: Collection[tuple[str, str, int]] | None = None,
+) -> EvalResult:
     """Run every cell of ``spec``'s grid (in parallel) and aggregate.
 
     Args:
@@ -571,11 +578,23 @@ def evaluate(spec: EvalSpec, *, workers: int | None = None, ray_address: str | N
         workers: local processes (default: the core count; 1 runs in this process).
         ray_address: run the episodes on this Ray cluster instead.
         progress: show a progress bar.
+        groups: run only these ``(policy, localizer, crowd size)`` groups of the grid, on all of
+            its seeds (default: the whole grid).
+
+    Raises:
+        ConfigError: a group that is not in the grid, or no group.
     """
     from agents.sweep import run_tasks
 
     start = time.perf_counter()
     cells = spec.cells()
+    if groups is not None:
+        grid = {c.group for c in cells}
+        wanted = set(groups)
+        check(len(wanted) >= 1, "groups needs at least one (policy, localizer, crowd size)")
+        stray = sorted(wanted - grid, key=str)
+        check(not stray, f"groups {stray} are not in the grid of policies x localizers x crowd sizes")
+        cells = [c for c in cells if c.group in wanted]
     episodes = run_tasks(_run_task, [(spec, c) for c in cells], workers=workers, ray_address=ray_address,
                          desc="eval", progress=progress)  # fmt: skip
     summary = summarize(episodes, spec.bootstrap_resamples, spec.bootstrap_seed)
@@ -744,20 +763,9 @@ def write_outputs(result: EvalResult, out_dir: Path, *, gif_cell: Cell | None = 
         Name -> path of what was written (``episodes``, ``summary_csv``, ``summary_md``,
         ``plots``, ``tum``, and ``gif``: ``episode.gif``).
     """
-    out_dir.mkdir(parents=True, exist_ok=True)
     if gif:
         gif_cell = gif_cell or result.episodes[0].cell
-    out: dict[str, Path] = {}
-    ep_rows = [[e.cell.policy, e.cell.localizer, e.cell.crowd_size, e.cell.seed, len(e.time_s) - 1,
-                *[e.metrics[k] for k in METRIC_KEYS]] for e in result.episodes]  # fmt: skip
-    ep_cols = ["policy", "localizer", "crowd_size", "seed", "steps", *METRIC_KEYS]
-    out["episodes"] = _write_csv(out_dir / "episodes.csv", ep_cols, ep_rows)
-    stat_cols = [f"{k}{suffix}" for k in METRIC_KEYS for suffix in ("", "_ci_low", "_ci_high", "_n")]
-    sum_rows = [[r.policy, r.localizer, r.crowd_size, r.episodes,
-                 *[x for k in METRIC_KEYS for x in (r.stats[k].mean, r.stats[k].low, r.stats[k].high, r.stats[k].n)]]
-                for r in result.summary]  # fmt: skip
-    sum_cols = ["policy", "localizer", "crowd_size", "episodes", *stat_cols]
-    out["summary_csv"] = _write_csv(out_dir / "summary.csv", sum_cols, sum_rows)
+    out = write_tables(result, out_dir)
     out["summary_md"] = out_dir / "summary.md"
     out["summary_md"].write_text(_summary_page(result, gif_cell if gif else None))
     out["plots"] = out_dir / "plots"
@@ -769,6 +777,24 @@ def write_outputs(result: EvalResult, out_dir: Path, *, gif_cell: Cell | None = 
         write_tum(out["tum"] / f"{e.cell.stem}_groundtruth.tum", e.time_s, e.true_pose)
     if gif and gif_cell is not None:
         out["gif"] = render_gif(result.spec, gif_cell, out_dir / "episode.gif")
+    return out
+
+
+def write_tables(result: EvalResult, out_dir: Path) -> dict[str, Path]:
+    """Write ``episodes.csv`` (one row per episode) and ``summary.csv`` (mean, CI and count per
+    metric and group) under ``out_dir`` (created if missing); any subset of a grid will do."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    out: dict[str, Path] = {}
+    ep_rows = [[e.cell.policy, e.cell.localizer, e.cell.crowd_size, e.cell.seed, len(e.time_s) - 1,
+                *[e.metrics[k] for k in METRIC_KEYS]] for e in result.episodes]  # fmt: skip
+    ep_cols = ["policy", "localizer", "crowd_size", "seed", "steps", *METRIC_KEYS]
+    out["episodes"] = _write_csv(out_dir / "episodes.csv", ep_cols, ep_rows)
+    stat_cols = [f"{k}{suffix}" for k in METRIC_KEYS for suffix in ("", "_ci_low", "_ci_high", "_n")]
+    sum_rows = [[r.policy, r.localizer, r.crowd_size, r.episodes,
+                 *[x for k in METRIC_KEYS for x in (r.stats[k].mean, r.stats[k].low, r.stats[k].high, r.stats[k].n)]]
+                for r in result.summary]  # fmt: skip
+    sum_cols = ["policy", "localizer", "crowd_size", "episodes", *stat_cols]
+    out["summary_csv"] = _write_csv(out_dir / "summary.csv", sum_cols, sum_rows)
     return out
 
 

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
+from types import SimpleNamespace
 
 import gymnasium as gym
 import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.demo import SHIPPED_MODELS, run_active, run_worlds
+from agents.evaluate import METRIC_KEYS, Cell
 from agents.policies import FIXED_POLICIES
 
 
@@ -26,20 +29,48 @@ def test_active_part_evaluates_every_policy_and_judges_only_with_enough_seeds(tm
         for path in SHIPPED_MODELS.values():
             assert path.is_file(), f"the shipped PPO policy {path} is part of the repository"
     models = SHIPPED_MODELS if with_model else {loc: tmp_path / "missing.zip" for loc in SHIPPED_MODELS}
-    section = run_active(tmp_path, seeds=1, models=models, workers=1, episode_steps=20)
+    section = run_active(tmp_path, seeds=1, models=models, workers=1, episode_steps=20, verdict_seeds=5)
     for policy in FIXED_POLICIES:
         assert f"| {policy} | candidate_sets | 10 |" in section
     assert (tmp_path / "episode.gif").is_file() and (tmp_path / "summary.csv").is_file()
     if with_model:
         for path in SHIPPED_MODELS.values():
             assert f"| ppo:{path} | mcl_bearing | 6 |" in section  # every policy runs with every localizer
-        assert "no verdict" in section and "No trained policy" not in section
+        assert "no verdict" in section and "No trained policy" not in section  # 1 seed cannot pick the best fixed
+        assert not (tmp_path / "verdict").exists()
     else:
         assert "No trained policy" in section and "ppo:" not in section
 
 
+def test_the_verdict_judges_the_table_s_best_fixed_policies_on_fresh_seeds(tmp_path: Path) -> None:
+    from agents.demo import ACTIVE_DENSITIES, ACTIVE_LOCALIZERS, MIN_VERDICT_SEEDS, verdict_groups
+    from agents.evaluate import EvalResult, EvalSpec, summarize
+    from agents.train import EVAL_SEED_BASE
+
+    seeds = MIN_VERDICT_SEEDS
+    section = run_active(tmp_path, seeds=seeds, models={"candidate_sets": SHIPPED_MODELS["candidate_sets"]}, workers=1,
+                         episode_steps=8, verdict_seeds=seeds + 1)  # fmt: skip
+    assert f"fresh test seeds ({EVAL_SEED_BASE} + {seeds}..{2 * seeds}, after the table's)" in section
+    table_rows = list(csv.DictReader((tmp_path / "episodes.csv").read_text().splitlines()))
+    judged_rows = list(csv.DictReader((tmp_path / "verdict" / "episodes.csv").read_text().splitlines()))
+    assert {int(r["seed"]) for r in table_rows} == {EVAL_SEED_BASE + i for i in range(seeds)}
+    assert {int(r["seed"]) for r in judged_rows} == {EVAL_SEED_BASE + seeds + i for i in range(seeds + 1)}
+    # the groups judged: the trained policy and the table's best fixed policies, picked from the table's episodes
+    fake = [SimpleNamespace(cell=Cell(r["policy"], r["localizer"], int(r["crowd_size"]), int(r["seed"])),
+                            metrics={k: float(v) for k, v in r.items() if k in METRIC_KEYS}) for r in table_rows]  # fmt: skip
+    table = EvalResult(EvalSpec(), (), summarize(fake), 0.0)  # type: ignore[arg-type]
+    ppo = f"ppo:{SHIPPED_MODELS['candidate_sets']}"
+    groups = verdict_groups(table, {"candidate_sets": ppo})
+    assert {(r["policy"], r["localizer"], int(r["crowd_size"])) for r in judged_rows} == set(groups)
+    assert {g[2] for g in groups} == set(ACTIVE_DENSITIES[1:]) and {g[1] for g in groups} == {ACTIVE_LOCALIZERS[0]}
+    assert (ppo, "candidate_sets", ACTIVE_DENSITIES[1]) in groups and len(groups) >= 4
+    verdict_lines = [line for line in section.splitlines() if line.startswith("| candidate_sets | ")
+                     and line.count("|") == 7 and ("PPO " in line or "no significant" in line)]  # fmt: skip
+    assert len(verdict_lines) == 3 * (len(ACTIVE_DENSITIES) - 1)
+
+
 def test_verdict_compares_with_the_best_fixed_policy_of_each_metric() -> None:
-    from agents.demo import ACTIVE_DENSITIES, ACTIVE_LOCALIZERS, verdict
+    from agents.demo import ACTIVE_DENSITIES, ACTIVE_LOCALIZERS, verdict, verdict_groups
     from agents.evaluate import EvalResult, EvalSpec, Stat, SummaryRow
 
     def row(policy: str, localizer: str, crowd: int, error: tuple[float, float, float], fix: tuple[float, float, float],
@@ -59,16 +90,34 @@ def test_verdict_compares_with_the_best_fixed_policy_of_each_metric() -> None:
             ]
     result = EvalResult(EvalSpec(policies=("spin", "greedy_info_gain")), (), tuple(rows), 0.0)
     lines = verdict(result, dict.fromkeys(ACTIVE_LOCALIZERS, "ppo:m.zip"))
+    assert verdict(result, dict.fromkeys(ACTIVE_LOCALIZERS, "ppo:m.zip"), result) == lines
     error_lines = [line for line in lines if "position_error_mean_m" in line]
     fix_lines = [line for line in lines if "first_fix_s" in line]
     assert len(error_lines) == len(fix_lines) == len(ACTIVE_LOCALIZERS) * (len(ACTIVE_DENSITIES) - 1)
     assert all("spin: 0.080" in line and "PPO better" in line for line in error_lines)
-    assert all("greedy_info_gain: 1.050" in line and "no significant difference" in line for line in fix_lines)
+    assert all("greedy_info_gain: 1.05 [0.95, 1.15] |" in line and "no significant difference" in line for line in fix_lines)
     available = [line for line in lines if "availability" in line]
     assert len(available) == len(error_lines)
     assert all("greedy_info_gain: 0.900" in line and "PPO worse" in line for line in available)
     only = verdict(result, {"candidate_sets": "ppo:m.zip"})  # a localizer without its own policy is not judged
     assert any("| candidate_sets |" in line for line in only) and not any("| mcl_bearing |" in line for line in only)
+    # on fresh seeds: the policies picked on the table, their numbers from the judged result
+    judged_rows = [r for r in rows if r.policy == "ppo:m.zip"]
+    fewer = {"position_error_mean_m": Stat(0.08, 0.07, 0.09, 7)}  # three episodes without a fix
+    judged_rows += [SummaryRow("spin", r.localizer, r.crowd_size, 10, {**r.stats, **fewer}) for r in rows if r.policy == "spin"]
+    judged_rows += [row("greedy_info_gain", loc, crowd, (0.9, 0.8, 1.0), (3.0, 2.9, 3.1), (0.1, 0.05, 0.15))
+                    for loc in ACTIVE_LOCALIZERS for crowd in ACTIVE_DENSITIES]  # fmt: skip
+    judged = EvalResult(EvalSpec(policies=("spin", "greedy_info_gain")), (), tuple(judged_rows), 0.0)
+    fresh = verdict(result, {"candidate_sets": "ppo:m.zip"}, judged)
+    fix_fresh = [line for line in fresh if "first_fix_s" in line]
+    assert fix_fresh and all("greedy_info_gain: 3.00" in line and "PPO better" in line for line in fix_fresh)
+    assert all("greedy_info_gain: 0.100" in line and "PPO better" in line for line in fresh if "availability" in line)
+    assert all("spin: 0.080 [0.070, 0.090] (7/10) |" in line for line in fresh if "position_error_mean_m" in line)
+    assert verdict_groups(result, {"candidate_sets": "ppo:m.zip"}) == [
+        (policy, "candidate_sets", crowd)
+        for crowd in ACTIVE_DENSITIES[1:]
+        for policy in ("ppo:m.zip", "spin", "greedy_info_gain")
+    ]
 
 
 def test_first_fix_split_shows_the_trained_and_the_fastest_fixed_policy() -> None:
@@ -83,10 +132,18 @@ def test_first_fix_split_shows_the_trained_and_the_fastest_fixed_policy() -> Non
         row(policy, localizer, crowd, fix, third)
         for localizer in ACTIVE_LOCALIZERS
         for crowd in ACTIVE_DENSITIES
-        for policy, fix, third in (("ppo:m.zip", 1.0, 0.3), ("spin", 2.0, 0.9), ("landmark_seeking", 1.25, 0.5))
+        # landmark seeking: significantly later at crowd 6, not at crowd 10 (the intervals overlap)
+        for policy, fix, third in (("ppo:m.zip", 1.0, 0.3), ("spin", 2.0, 0.9),
+                                   ("landmark_seeking", 1.25 if crowd == 6 else 1.1, 0.5))  # fmt: skip
     ]
     lines = first_fix_split(EvalResult(EvalSpec(), (), tuple(rows), 0.0), {"candidate_sets": "ppo:m.zip"})
-    body = lines[2:]
+    notes = [line for line in lines if line.startswith("- ")]
+    assert notes == [
+        "- `candidate_sets`, crowd 10, no significant gain on first fix: the trained policy's search took 0.30 s "
+        "against 0.50 s for landmark_seeking, the localizer's part after it 0.70 s against 0.60 s; the localizer's "
+        "part is 70 % of the trained policy's first fix."
+    ]
+    body = [line for line in lines[2:] if line.startswith("| ")]
     assert len(body) == 2 * (len(ACTIVE_DENSITIES) - 1)  # the policy and the fastest fixed one per density
     assert all("| candidate_sets |" in line for line in body)
     assert "| candidate_sets | 6 | ppo:m.zip | 1.00 [0.90, 1.10] | 0.30 [0.20, 0.40] | 0.70 [0.60, 0.80] |" in body
@@ -96,10 +153,8 @@ def test_first_fix_split_shows_the_trained_and_the_fastest_fixed_policy() -> Non
 
 
 def test_caveats_report_identical_first_fixes_and_the_spread_of_episode_errors() -> None:
-    from types import SimpleNamespace
-
     from agents.demo import ACTIVE_DENSITIES, ACTIVE_LOCALIZERS, caveats
-    from agents.evaluate import Cell, EvalResult, EvalSpec, Stat, SummaryRow
+    from agents.evaluate import EvalResult, EvalSpec, Stat, SummaryRow
 
     rows, episodes = [], []
     for localizer in ACTIVE_LOCALIZERS:
@@ -132,3 +187,22 @@ def test_every_shipped_policy_was_trained_in_the_conditions_the_demo_evaluates()
         assert PPO.load(path, device="cpu").observation_space == env.observation_space, path
         env.close()
 
+
+
+@pytest.mark.parametrize(("args", "message"), [(["--active-seeds", "-1"], "--active-seeds must be >= 0, got -1"),
+                                               (["--verdict-seeds", "-3"], "--verdict-seeds must be >= 0, got -3")])  # fmt: skip
+def test_demo_refuses_negative_seed_counts(args: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    from agents.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["demo", *args])
+    assert exit_info.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_demo_help_gives_the_verdict_s_default_seed_count(capsys: pytest.CaptureFixture[str]) -> None:
+    from agents.cli import main
+    from agents.demo import VERDICT_SEEDS
+
+    with pytest.raises(SystemExit):
+        main(["demo", "--help"])
+    assert f"(default {VERDICT_SEEDS};" in " ".join(capsys.readouterr().out.split())

@@ -159,6 +159,17 @@ def test_eval_seeds_are_held_out_and_episodes_replay() -> None:
     assert not np.array_equal(run_episode(validation, validation.cells()[0]).true_pose, a.true_pose)
 
 
+def test_evaluate_runs_only_the_groups_asked_for_on_all_seeds() -> None:
+    spec = EvalSpec(policies=("spin", "random_walk"), crowd_sizes=(0, 3), seeds=2, first_seed=7, episode_steps=5)
+    result = evaluate(spec, workers=1, progress=False, groups=[("random_walk", "candidate_sets", 3)])
+    assert [e.cell for e in result.episodes] == [c for c in spec.cells() if c.group == ("random_walk", "candidate_sets", 3)]
+    assert [(r.policy, r.crowd_size, r.episodes) for r in result.summary] == [("random_walk", 3, 2)]
+    with pytest.raises(ConfigError, match=r"groups \[\('spin', 'candidate_sets', 6\)\] are not in the grid"):
+        evaluate(spec, workers=1, progress=False, groups=[("spin", "candidate_sets", 3), ("spin", "candidate_sets", 6)])
+    with pytest.raises(ConfigError, match="groups needs at least one"):
+        evaluate(spec, workers=1, progress=False, groups=[])
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
