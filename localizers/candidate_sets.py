@@ -471,14 +471,14 @@ def _triple_seeds(
 
 
 @numba.njit(cache=True)
-def _spread_sums(store: NDArray[np.float64], m: int, ox: float, oy: float, prune_error: float) -> tuple[float, float]:
-    """``(weighted position variance, R)`` of the live candidates (NaNs without any weight), ``w`` their overlay
-    weight ``clip(1 - Error / prune_error, 0, 1)`` (what ``wrappers.hypothesis_spread`` computes
-    from :meth:`CandidateSetLocalizer.overlay`, without building the poses or any trig: the
-    heading's resultant length ``R`` is the same for ``X`` and ``X (+) O``)."""
+def _spread_sums(store: NDArray[np.float64], weights: NDArray[np.float64], ox: float, oy: float) -> tuple[float, float]:
+    """``(weighted position variance, R)`` of the live candidates under their overlay ``weights``
+    (NaNs without any weight): what ``wrappers.hypothesis_spread`` computes from
+    :meth:`CandidateSetLocalizer.overlay`, without building the poses or any trig (the heading's
+    resultant length ``R`` is the same for ``X`` and ``X (+) O``)."""
     sw = sx = sy = sxx = sc = ss = 0.0
-    for i in range(m):
-        w = min(max(1.0 - store[_ERR, i] / prune_error, 0.0), 1.0)
+    for i in range(weights.shape[0]):
+        w = weights[i]
         c, s = store[_COS, i], store[_SIN, i]
         x = store[_X, i] + c * ox - s * oy
         y = store[_Y, i] + s * ox + c * oy
@@ -741,14 +741,17 @@ class CandidateSetLocalizer:
         """Live candidates; weight ``1 - Error / prune_error_rad`` (low Error = high weight)."""
         if self._m == 0:
             return Overlay(label="candidate sets: none")
-        weights = np.clip(1.0 - self._store[_ERR, : self._m] / self._params.prune_error_rad, 0.0, 1.0)
         label = f"candidate sets: {self._n_sets} sets, {int(self._determined[: self._n_sets].sum())} determined"
-        return Overlay(poses=self._candidate_poses(), weights=weights, label=label)
+        return Overlay(poses=self._candidate_poses(), weights=self._candidate_weights(), label=label)
+
+    def _candidate_weights(self) -> NDArray[np.float64]:
+        """``(m,)`` overlay weights of the live candidates, ``clip(1 - Error / prune_error_rad, 0, 1)``."""
+        return np.clip(1.0 - self._store[_ERR, : self._m] / self._params.prune_error_rad, 0.0, 1.0)
 
     def hypothesis_spread(self) -> tuple[float, float]:
         """``wrappers.hypothesis_spread(self.overlay())``, computed in one pass over the store."""
         ox, oy, _ = self._odo.tolist()
-        variance, r = _spread_sums(self._store, self._m, ox, oy, self._params.prune_error_rad)
+        variance, r = _spread_sums(self._store, self._candidate_weights(), ox, oy)
         if not math.isfinite(variance):
             return math.nan, math.nan
         return math.sqrt(variance), circular_std(r)
