@@ -33,13 +33,25 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     demo.add_argument("--steps", type=positive_int, default=3000, help="steps per (world, density) run (default 3000)")
     demo.add_argument("--seed", type=int, default=0, help="seed of the env and the policy (default 0)")
     demo.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "demo", help="output folder (default results/demo)")
-    demo.add_argument("--active-seeds", type=int, default=20,
-                      help="held-out seeds per cell of the active-localization part (default 20; 0 skips it)")
-    demo.add_argument("--verdict-seeds", type=int, default=None,
-                      help="fresh test seeds, after the table's, on which the trained policies meet the best fixed "
-                      "policies of the table (default 100; 0 judges on the table's seeds)")
-    demo.add_argument("--model", type=Path, default=None,
-                      help="one PPO model to evaluate with every localizer (default: the shipped one per localizer)")
+    demo.add_argument(
+        "--active-seeds",
+        type=int,
+        default=20,
+        help="held-out seeds per cell of the active-localization part (default 20; 0 skips it)",
+    )
+    demo.add_argument(
+        "--verdict-seeds",
+        type=int,
+        default=None,
+        help="fresh test seeds, after the table's, on which the trained policies meet the best fixed "
+        "policies of the table (default 100; 0 judges on the table's seeds)",
+    )
+    demo.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        help="one PPO model to evaluate with every localizer (default: the shipped one per localizer)",
+    )
     demo.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: the core count)")
 
     sub.add_parser("worlds", help="list the registered env ids and their worlds")
@@ -54,13 +66,24 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     train.add_argument("--total-timesteps", type=positive_int, help="override total_timesteps")
     seeds = train.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=int, help="override the run seed")
-    seeds.add_argument("--seeds", type=int, nargs="+", metavar="SEED",
-                       help="train one run per seed, side by side (a local process pool, or Ray with --ray-address)")
+    seeds.add_argument(
+        "--seeds",
+        type=int,
+        nargs="+",
+        metavar="SEED",
+        help="train one run per seed, side by side (a local process pool, or Ray with --ray-address)",
+    )
     train.add_argument("--workers", type=positive_int, help="with --seeds: runs at a time (default: the core count)")
     train.add_argument("--ray-address", help="with --seeds: run the training runs on this Ray cluster (e.g. auto)")
     train.add_argument("--n-envs", type=positive_int, help="override the number of parallel envs")
-    train.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                       help="override any config field, e.g. --set ppo.learning_rate=1e-3 (repeatable)")
+    train.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override any config field, e.g. --set ppo.learning_rate=1e-3 (repeatable)",
+    )
     train.add_argument("--resume", metavar="CHECKPOINT", help="a checkpoint .zip to resume from, or 'latest'")
     train.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "train", help="output folder (default results/train)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -71,22 +94,37 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         description="Run one episode per (policy, localizer, crowd size, held-out seed) and write episodes.csv, "
         "summary.csv, summary.md (mean [95% bootstrap CI] per metric), plots, TUM trajectories and episode.gif under --out.",
     )
-    ev.add_argument("--policies", nargs="+", metavar="POLICY",
-                    help="fixed policy names or ppo:PATH/model.zip (default: every fixed policy)")
+    ev.add_argument(
+        "--policies", nargs="+", metavar="POLICY", help="fixed policy names or ppo:PATH/model.zip (default: every fixed policy)"
+    )
     ev.add_argument("--localizers", nargs="+", metavar="NAME", help="registered localizers (default: candidate_sets)")
-    ev.add_argument("--crowd-sizes", "--densities", dest="crowd_sizes", nargs="+", type=int, metavar="N",
-                    help="crowd sizes (default: 2 6 10)")
+    ev.add_argument(
+        "--crowd-sizes", "--densities", dest="crowd_sizes", nargs="+", type=int, metavar="N", help="crowd sizes (default: 2 6 10)"
+    )
     ev.add_argument("--seeds", type=positive_int, default=10, help="held-out seeds per cell (default 10)")
-    ev.add_argument("--first-seed", type=int, default=0, metavar="K",
-                    help="held-out seeds start at 2**31 + K (default 0: the test seeds of make demo; pick between "
-                         "trained policies on another range, e.g. 1000)")
+    ev.add_argument(
+        "--first-seed",
+        type=int,
+        default=0,
+        metavar="K",
+        help="held-out seeds start at 2**31 + K (default 0: the test seeds of make demo; pick between "
+        "trained policies on another range, e.g. 1000)",
+    )
     ev.add_argument("--episode-steps", type=positive_int, default=450, help="steps per episode (default 450 = 15 s)")
     ev.add_argument("--env-id", help="a bearing env id (default: RoboCupCrowded-v0, or the --conditions one)")
-    ev.add_argument("--conditions", metavar="EXPERIMENT",
-                    help="evaluate in a training config's conditions: its env id, env_kwargs (camera, prior, ...) "
-                    "and reward (a path or a name under configs/experiments/)")
-    ev.add_argument("--env-set", action="append", default=[], metavar="KEY=VALUE",
-                    help="a condition on top, e.g. --env-set camera.fov_rad=1.5708 or --env-set prior=none (repeatable)")
+    ev.add_argument(
+        "--conditions",
+        metavar="EXPERIMENT",
+        help="evaluate in a training config's conditions: its env id, env_kwargs (camera, prior, ...) "
+        "and reward (a path or a name under configs/experiments/)",
+    )
+    ev.add_argument(
+        "--env-set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a condition on top, e.g. --env-set camera.fov_rad=1.5708 or --env-set prior=none (repeatable)",
+    )
     ev.add_argument("--workers", type=positive_int, help="local worker processes (default: the core count)")
     ev.add_argument("--ray-address", help="run the episodes on this Ray cluster (e.g. auto)")
     ev.add_argument("--gif-cell", metavar="POLICY,LOCALIZER,CROWD", help="the episode to animate (default: the first)")
@@ -134,9 +172,15 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--verdict-seeds must be >= 0, got {args.verdict_seeds}")
         if args.model is not None and not args.model.is_file():
             parser.error(f"--model {args.model}: no such file")
-        run_demo(args.out, steps=args.steps, seed=args.seed, active_seeds=args.active_seeds,
-                 verdict_seeds=VERDICT_SEEDS if args.verdict_seeds is None else args.verdict_seeds,
-                 models=None if args.model is None else dict.fromkeys(ACTIVE_LOCALIZERS, args.model), workers=args.workers)
+        run_demo(
+            args.out,
+            steps=args.steps,
+            seed=args.seed,
+            active_seeds=args.active_seeds,
+            verdict_seeds=VERDICT_SEEDS if args.verdict_seeds is None else args.verdict_seeds,
+            models=None if args.model is None else dict.fromkeys(ACTIVE_LOCALIZERS, args.model),
+            workers=args.workers,
+        )
         return 0
     if args.command == "train":
         from agents.train import latest_checkpoint, load_train_config, parse_overrides, train

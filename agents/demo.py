@@ -114,8 +114,13 @@ def _wall_beams(env: envs.LocalizationEnv, ranges: NDArray[np.float32], pose: ND
     assert env.lidar is not None
     world = env.world
     empty = cast_rays(
-        pose[:2], env.lidar.relative_angles + pose[2], env.lidar.config.max_range_m, world.seg_a, world.seg_b,
-        np.zeros((0, 2)), np.zeros(0),
+        pose[:2],
+        env.lidar.relative_angles + pose[2],
+        env.lidar.config.max_range_m,
+        world.seg_a,
+        world.seg_b,
+        np.zeros((0, 2)),
+        np.zeros(0),
     )
     match, _, _, _ = beam_breakdown(ranges, empty, env.lidar.config.max_range_m)
     return match, int(ranges.size)
@@ -256,8 +261,14 @@ def run_active(
     ppo = ppo_for.get(ACTIVE_LOCALIZERS[0]) or next(iter(ppo_for.values()), None)
     trained = load_train_config(SHIPPED_CONFIG)
     spec = EvalSpec(
-        policies=tuple(policies), localizers=ACTIVE_LOCALIZERS, crowd_sizes=ACTIVE_DENSITIES, seeds=seeds,
-        episode_steps=episode_steps, env_id=trained.env_id, env_kwargs=dict(trained.env_kwargs), reward=trained.reward,
+        policies=tuple(policies),
+        localizers=ACTIVE_LOCALIZERS,
+        crowd_sizes=ACTIVE_DENSITIES,
+        seeds=seeds,
+        episode_steps=episode_steps,
+        env_id=trained.env_id,
+        env_kwargs=dict(trained.env_kwargs),
+        reward=trained.reward,
     )
     result = evaluate(spec, workers=workers)
     gif_cell = Cell(ppo or policies[-1], ACTIVE_LOCALIZERS[0], ACTIVE_DENSITIES[-1], spec.eval_seeds[0])
@@ -369,8 +380,7 @@ def caveats(result: EvalResult) -> list[str]:
             f"reads closer than {CLEARANCE_M} m; spin, random walk, stop-and-go and patrol ignore it."
         )
     notes.append(
-        "- How the shipped policies were trained, the reward and budget variants tried and what each changed: "
-        "`models/README.md`."
+        "- How the shipped policies were trained, the reward and budget variants tried and what each changed: `models/README.md`."
     )
     return notes
 

@@ -182,7 +182,7 @@ class EvalSpec:
         if ppo:
             env = gym.make(self.env_id, localizer=self.localizers[0], **dict(self.env_kwargs))
             for policy in ppo:
-                check_observation_space(policy, _load_ppo(policy[len(PPO_PREFIX):]).observation_space, env.observation_space)
+                check_observation_space(policy, _load_ppo(policy[len(PPO_PREFIX) :]).observation_space, env.observation_space)
             env.close()
         limit = world.crowd.max_count
         for size in self.crowd_sizes:
@@ -248,7 +248,7 @@ def check_observation_space(policy: str, expected: spaces.Space[Any], given: spa
 def check_policy(policy: str) -> None:
     """Raise a ConfigError unless ``policy`` is a fixed policy name or ``ppo:`` an existing file."""
     if policy.startswith(PPO_PREFIX):
-        path = Path(policy[len(PPO_PREFIX):])
+        path = Path(policy[len(PPO_PREFIX) :])
         check(path.is_file(), f"PPO model file {str(path)!r} does not exist (policy {policy!r})")
     elif policy not in FIXED_POLICIES:
         raise ConfigError(f"unknown policy {policy!r}; use one of {', '.join(FIXED_POLICIES)} or ppo:PATH/model.zip")
@@ -328,7 +328,7 @@ def _make_env(spec: EvalSpec, cell: Cell, render_mode: str | None = None) -> gym
 
 def _make_policy(cell: Cell, env: gym.Env[Any, Any]) -> Callable[[Any], NDArray[np.float32]]:
     if cell.policy.startswith(PPO_PREFIX):
-        return _PPOPolicy(cell.policy[len(PPO_PREFIX):]).predict
+        return _PPOPolicy(cell.policy[len(PPO_PREFIX) :]).predict
     from agents.policies import make_policy
 
     fixed = make_policy(cell.policy, env, seed=policy_seed(cell.seed))
@@ -494,9 +494,7 @@ def episode_metrics(
     }
 
 
-def bootstrap_ci(
-    values: ArrayLike, n: int = 2000, *, rng: np.random.Generator, level: float = 0.95
-) -> tuple[float, float]:
+def bootstrap_ci(values: ArrayLike, n: int = 2000, *, rng: np.random.Generator, level: float = 0.95) -> tuple[float, float]:
     """Percentile-bootstrap confidence interval of the mean of the finite ``values``.
 
     Draws ``n`` resamples (with replacement, of the same size) and returns the
@@ -667,22 +665,24 @@ def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
     animated = ""
     if gif_cell is not None:
         animated = f"`episode.gif`: {gif_cell.policy}, {gif_cell.localizer}, crowd {gif_cell.crowd_size}, seed {gif_cell.seed}."
-    return "\n".join([
-        "# crowdloc eval",
-        "",
-        f"{s.env_id}, {s.episode_steps} steps per episode, {s.seeds} held-out seeds "
-        f"({EVAL_SEED_BASE} + {s.first_seed}..{s.first_seed + s.seeds - 1}) per cell, {len(result.episodes)} episodes in {result.wall_s:.0f} s.",
-        "",
-        summary_markdown(result),
-        "",
-        "Mean over seeds [95% percentile-bootstrap CI, "
-        f"{s.bootstrap_resamples} resamples]; (k/N): only k of N episodes had a value (the others never had a fix). "
-        "Errors, failure rate and error / bound are over the valid steps from the first fix on; failure: error >= 1 m; "
-        "availability: share of all steps with a pose; first fix: time and distance travelled from the reset; "
-        "collisions: contact events; error / bound: RMS position error over the RMS posterior Cramer-Rao bound "
-        "along the true path (>= 1 for an unbiased estimator). Trajectories (TUM format, for evo): `tum/`. " + animated,
-        "",
-    ])
+    return "\n".join(
+        [
+            "# crowdloc eval",
+            "",
+            f"{s.env_id}, {s.episode_steps} steps per episode, {s.seeds} held-out seeds "
+            f"({EVAL_SEED_BASE} + {s.first_seed}..{s.first_seed + s.seeds - 1}) per cell, {len(result.episodes)} episodes in {result.wall_s:.0f} s.",
+            "",
+            summary_markdown(result),
+            "",
+            "Mean over seeds [95% percentile-bootstrap CI, "
+            f"{s.bootstrap_resamples} resamples]; (k/N): only k of N episodes had a value (the others never had a fix). "
+            "Errors, failure rate and error / bound are over the valid steps from the first fix on; failure: error >= 1 m; "
+            "availability: share of all steps with a pose; first fix: time and distance travelled from the reset; "
+            "collisions: contact events; error / bound: RMS position error over the RMS posterior Cramer-Rao bound "
+            "along the true path (>= 1 for an unbiased estimator). Trajectories (TUM format, for evo): `tum/`. " + animated,
+            "",
+        ]
+    )
 
 
 def plot_summary(result: EvalResult, directory: Path) -> list[Path]:

@@ -138,9 +138,7 @@ def error_bound_ratio(errors: ArrayLike, bound_rmse: ArrayLike, start: int | Non
     return num / den if np.isfinite(num) and np.isfinite(den) and den > 0 else float("nan")
 
 
-def time_to_recover(
-    time_s: ArrayLike, errors: ArrayLike, event_time_s: float, threshold: float, hold_s: float = 1.0
-) -> float:
+def time_to_recover(time_s: ArrayLike, errors: ArrayLike, event_time_s: float, threshold: float, hold_s: float = 1.0) -> float:
     """Seconds from an event until the error is below ``threshold`` for ``hold_s`` in a row.
 
     Invalid steps (NaN errors) count as not recovered. Returns ``inf`` if that never happens.

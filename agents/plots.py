@@ -17,7 +17,6 @@ from numpy.typing import NDArray  # noqa: E402
 Array = NDArray[np.float64]
 
 
-
 def save_figure(fig: Any, path: Path, title: str | None = None) -> Path:
     """Give ``fig`` its title, lay it out, write it to ``path`` and close it; returns ``path``."""
     if title:
@@ -26,6 +25,7 @@ def save_figure(fig: Any, path: Path, title: str | None = None) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
 
 def trajectory_panels(
     path: Path,
@@ -61,7 +61,7 @@ def trajectory_panels(
     w, h = field_m
     panel_h = 4.0 * min(2.0, h / w) if w else 4.0
     fig, axes = plt.subplots(rows, cols, figsize=(4.0 * cols, panel_h * rows + 0.6), squeeze=False)
-    for ax in axes.ravel()[len(labels):]:
+    for ax in axes.ravel()[len(labels) :]:
         ax.set_visible(False)
     for ax, label in zip(axes.ravel(), labels):
         est = estimates[label]
@@ -151,7 +151,7 @@ def recovery_figure(
     cols = min(3, len(labels))
     rows = math.ceil(len(labels) / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.0 * rows + 0.5), squeeze=False, sharey=True)
-    for ax in axes.ravel()[len(labels):]:
+    for ax in axes.ravel()[len(labels) :]:
         ax.set_visible(False)
     for ax, label in zip(axes.ravel(), labels):
         med, lo, hi = curves[label]

@@ -141,7 +141,9 @@ class PatrolPath(FixedPolicy):
         self._t = 0
 
     @classmethod
-    def from_segments(cls, action_space: spaces.Box, segments: Sequence[tuple[float, float, int]], seed: int | None = None) -> PatrolPath:
+    def from_segments(
+        cls, action_space: spaces.Box, segments: Sequence[tuple[float, float, int]], seed: int | None = None
+    ) -> PatrolPath:
         """Segments ``(speed, turn, steps)`` in action units."""
         for i, (v, w, n) in enumerate(segments):
             _check_command(f"PatrolPath segment {i} speed", v)
@@ -166,7 +168,10 @@ class PatrolPath(FixedPolicy):
         extent = np.ptp(vertices, axis=0)
         scale = min(1.0, float(np.min(np.asarray(base.config.size_m) / (extent + 1.0))))
         commands = polygon_commands(
-            [tuple(v) for v in vertices * scale], 0.0, speed_mps=speed_mps * scale, turn_rate_rps=turn_rate_rps,
+            [tuple(v) for v in vertices * scale],
+            0.0,
+            speed_mps=speed_mps * scale,
+            turn_rate_rps=turn_rate_rps,
             dt_s=base.config.dt_s,
         )
         return cls(env.action_space, command_actions(commands, base.max_speed_mps, base.max_turn_rate_rps))
@@ -184,7 +189,9 @@ class PatrolPath(FixedPolicy):
 class StopAndGo(FixedPolicy):
     """Drive a random walk for ``go_steps``, then stand still for ``stop_steps``, and repeat."""
 
-    def __init__(self, action_space: spaces.Box, seed: int | None = None, go_steps: int = 60, stop_steps: int = 30, speed: float = 0.6) -> None:
+    def __init__(
+        self, action_space: spaces.Box, seed: int | None = None, go_steps: int = 60, stop_steps: int = 30, speed: float = 0.6
+    ) -> None:
         super().__init__(action_space, seed)
         if go_steps < 1 or stop_steps < 1:
             raise ValueError(f"StopAndGo needs go_steps and stop_steps >= 1, got {go_steps} and {stop_steps}")
@@ -271,7 +278,9 @@ class _MapPolicy(FixedPolicy):
         if headings is None:
             raise ValueError(f"{type(self).__name__}.expected_visible needs headings for a camera narrower than a full turn")
         unseen_ok = seen_now | ~in_field_of_view(pose[:2], pose[2], lm, self.fov_rad)
-        return in_range & (unseen_ok | turned) & in_field_of_view(spots[:, None, :], np.asarray(headings)[:, None], lm, self.fov_rad)
+        return (
+            in_range & (unseen_ok | turned) & in_field_of_view(spots[:, None, :], np.asarray(headings)[:, None], lm, self.fov_rad)
+        )
 
     def blocked(self, observation: Observation, directions_rad: ArrayLike) -> NDArray[np.bool_]:
         """Which travel directions (relative to the heading) the sonar finds obstructed.
@@ -289,7 +298,12 @@ class _MapPolicy(FixedPolicy):
 
     def _inside(self, xy: NDArray[np.float64], margin: float = 0.4) -> NDArray[np.bool_]:
         xmin, ymin, xmax, ymax = self.landmarks.bounds_m
-        return (xy[..., 0] > xmin + margin) & (xy[..., 0] < xmax - margin) & (xy[..., 1] > ymin + margin) & (xy[..., 1] < ymax - margin)
+        return (
+            (xy[..., 0] > xmin + margin)
+            & (xy[..., 0] < xmax - margin)
+            & (xy[..., 1] > ymin + margin)
+            & (xy[..., 1] < ymax - margin)
+        )
 
     def _head_for_centre(self, observation: Observation, pose: NDArray[np.float64]) -> NDArray[np.float64]:
         """The fallback when no motion qualifies: steer toward the middle of the map."""
@@ -312,7 +326,16 @@ class LandmarkSeeking(_MapPolicy):
     straight); without an estimate the robot spins to find landmarks.
     """
 
-    def __init__(self, action_space: spaces.Box, landmarks: LandmarkMap, seed: int | None = None, *, lookahead_m: float = 0.8, directions: int = 12, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        action_space: spaces.Box,
+        landmarks: LandmarkMap,
+        seed: int | None = None,
+        *,
+        lookahead_m: float = 0.8,
+        directions: int = 12,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(action_space, landmarks, seed, **kwargs)
         self.lookahead_m = lookahead_m
         self.angles = np.linspace(-math.pi, math.pi, directions, endpoint=False)
@@ -324,7 +347,9 @@ class LandmarkSeeking(_MapPolicy):
         world_angles = pose[2] + self.angles
         spots = pose[:2] + self.lookahead_m * np.stack([np.cos(world_angles), np.sin(world_angles)], axis=1)
         seen_now = np.asarray(observation["landmarks"]).reshape(-1, 3)[:, 0] > 0.5
-        score = self.expected_visible(pose, spots, seen_now, world_angles).sum(axis=1) + 0.01 * np.cos(self.angles)  # ties: straight
+        score = self.expected_visible(pose, spots, seen_now, world_angles).sum(axis=1) + 0.01 * np.cos(
+            self.angles
+        )  # ties: straight
         score = np.where(self._inside(spots) & ~self.blocked(observation, self.angles), score, -np.inf)
         if not np.isfinite(score).any():
             return self._head_for_centre(observation, pose)

@@ -90,7 +90,9 @@ class TrainConfig:
         check(self.vec_env in ("subproc", "dummy"), f"vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}")
         check(self.total_timesteps >= 1, f"total_timesteps must be >= 1, got {self.total_timesteps}")
         check(len(self.crowd_sizes) >= 1, "crowd_sizes needs at least one crowd size")
-        check("max_episode_steps" not in self.env_kwargs, "the episode length is ppo.n_steps; remove env_kwargs.max_episode_steps")
+        check(
+            "max_episode_steps" not in self.env_kwargs, "the episode length is ppo.n_steps; remove env_kwargs.max_episode_steps"
+        )
         check("crowd_size" not in self.env_kwargs, "give crowd sizes as crowd_sizes, not env_kwargs.crowd_size")
 
     @property

@@ -670,7 +670,6 @@ def _evaluate_task(task: tuple[EpisodeSetup, int, str, Mapping[str, Any], float]
     return score_episode(rec, localizer, None, penalty_m), score_episode(rec, localizer, tuned, penalty_m)
 
 
-
 # ------------------------------------------------------------------------------------ report
 
 
@@ -897,8 +896,7 @@ def write_report(
         "",
         "## Best parameters",
         "",
-        "`best_params.yaml` (ready as `localizer_params`, e.g. "
-        f"`localizers.registry.load_params({config.localizer!r}, yaml)`).",
+        f"`best_params.yaml` (ready as `localizer_params`, e.g. `localizers.registry.load_params({config.localizer!r}, yaml)`).",
         "",
         "| parameter | default | tuned | searched | importance |",
         "|---|---|---|---|---|",

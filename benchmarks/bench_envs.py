@@ -62,18 +62,40 @@ def run_all(quick: bool = False) -> list[Result]:
     n = 2000 if quick else 20000
     results = []
     med, lo, hi = _env_rate("crowdloc/RoboCupCrowded-v0", n, crowd_size=14)
-    results.append(Result("envs", "RoboCupCrowded-v0, 14 robots, no rendering", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}", ">= 10,000", med >= 10_000))
+    results.append(
+        Result(
+            "envs",
+            "RoboCupCrowded-v0, 14 robots, no rendering",
+            med,
+            "steps/s",
+            f"{lo:,.0f}-{hi:,.0f}",
+            ">= 10,000",
+            med >= 10_000,
+        )
+    )
     med, lo, hi = _env_rate("crowdloc/RoboCupCrowded-v0", n)
     results.append(Result("envs", "RoboCupCrowded-v0, default 6 robots", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}"))
     med, lo, hi = _env_rate("crowdloc/RoboCupStatic-v0", n)
     results.append(Result("envs", "RoboCupStatic-v0", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}"))
     m = n // 4
     med, lo, hi = _env_rate("crowdloc/CrowdedRoom-v0", m, crowd_size=30)
-    results.append(Result("envs", "CrowdedRoom-v0, 1081-beam LIDAR, 30 people", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}", ">= 2,000", med >= 2_000))
+    results.append(
+        Result(
+            "envs", "CrowdedRoom-v0, 1081-beam LIDAR, 30 people", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}", ">= 2,000", med >= 2_000
+        )
+    )
     med, lo, hi = _env_rate("crowdloc/CrowdedRoom-v0", m, crowd_size=20, crowd={"walkers": {"count": 10}})
-    results.append(Result("envs", "CrowdedRoom-v0, 20 queueing + 10 social-force walkers", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}"))
+    results.append(
+        Result("envs", "CrowdedRoom-v0, 20 queueing + 10 social-force walkers", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}")
+    )
     med, lo, hi = _pymunk_reference(15, 8, n // 2)
-    results.append(Result("reference", "plain pymunk: 15 circles + 8 segment_query_first per step", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}"))
+    results.append(
+        Result("reference", "plain pymunk: 15 circles + 8 segment_query_first per step", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}")
+    )
     med, lo, hi = _pymunk_reference(31, 1081, max(m // 20, 20))
-    results.append(Result("reference", "plain pymunk: 31 circles + 1081 segment_query_first per step", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}"))
+    results.append(
+        Result(
+            "reference", "plain pymunk: 31 circles + 1081 segment_query_first per step", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}"
+        )
+    )
     return results

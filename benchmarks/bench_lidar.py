@@ -51,7 +51,10 @@ def _run(quick: bool) -> list[Result]:
     t = np.linspace(0, 4 * math.pi, steps)
     poses = np.stack([3.5 + 1.5 * np.cos(t), 3.5 + 1.5 * np.sin(t), t + math.pi / 2], 1)
     scans = _scans(poses, rng)
-    odometry = [OdometryDelta(*sample_odometry(rng, between(poses[k - 1], poses[k]), [0.01, 0.005, 0.005, 0.005])) for k in range(1, steps)]
+    odometry = [
+        OdometryDelta(*sample_odometry(rng, between(poses[k - 1], poses[k]), [0.01, 0.005, 0.005, 0.005]))
+        for k in range(1, steps)
+    ]
     landmarks = LandmarkMap(np.zeros((0, 2)), (), (0, 0, 7, 7), ROOM)
     results = []
     for model in ("beam", "likelihood_field"):
@@ -70,11 +73,20 @@ def _run(quick: bool) -> list[Result]:
         ms = np.asarray(times[10:]) * 1e3
         target = model == "beam"
         results.append(
-            Result("lidar", f"mcl_lidar {model}: 1000 particles x 1081 beams, predict + update", float(np.median(ms)), "ms",
-                   f"p99 {np.percentile(ms, 99):.1f}", "<= 10 ms" if target else "", (float(np.median(ms)) <= 10.0) if target else None)
+            Result(
+                "lidar",
+                f"mcl_lidar {model}: 1000 particles x 1081 beams, predict + update",
+                float(np.median(ms)),
+                "ms",
+                f"p99 {np.percentile(ms, 99):.1f}",
+                "<= 10 ms" if target else "",
+                (float(np.median(ms)) <= 10.0) if target else None,
+            )
         )
         if model == "beam":
-            results.append(Result("lidar", "ray-cast table build (7 m room, 0.05 m x 720 directions) + first update", build_s, "s", ""))
+            results.append(
+                Result("lidar", "ray-cast table build (7 m room, 0.05 m x 720 directions) + first update", build_s, "s", "")
+            )
     x = rng.uniform(-6, 6, 100_000)
     y = rng.uniform(-6, 6, 100_000)
     scratch = (np.empty(100_000), np.empty(100_000), np.empty(100_000))
@@ -85,6 +97,15 @@ def _run(quick: bool) -> list[Result]:
         far_points(x, y, (0.1, 0.2), 0.3, 1440, scratch=scratch)
         times.append(time.perf_counter() - s0)
     ms = np.asarray(times) * 1e3
-    results.append(Result("lidar", "far-point extraction, 100,000 points, 1440 bins", float(np.median(ms)), "ms",
-                          f"p99 {np.percentile(ms, 99):.2f}", "<= 3 ms", float(np.median(ms)) <= 3.0))
+    results.append(
+        Result(
+            "lidar",
+            "far-point extraction, 100,000 points, 1440 bins",
+            float(np.median(ms)),
+            "ms",
+            f"p99 {np.percentile(ms, 99):.2f}",
+            "<= 3 ms",
+            float(np.median(ms)) <= 3.0,
+        )
+    )
     return results

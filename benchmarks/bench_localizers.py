@@ -90,9 +90,24 @@ def run_all(quick: bool = False) -> list[Result]:
         target = TARGETS_MS.get(name)
         label = f"{name}: predict + update" + (" (K = 10 sets x 360 candidates)" if name == "candidate_sets" else "")
         results.append(
-            Result("localizers (8 landmarks)", label, med, "ms", f"p99 {p99:.3f}", f"<= {target} ms" if target else "",
-                   (med <= target) if target else None)
+            Result(
+                "localizers (8 landmarks)",
+                label,
+                med,
+                "ms",
+                f"p99 {p99:.3f}",
+                f"<= {target} ms" if target else "",
+                (med <= target) if target else None,
+            )
         )
         est_med = float(np.median(estimate_s) * 1e3)
-        results.append(Result("localizers (8 landmarks)", f"{name}: estimate read", est_med, "ms", f"p99 {np.percentile(estimate_s, 99) * 1e3:.3f}"))
+        results.append(
+            Result(
+                "localizers (8 landmarks)",
+                f"{name}: estimate read",
+                est_med,
+                "ms",
+                f"p99 {np.percentile(estimate_s, 99) * 1e3:.3f}",
+            )
+        )
     return results

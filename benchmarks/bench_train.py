@@ -38,8 +38,15 @@ def run_all(quick: bool = False) -> list[Result]:
         where = "in-process (DummyVecEnv)" if config.vec_env == "dummy" else "in subprocesses (SubprocVecEnv)"
         label = f"PPO, candidate_sets wrapper, {config.n_envs} envs {where}" + (", shipped config" if is_shipped else "")
         results.append(
-            Result("training", label, rate, "env steps/s", f"{rollouts - 1} rollouts timed",
-                   f">= {TARGET:,}" if is_shipped else "(reference)", rate >= TARGET if is_shipped else None)  # fmt: skip
+            Result(
+                "training",
+                label,
+                rate,
+                "env steps/s",
+                f"{rollouts - 1} rollouts timed",
+                f">= {TARGET:,}" if is_shipped else "(reference)",
+                rate >= TARGET if is_shipped else None,
+            )  # fmt: skip
         )
     return results
 

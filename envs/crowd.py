@@ -350,7 +350,9 @@ class SoccerCrowd(Crowd):
         x, y = float(ball_xy[0]), float(ball_xy[1])
         if -r <= x <= w + r and -r <= y <= h + r:
             return None
-        return np.array([min(max(x, _RESTART_INSET_M), w - _RESTART_INSET_M), min(max(y, _RESTART_INSET_M), h - _RESTART_INSET_M)])
+        return np.array(
+            [min(max(x, _RESTART_INSET_M), w - _RESTART_INSET_M), min(max(y, _RESTART_INSET_M), h - _RESTART_INSET_M)]
+        )
 
     def _random_targets(self, rng: np.random.Generator, count: int) -> NDArray[np.float64]:
         x0, y0, x1, y1 = self._field(self.config.radius_m)
@@ -361,8 +363,17 @@ class SoccerCrowd(Crowd):
         draws = rng.random(2)  # kick decision and direction
         ball = world.positions[world.ball_row] if self.has_ball else self.goal
         targets, due, n_due, touching = soccer_targets(
-            pos, self.roles, self.wander, ball, self.goal, self.post_a, self.post_b,
-            self.soccer.keeper_offset_m, self.reach_m, self.wander_until, world.time_s,
+            pos,
+            self.roles,
+            self.wander,
+            ball,
+            self.goal,
+            self.post_a,
+            self.post_b,
+            self.soccer.keeper_offset_m,
+            self.reach_m,
+            self.wander_until,
+            world.time_s,
         )
         if n_due:
             self.wander[due] = self._random_targets(rng, n_due)
@@ -376,7 +387,8 @@ class SoccerCrowd(Crowd):
             direction = self.goal - ball
             angle = math.atan2(direction[1], direction[0]) + (draws[1] - 0.5) * 0.5  # +-0.25 rad spread
             return member_v, self.soccer.kick_speed_mps * np.array([math.cos(angle), math.sin(angle)])
-        return member_v, world.velocities[world.ball_row] * self.ball_keep ** world.config.dt_s
+        return member_v, world.velocities[world.ball_row] * self.ball_keep**world.config.dt_s
+
 
 class QueueCrowd(Crowd):
     """Two queues along the left and right walls; free walkers optionally (LIDAR paper's room).

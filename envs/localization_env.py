@@ -116,9 +116,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
             self.render()
         return obs, info
 
-    def step(
-        self, action: NDArray[np.float32]
-    ) -> tuple[dict[str, NDArray[np.float32]], float, bool, bool, dict[str, Any]]:
+    def step(self, action: NDArray[np.float32]) -> tuple[dict[str, NDArray[np.float32]], float, bool, bool, dict[str, Any]]:
         a_v, a_w = self._check_action(action)
         dt = self.config.dt_s
         v = a_v * self.max_speed_mps

@@ -465,4 +465,3 @@ class Renderer:
         self._window.blit(self.surface, (0, 0))
         pygame.display.flip()
         self._clock.tick(self.fps)
-

@@ -54,9 +54,7 @@ class Odometry:
         trans = max_speed_mps * dt_s
         rot = max_turn_rate_rps * dt_s
         std = odometry_noise_std([trans * math.cos(rot / 2), trans * math.sin(rot / 2), rot], self.alphas)
-        self.bound = np.array(
-            [trans + 8 * std[1] + 1e-3, trans + 8 * std[1] + 1e-3, rot + 16 * std[0] + 1e-3], dtype=np.float32
-        )
+        self.bound = np.array([trans + 8 * std[1] + 1e-3, trans + 8 * std[1] + 1e-3, rot + 16 * std[0] + 1e-3], dtype=np.float32)
         self._delta = np.zeros(3)
 
     def space(self) -> spaces.Box:
@@ -110,9 +108,7 @@ class BearingCamera:
             world.occluder_radius_m,
         )
         if self.config.fov_rad < 2 * math.pi:
-            clear &= in_field_of_view(
-                world.positions[0], world.angles[0], world.landmark_xy, self.config.fov_rad
-            )
+            clear &= in_field_of_view(world.positions[0], world.angles[0], world.landmark_xy, self.config.fov_rad)
         return clear
 
     def observe(self, world: World, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
@@ -120,8 +116,14 @@ class BearingCamera:
         draws = rng.random((3, self.count))  # dropout, false detection, false bearing
         noise = rng.standard_normal(self.count) * cfg.noise_std_rad
         obs, visible_ids, false_ids = _bearing_slots(
-            world.positions[0], world.angles[0], world.landmark_xy, self.true_visibility(world), draws, noise,
-            cfg.dropout_probability, cfg.false_detection_probability,
+            world.positions[0],
+            world.angles[0],
+            world.landmark_xy,
+            self.true_visibility(world),
+            draws,
+            noise,
+            cfg.dropout_probability,
+            cfg.false_detection_probability,
         )
         return obs.reshape(-1), {"visible_landmarks": visible_ids, "false_detections": false_ids}
 
@@ -161,7 +163,13 @@ class _RangeSensor:
 
     key: str
 
-    def __init__(self, config: LidarConfig | SonarConfig, world: World, ray_angles: NDArray[np.float64], reading_angles: NDArray[np.float64]) -> None:
+    def __init__(
+        self,
+        config: LidarConfig | SonarConfig,
+        world: World,
+        ray_angles: NDArray[np.float64],
+        reading_angles: NDArray[np.float64],
+    ) -> None:
         self.config = config
         #: ``(R,)`` ray directions relative to the heading, ascending, spanning less than a turn
         self.relative_angles = ray_angles

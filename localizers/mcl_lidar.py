@@ -683,9 +683,7 @@ def validated_scan(scan: ScanMeasurement, source: str = "scan") -> tuple[Array, 
 # The filter
 
 
-def kld_resample(
-    particles: Array, weights: Array, rng: np.random.Generator, params: LidarMCLParams
-) -> NDArray[np.intp]:
+def kld_resample(particles: Array, weights: Array, rng: np.random.Generator, params: LidarMCLParams) -> NDArray[np.intp]:
     """Ancestor indices of a KLD-sized resample (Fox 2003; Probabilistic Robotics Table 8.4).
 
     Up to ``max_particles`` ancestors are drawn by low-variance resampling and put in random

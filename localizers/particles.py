@@ -77,6 +77,7 @@ def propagate_particles(
         heading[:] = wrap_angle(heading)
     return particles
 
+
 def weighted_pose_mean(particles: Array, weights: Array | None = None) -> Array:
     """``(3,)`` weighted mean pose of ``(3, N)`` particles, heading by circular mean.
 
@@ -139,7 +140,6 @@ def gaussian_poses(center: ArrayLike, cov: ArrayLike, count: int, rng: np.random
     out = root @ rng.standard_normal((3, count)) + c[:, None]
     out[2] = wrap_angle(out[2])
     return out
-
 
 
 def prior_covariance(prior: PoseEstimate, position_std_m: float, heading_std_rad: float) -> Array:

@@ -33,35 +33,67 @@ class LocalizerSpec:
 
 LOCALIZERS: dict[str, LocalizerSpec] = {
     "dead_reckoning": LocalizerSpec(
-        "localizers.dead_reckoning", "DeadReckoningLocalizer", "DeadReckoningParams", "bearings", True,
+        "localizers.dead_reckoning",
+        "DeadReckoningLocalizer",
+        "DeadReckoningParams",
+        "bearings",
+        True,
         "odometry only, from the known start pose (paper A, baseline 1)",
     ),
     "resection": LocalizerSpec(
-        "localizers.resection", "ResectionLocalizer", "ResectionParams", "bearings", False,
+        "localizers.resection",
+        "ResectionLocalizer",
+        "ResectionParams",
+        "bearings",
+        False,
         "Cassini three-landmark resection whenever >= 3 bearings are seen (paper A, baseline 2)",
     ),
     "kalman": LocalizerSpec(
-        "localizers.kalman", "KalmanLocalizer", "KalmanParams", "bearings", True,
+        "localizers.kalman",
+        "KalmanLocalizer",
+        "KalmanParams",
+        "bearings",
+        True,
         "constant-acceleration Kalman filter fusing dead reckoning and resection (paper A, baseline 3)",
     ),
     "mcl_bearing_paper": LocalizerSpec(
-        "localizers.mcl", "PaperBearingMCL", "PaperMCLParams", "bearings", False,
+        "localizers.mcl",
+        "PaperBearingMCL",
+        "PaperMCLParams",
+        "bearings",
+        False,
         "the paper's 1000-particle MCL with deletion and re-seeding (paper A, baseline 4)",
     ),
     "mcl_bearing": LocalizerSpec(
-        "localizers.mcl", "BearingMCL", "BearingMCLParams", "bearings", False,
+        "localizers.mcl",
+        "BearingMCL",
+        "BearingMCLParams",
+        "bearings",
+        False,
         "reference MCL: Gaussian bearing likelihood, low-variance resampling, augmented-MCL recovery",
     ),
     "candidate_sets": LocalizerSpec(
-        "localizers.candidate_sets", "CandidateSetLocalizer", "CandidateSetParams", "bearings", False,
+        "localizers.candidate_sets",
+        "CandidateSetLocalizer",
+        "CandidateSetParams",
+        "bearings",
+        False,
         "the proposed two-landmark candidate-set method with K independent sets (paper A)",
     ),
     "mcl_lidar": LocalizerSpec(
-        "localizers.mcl_lidar", "LidarMCL", "LidarMCLParams", "scan", True,
+        "localizers.mcl_lidar",
+        "LidarMCL",
+        "LidarMCLParams",
+        "scan",
+        True,
         "LIDAR MCL on the raw scan: beam model on a ray-cast table, alphas scaled by the sampling parameter (paper B's MCL)",
     ),
     "far_point_mcl": LocalizerSpec(
-        "localizers.scan_filter", "FarPointMCL", "FarPointMCLParams", "scan", True,
+        "localizers.scan_filter",
+        "FarPointMCL",
+        "FarPointMCLParams",
+        "scan",
+        True,
         "LIDAR MCL on scans accumulated over 0.5 m of travel, far point per angular bin (paper B's method)",
     ),
 }
@@ -97,9 +129,7 @@ def load_params(name: str, overrides: Mapping[str, Any] | None = None) -> Any:
     return from_mapping(_attr(s.module, s.params_cls), data, where=where)
 
 
-def make_localizer(
-    name: str, landmarks: LandmarkMap, *, dt_s: float, params: Mapping[str, Any] | Any | None = None
-) -> Localizer:
+def make_localizer(name: str, landmarks: LandmarkMap, *, dt_s: float, params: Mapping[str, Any] | Any | None = None) -> Localizer:
     """Build localizer ``name``; ``params`` is a mapping of overrides or a ready params object."""
     s = spec(name)
     params_cls = _attr(s.module, s.params_cls)

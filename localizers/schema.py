@@ -154,9 +154,7 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
         fields = {f.name: f for f in dataclasses.fields(tp) if f.init}
         for key in value:
             if key not in fields:
-                raise ConfigError(
-                    f"{where}: unknown key {key!r} for {tp.__name__} (valid keys: {', '.join(sorted(fields))})"
-                )
+                raise ConfigError(f"{where}: unknown key {key!r} for {tp.__name__} (valid keys: {', '.join(sorted(fields))})")
         kwargs = {}
         for name, field in fields.items():
             if name in value:

@@ -74,7 +74,9 @@ def decode_estimate(encoded: NDArray[np.float32], bounds_m: tuple[float, float, 
     """Invert :func:`encode_estimate`: ``(3,)`` pose ``(x, y, theta)`` in world units."""
     xmin, ymin, xmax, ymax = bounds_m
     e = np.asarray(encoded, dtype=np.float64)
-    return np.array([(xmin + xmax) / 2 + e[0] * (xmax - xmin) / 2, (ymin + ymax) / 2 + e[1] * (ymax - ymin) / 2, np.arctan2(e[3], e[2])])
+    return np.array(
+        [(xmin + xmax) / 2 + e[0] * (xmax - xmin) / 2, (ymin + ymax) / 2 + e[1] * (ymax - ymin) / 2, np.arctan2(e[3], e[2])]
+    )
 
 
 def bearing_measurement(landmarks_obs: NDArray[np.float32]) -> BearingMeasurement:

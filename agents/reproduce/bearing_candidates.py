@@ -404,7 +404,9 @@ def study_rows(results: Sequence[JobResult], methods: Sequence[Method], referenc
     return rows
 
 
-def per_seed(results: Sequence[JobResult], methods: Sequence[Method], reference: Mapping[str, str]) -> dict[str, list[dict[str, Any]]]:
+def per_seed(
+    results: Sequence[JobResult], methods: Sequence[Method], reference: Mapping[str, str]
+) -> dict[str, list[dict[str, Any]]]:
     """Per method, one record per seed: mean position / heading error from the reference first fix,
     first-fix distance and availability (for results.json)."""
     out: dict[str, list[dict[str, Any]]] = {}
@@ -541,7 +543,9 @@ def _cmp(ours: float, paper: float) -> str:
 def exp1_discussion(rows: Sequence[Row]) -> list[str]:
     """What differs from Table 1, with the ratios, and why."""
     r = _rows_by_key(rows)
-    cs, sh, kf, mp, dr = (r[k] for k in ("candidate_sets", "candidate_sets_shipped", "kalman", "mcl_bearing_paper", "dead_reckoning"))
+    cs, sh, kf, mp, dr = (
+        r[k] for k in ("candidate_sets", "candidate_sets_shipped", "kalman", "mcl_bearing_paper", "dead_reckoning")
+    )
     m2, mr2 = r["mcl_bearing_paper_l67"], r["mcl_bearing_l67"]
     p = PAPER["exp1"]
     order = "better" if cs.pos_mm[0] < min(kf.pos_mm[0], mp.pos_mm[0]) else "worse"
@@ -601,7 +605,11 @@ def exp2_discussion(rows: Sequence[Row], exp3_rows: Sequence[Row], speed: tuple[
         "3-4 of 8 landmarks remain after the random subset, so most frames allow a Cassini fix. With >= 3 bearings "
         "every new set is the handful of Cassini solutions and is determined at once, so (5) behaves like a "
         "temporally smoothed, outlier-gated resection. "
-        + ("The ordering (5) <= (4) < (3) is the paper's." if ordered else "The paper's ordering (5) <= (4) < (3) does not hold here."),
+        + (
+            "The ordering (5) <= (4) < (3) is the paper's."
+            if ordered
+            else "The paper's ordering (5) <= (4) < (3) does not hold here."
+        ),
         f"- **(3) Kalman** {kf.pos_mm[0]:.0f} mm / {kf.head_deg[0]:.1f} deg ({_cmp(kf.pos_mm[0], p['kalman'][0][0])} / "
         f"{_cmp(kf.head_deg[0], p['kalman'][1][0])}), the closest to the paper: tuned like the paper's to trust dead "
         f"reckoning (vision position sd 1 m, ours), it follows the odometry drift through fast turns and ball and "
@@ -617,7 +625,9 @@ def exp2_discussion(rows: Sequence[Row], exp3_rows: Sequence[Row], speed: tuple[
     ]
 
 
-def extras_discussion(density: Mapping[str, Any] | None, false: Mapping[str, Any] | None, push: Mapping[str, Any] | None) -> list[str]:
+def extras_discussion(
+    density: Mapping[str, Any] | None, false: Mapping[str, Any] | None, push: Mapping[str, Any] | None
+) -> list[str]:
     """Short, data-driven reading of the three extra studies."""
     out = []
     if density:
@@ -651,6 +661,7 @@ def extras_discussion(density: Mapping[str, Any] | None, false: Mapping[str, Any
             + "The Kalman filter is protected by its inlier gate on the triple solutions and by trusting odometry."
         )  # fmt: skip
     if push:
+
         def lost(key: str) -> str:
             return f"{int(push[key]['lost'].sum())}/{push[key]['lost'].size}"
 
@@ -702,7 +713,7 @@ def write_report(
         "",
         "**Statistics.** As in the paper, errors are taken at every step from the first fix of method (5) on "
         "(per seed; in Exp 3 each K row starts at its own first fix), over the steps where the method has a pose. "
-        "\"mean ± sd\" is the mean over seeds of the per-seed mean ± the mean over seeds of the per-seed (within-run) "
+        '"mean ± sd" is the mean over seeds of the per-seed mean ± the mean over seeds of the per-seed (within-run) '
         "standard deviation, which is what the paper's ± is; the seed-to-seed spread of the per-seed mean is a separate "
         "column. Availability: share of all steps with a pose. Failure: share of steps from the first fix with error "
         ">= 1 m. Bound: RMS over the same steps of the posterior Cramer-Rao bound on position RMSE "
@@ -824,7 +835,9 @@ def write_report(
             cells = []
             for p in points:
                 v = stats[m.key][p]
-                cells.append(f"{_num(v['err'][0])} mm, {_num(100 * v['avail'][0], '{:.0f}')} %, fail {_num(100 * v['fail'], '{:.0f}')} %")
+                cells.append(
+                    f"{_num(v['err'][0])} mm, {_num(100 * v['avail'][0], '{:.0f}')} %, fail {_num(100 * v['fail'], '{:.0f}')} %"
+                )
             lines.append(f"| {m.label} | " + " | ".join(cells) + " |")
         lines += ["", "Cells: mean position error (seed mean), availability, share of steps with error >= 1 m.", ""]
         lines += [f"![{title}]({figures[fig].name})", ""]
@@ -861,7 +874,7 @@ def write_report(
             )
         lines += [
             "",
-            "Resection has no memory: it \"recovers\" at the first frame with >= 3 bearings, but frames without a pose "
+            'Resection has no memory: it "recovers" at the first frame with >= 3 bearings, but frames without a pose '
             "break the 1 s hold, so it rarely counts as recovered. Figure: median and quartiles over the seeds that have a "
             "pose at that time.",
             "",
@@ -906,7 +919,12 @@ def make_figures(out: Path, results: Sequence[JobResult]) -> dict[str, Path]:
     out.mkdir(parents=True, exist_ok=True)
     figs: dict[str, Path] = {}
     for study, methods, title, name in (
-        ("exp1", EXP1_METHODS[:EXP1_FIGURE], "Exp 1 (seed 0): true path (black) and estimates (red), first fix of each method (star)", "exp1"),
+        (
+            "exp1",
+            EXP1_METHODS[:EXP1_FIGURE],
+            "Exp 1 (seed 0): true path (black) and estimates (red), first fix of each method (star)",
+            "exp1",
+        ),
         ("exp2", EXP2_METHODS[:6], "Exp 2 (seed 0): true path (black) and estimates (red)", "exp2"),
     ):
         runs = [r for r in results if r.job.study == study]
@@ -961,7 +979,12 @@ def make_figures(out: Path, results: Sequence[JobResult]) -> dict[str, Path]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The experiment's own options."""
     parser.add_argument("--seeds", type=positive_int, default=20, help="seeds of Exp 1 and Exp 2/3 (default 20)")
-    parser.add_argument("--sweep-seeds", type=positive_int, default=5, help="seeds per point of the density and false-detection sweeps (default 5)")
+    parser.add_argument(
+        "--sweep-seeds",
+        type=positive_int,
+        default=5,
+        help="seeds per point of the density and false-detection sweeps (default 5)",
+    )
     parser.add_argument("--push-seeds", type=positive_int, default=10, help="seeds of the shove-recovery study (default 10)")
     parser.add_argument("--quick", action="store_true", help="tiny smoke run: 2 seeds, short episodes, 2 sweep points")
     parser.add_argument("--workers", type=positive_int, default=min(2, os.cpu_count() or 1),

@@ -937,8 +937,11 @@ def write_report(out: Path, plan: Plan, episodes: Sequence[Episode], runs: Seque
     lines += [
         "",
         "Where each variant starts failing (first crowd size at which >= 1 % of the estimates fail): "
-        + "; ".join(f"{VARIANTS[f]}: {first_fail.get(f) if first_fail.get(f) is not None else 'none up to ' + str(dens[-1])}"
-                    for f in (False, True)) + ".",  # fmt: skip
+        + "; ".join(
+            f"{VARIANTS[f]}: {first_fail.get(f) if first_fail.get(f) is not None else 'none up to ' + str(dens[-1])}"
+            for f in (False, True)
+        )
+        + ".",  # fmt: skip
         "",
         f"![crowd size: error]({figs['density_error'].name})",
         f"![crowd size: failures]({figs['density_failures'].name})",
@@ -963,8 +966,16 @@ def write_report(out: Path, plan: Plan, episodes: Sequence[Episode], runs: Seque
         "stats": {f"{key}@{n}": dataclasses.asdict(s) for (key, n), s in st.items()},
         "verdicts": [dataclasses.asdict(v) for v in verdicts],
         "runs": [{"key": r.key, "seed": r.seed, "crowd_size": r.crowd_size, "errors_m": r.errors_m.tolist()} for r in runs],
-        "episodes": [{"seed": ep.task.seed, "crowd_size": ep.task.crowd_size, "contacts": ep.contacts, "push_m": ep.push_m,
-                      "updates": int(ep.update_steps.size)} for ep in episodes],  # fmt: skip
+        "episodes": [
+            {
+                "seed": ep.task.seed,
+                "crowd_size": ep.task.crowd_size,
+                "contacts": ep.contacts,
+                "push_m": ep.push_m,
+                "updates": int(ep.update_steps.size),
+            }
+            for ep in episodes
+        ],  # fmt: skip
     }
     (out / "results.json").write_text(json.dumps(jsonable(summary), indent=1, allow_nan=False))
     report = out / "report.md"
@@ -1106,8 +1117,10 @@ def summary_text(plan: Plan, runs: Sequence[Run]) -> str:
         out.append(f"{name:>8s} | raw: error m (failures/run) | far: error m (failures/run)")
         for x, (raw, far) in points:
             r, f = st[raw.key, CROWD_SIZE], st[far.key, CROWD_SIZE]
-            out.append(f"{x:8g} | {r.mean_m:6.3f} ± {r.sd_m:5.3f} ({r.failures:4.2f}) | "
-                       f"{f.mean_m:6.3f} ± {f.sd_m:5.3f} ({f.failures:4.2f})")
+            out.append(
+                f"{x:8g} | {r.mean_m:6.3f} ± {r.sd_m:5.3f} ({r.failures:4.2f}) | "
+                f"{f.mean_m:6.3f} ± {f.sd_m:5.3f} ({f.failures:4.2f})"
+            )
     for i, v in enumerate(claim_verdicts(plan, st), 1):
         out.append(f"C{i} {v.verdict:>13s}: {v.claim}")
     return "\n".join(out)

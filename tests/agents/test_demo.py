@@ -133,8 +133,11 @@ def test_first_fix_split_shows_the_trained_and_the_fastest_fixed_policy() -> Non
         for localizer in ACTIVE_LOCALIZERS
         for crowd in ACTIVE_DENSITIES
         # landmark seeking: significantly later at crowd 6, not at crowd 10 (the intervals overlap)
-        for policy, fix, third in (("ppo:m.zip", 1.0, 0.3), ("spin", 2.0, 0.9),
-                                   ("landmark_seeking", 1.25 if crowd == 6 else 1.1, 0.5))  # fmt: skip
+        for policy, fix, third in (
+            ("ppo:m.zip", 1.0, 0.3),
+            ("spin", 2.0, 0.9),
+            ("landmark_seeking", 1.25 if crowd == 6 else 1.1, 0.5),
+        )  # fmt: skip
     ]
     lines = first_fix_split(EvalResult(EvalSpec(), (), tuple(rows), 0.0), {"candidate_sets": "ppo:m.zip"})
     notes = [line for line in lines if line.startswith("- ")]
@@ -186,7 +189,6 @@ def test_every_shipped_policy_was_trained_in_the_conditions_the_demo_evaluates()
         env = gym.make(config.env_id, localizer=localizer, **dict(config.env_kwargs))
         assert PPO.load(path, device="cpu").observation_space == env.observation_space, path
         env.close()
-
 
 
 @pytest.mark.parametrize(("args", "message"), [(["--active-seeds", "-1"], "--active-seeds must be >= 0, got -1"),

@@ -219,9 +219,27 @@ def test_cli_takes_conditions_from_a_training_config_and_env_set(tmp_path: Path)
     from agents.evaluate import run_cli
 
     args = build_parser(["eval"]).parse_args(
-        ["eval", "--conditions", "ppo_candidate_sets", "--env-set", "camera.fov_rad=1.0", "--env-set", "camera.max_range_m=4",
-         "--policies", "spin", "--crowd-sizes", "0", "--seeds", "1", "--episode-steps", "3", "--no-gif", "--no-progress",
-         "--out", str(tmp_path)]  # fmt: skip
+        [
+            "eval",
+            "--conditions",
+            "ppo_candidate_sets",
+            "--env-set",
+            "camera.fov_rad=1.0",
+            "--env-set",
+            "camera.max_range_m=4",
+            "--policies",
+            "spin",
+            "--crowd-sizes",
+            "0",
+            "--seeds",
+            "1",
+            "--episode-steps",
+            "3",
+            "--no-gif",
+            "--no-progress",
+            "--out",
+            str(tmp_path),
+        ]  # fmt: skip
     )
     result = run_cli(args)
     trained = load_train_config("ppo_candidate_sets")

@@ -34,7 +34,9 @@ def test_every_fixed_policy_runs_on_every_bearing_env(env_id: str, name: str) ->
 
 @pytest.mark.parametrize("name", ["landmark_seeking", "greedy_info_gain"])
 def test_map_policies_run_with_a_sonar_ring_and_a_narrow_camera(name: str) -> None:
-    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer="candidate_sets", crowd_size=10, sonar={}, camera={"fov_rad": math.pi / 2})
+    env = gym.make(
+        "crowdloc/RoboCupCrowded-v0", localizer="candidate_sets", crowd_size=10, sonar={}, camera={"fov_rad": math.pi / 2}
+    )
     policy = make_policy(name, env, seed=0)
     obs, _ = env.reset(seed=0)
     for _ in range(150):

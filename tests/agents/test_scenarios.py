@@ -101,7 +101,11 @@ def test_soccer_driver_puts_the_ball_in_front_of_the_keeper() -> None:
 
 
 def test_shove_moves_the_robot_without_odometry_seeing_it() -> None:
-    kwargs = {"crowd_size": 2, "crowd": {"soccer": {"ball": False}}, "odometry": {"alpha1": 0, "alpha2": 0, "alpha3": 0, "alpha4": 0}}
+    kwargs = {
+        "crowd_size": 2,
+        "crowd": {"soccer": {"ball": False}},
+        "odometry": {"alpha1": 0, "alpha2": 0, "alpha3": 0, "alpha4": 0},
+    }
     push_at = 3.0
     driver = ShoveDriver(PatrolDriver([(1.2, 1.2), (3.8, 1.2), (3.8, 3.5), (1.2, 3.5)]), push_at, duration_s=2.0)
     rec = record("crowdloc/RoboCupCrowded-v0", driver, seed=0, max_steps=round(6.0 / DT), env_kwargs=kwargs,

@@ -44,6 +44,7 @@ def _free_port() -> int:
 @pytest.mark.slow
 def test_ray_cluster_runs_the_tasks_and_a_multi_seed_training(tmp_path: Path) -> None:
     import ray  # noqa: F401  (the [distributed] extra, installed by make)
+
     ray_cli = shutil.which("ray", path=str(Path(sys.executable).parent))
     assert ray_cli is not None
     port = _free_port()
@@ -51,8 +52,17 @@ def test_ray_cluster_runs_the_tasks_and_a_multi_seed_training(tmp_path: Path) ->
     # a short temp dir (Ray's unix sockets live there, and their paths are length-limited) and
     # loopback only: this one-machine cluster must not listen on any other address
     temp = tempfile.mkdtemp(prefix="ray", dir="/tmp")
-    start = [ray_cli, "start", "--head", f"--port={port}", "--node-ip-address=127.0.0.1", "--num-cpus=2",
-             "--include-dashboard=false", f"--temp-dir={temp}", "--disable-usage-stats"]
+    start = [
+        ray_cli,
+        "start",
+        "--head",
+        f"--port={port}",
+        "--node-ip-address=127.0.0.1",
+        "--num-cpus=2",
+        "--include-dashboard=false",
+        f"--temp-dir={temp}",
+        "--disable-usage-stats",
+    ]
     subprocess.run(start, check=True, env=env, capture_output=True, timeout=180)
     try:
         # the tasks run in the cluster's workers, which import this test module by path

@@ -14,8 +14,15 @@ from localizers.schema import ConfigError
 
 def tiny(total: int, **kw: object) -> TrainConfig:
     overrides = {
-        "total_timesteps": total, "n_envs": 2, "vec_env": "dummy", "checkpoint_every": 64, "crowd_sizes": [3],
-        "ppo.n_steps": 32, "ppo.batch_size": 32, "ppo.n_epochs": 2, "ppo.net_arch": [16],
+        "total_timesteps": total,
+        "n_envs": 2,
+        "vec_env": "dummy",
+        "checkpoint_every": 64,
+        "crowd_sizes": [3],
+        "ppo.n_steps": 32,
+        "ppo.batch_size": 32,
+        "ppo.n_epochs": 2,
+        "ppo.net_arch": [16],
     }
     overrides.update(kw)
     return load_train_config("ppo_candidate_sets", overrides)
@@ -108,7 +115,11 @@ def test_overrides_parse_as_yaml_values() -> None:
 def test_a_dotted_override_of_env_kwargs_keeps_the_other_conditions() -> None:
     shipped = load_train_config("ppo_mcl_bearing")
     config = load_train_config("ppo_mcl_bearing", {"env_kwargs.belief_spread": True, "env_kwargs.camera.fov_rad": 1.0})
-    assert config.env_kwargs == {**shipped.env_kwargs, "camera": {**shipped.env_kwargs["camera"], "fov_rad": 1.0}, "belief_spread": True}
+    assert config.env_kwargs == {
+        **shipped.env_kwargs,
+        "camera": {**shipped.env_kwargs["camera"], "fov_rad": 1.0},
+        "belief_spread": True,
+    }
 
 
 @pytest.mark.parametrize("name", ["ppo_candidate_sets", "ppo_mcl_bearing"])

@@ -134,9 +134,7 @@ def test_shipped_spaces_load(name: str) -> None:
         (["tune", "candidate_sets", "--env-id", "crowdloc/CrowdedRoom-v0"], "has no bearing camera"),
     ],
 )
-def test_cli_errors_are_one_line(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str
-) -> None:
+def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str) -> None:
     with pytest.raises(SystemExit) as exc:
         main([*argv, "--storage", f"sqlite:///{tmp_path / 't.db'}", "--out", str(tmp_path / "out")])
     assert exc.value.code == 2

@@ -81,8 +81,17 @@ def test_goalkeeper_target_is_the_ball_x_clipped_to_the_posts(ball_xy: tuple[flo
     env.reset(seed=0)
     crowd = env.unwrapped.world.crowd
     targets, *_ = soccer_targets(
-        np.array([[2.5, 4.5]]), crowd.roles, crowd.wander, np.array(ball_xy), crowd.goal, crowd.post_a, crowd.post_b,
-        crowd.soccer.keeper_offset_m, crowd.reach_m, crowd.wander_until, 0.0,
+        np.array([[2.5, 4.5]]),
+        crowd.roles,
+        crowd.wander,
+        np.array(ball_xy),
+        crowd.goal,
+        crowd.post_a,
+        crowd.post_b,
+        crowd.soccer.keeper_offset_m,
+        crowd.reach_m,
+        crowd.wander_until,
+        0.0,
     )
     np.testing.assert_allclose(targets[0], expected, atol=1e-12)
     env.close()

@@ -51,7 +51,6 @@ MAX_RANGE = 30.0
 ODOMETRY_ALPHAS = np.array([0.01, 0.005, 0.005, 0.005])  # configs/worlds/crowded_room.yaml
 
 
-
 def room(walls: np.ndarray = ROOM) -> LandmarkMap:
     return LandmarkMap(np.zeros((0, 2)), (), (0.0, 0.0, 7.0, 7.0), walls)
 
@@ -490,8 +489,12 @@ def _loc() -> LidarMCL:
 
 @pytest.mark.parametrize(
     ("index", "value", "needle"),
-    [(3, np.nan, r"range nan m at index 3"), (10, -0.5, r"range -0\.5 m at index 10"), (0, 30.5, r"range 30\.5 m at index 0"),
-     (1080, np.inf, r"range inf m at index 1080")],
+    [
+        (3, np.nan, r"range nan m at index 3"),
+        (10, -0.5, r"range -0\.5 m at index 10"),
+        (0, 30.5, r"range 30\.5 m at index 0"),
+        (1080, np.inf, r"range inf m at index 1080"),
+    ],
 )
 def test_bad_range_raises_naming_value_and_index(index: int, value: float, needle: str) -> None:
     ranges = np.full(BEAMS.size, 3.0)
@@ -588,7 +591,9 @@ def test_runs_through_gym_make_and_renders(name: str) -> None:
 def test_same_seed_same_estimates_through_gym_make() -> None:
     runs = []
     for _ in range(2):
-        env = gym.make("crowdloc/CrowdedRoom-v0", localizer="far_point_mcl", localizer_params={"mcl": {"update_min_travel_m": 0.1}})
+        env = gym.make(
+            "crowdloc/CrowdedRoom-v0", localizer="far_point_mcl", localizer_params={"mcl": {"update_min_travel_m": 0.1}}
+        )
         obs, _ = env.reset(seed=3)
         out = [obs["estimate"]]
         for _ in range(30):

@@ -27,7 +27,6 @@ BEAMS = np.linspace(-0.75 * math.pi, 0.75 * math.pi, 1081)
 MAX_RANGE = 30.0
 
 
-
 def ranges_from(pose: np.ndarray, centres: np.ndarray | None = None, radii: np.ndarray | None = None) -> np.ndarray:
     """Noise-free UTM-30LX ranges in the 7 m room, with optional circular people."""
     c = np.zeros((0, 2)) if centres is None else np.asarray(centres, dtype=np.float64)

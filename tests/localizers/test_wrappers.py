@@ -84,7 +84,9 @@ def test_no_observation_leaf_holds_the_true_pose(name: str) -> None:
         truth = np.asarray(info["true_pose"])
         for key, leaf in obs.items():
             assert "true" not in key and "pose" not in key
-            assert not np.any(np.isclose(np.asarray(leaf, dtype=np.float64).reshape(-1, 1), truth[None, :], atol=1e-6, rtol=0)), key
+            assert not np.any(np.isclose(np.asarray(leaf, dtype=np.float64).reshape(-1, 1), truth[None, :], atol=1e-6, rtol=0)), (
+                key
+            )
     env.close()
 
 
@@ -113,7 +115,12 @@ def test_same_seed_same_estimates_and_reset_mid_episode_starts_over(name: str) -
 
 
 def test_prior_start_gives_dead_reckoning_the_true_start_pose() -> None:
-    env = gym.make("crowdloc/RoboCupCrowded-v0", localizer="dead_reckoning", odometry={"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0}, crowd_size=0)
+    env = gym.make(
+        "crowdloc/RoboCupCrowded-v0",
+        localizer="dead_reckoning",
+        odometry={"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0},
+        crowd_size=0,
+    )
     obs, info = env.reset(seed=2)
     est = info["estimate"]
     np.testing.assert_allclose([est.x_m, est.y_m, est.theta_rad], info["true_pose"], atol=1e-9)
