@@ -17,7 +17,7 @@ import numpy as np
 import envs
 from benchmarks.common import Result
 from localizers.base import BearingMeasurement, LandmarkMap, OdometryDelta, PoseEstimate
-from localizers.geometry import bearings_to, between, compose
+from localizers.geometry import bearings_to, between
 from localizers.motion import sample_odometry
 from localizers.registry import LOCALIZERS, make_localizer
 

@@ -176,10 +176,10 @@ def test_caveats_report_identical_first_fixes_and_the_spread_of_episode_errors()
 
 
 def test_every_shipped_policy_was_trained_in_the_conditions_the_demo_evaluates() -> None:
+    from stable_baselines3 import PPO
+
     from agents.demo import SHIPPED_CONFIG, SHIPPED_MODELS
     from agents.train import load_train_config
-
-    from stable_baselines3 import PPO
 
     conditions = load_train_config(SHIPPED_CONFIG).env_kwargs
     for localizer, path in SHIPPED_MODELS.items():

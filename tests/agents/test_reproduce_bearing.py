@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import pytest
 
 from agents.cli import build_parser, main
 from agents.reproduce import bearing_candidates as bc
+from tests.pinning import PINNED_DIR, assert_same_numbers
 
 PAPERS_MD = Path("/work/shared/PAPERS.md")
 
@@ -66,6 +68,9 @@ def test_quick_run_writes_report_tables_and_figures(tmp_path: Path, capsys: pyte
     for name in figures:
         assert (out / name).is_file() and (out / name).stat().st_size > 10_000, name
     assert (out / "results.json").is_file()
+    # same seeds, same numbers as recorded before the architecture change
+    pinned = json.loads((PINNED_DIR / "bearing_candidates_quick.json").read_text())
+    assert_same_numbers(pinned, json.loads((out / "results.json").read_text()), "results", frozenset({"wall_s", "workers"}))
     printed = capsys.readouterr().out
     assert "exp1 (2 seeds)" in printed and "wrote" in printed
     # ours are numbers, not n/a, for the method every statistic starts from

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from pathlib import Path
@@ -15,6 +16,7 @@ from agents.replay import Recording, record, replay
 from agents.reproduce import lidar_far_point as lfp
 from agents.scenarios import square_driver, square_vertices
 from localizers.geometry import wrap_angle
+from tests.pinning import PINNED_DIR, assert_same_numbers
 
 NOISE_FREE = {"odometry": {"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0}, "lidar": {"range_std_m": 0.0}}
 
@@ -166,6 +168,9 @@ def test_quick_run_writes_report_and_figures(tmp_path: Path, capsys: pytest.Capt
     out = tmp_path / "quick"
     assert main(["reproduce", "lidar-far-point", "--quick", "--out", str(out)]) == 0
     report = _check_report(out, capsys.readouterr().out)
+    # same seeds, same numbers as recorded before the architecture change
+    pinned = json.loads((PINNED_DIR / "lidar_far_point_quick.json").read_text())
+    assert_same_numbers(pinned, json.loads((out / "results.json").read_text()), "results", frozenset({"wall_s", "workers"}))
     count = int(re.search(r"\*\*(\d+)[/\d]* estimates per run\*\*", report).group(1))  # type: ignore[union-attr]
     assert abs(count - 1 - 4 * lfp.SIDE_M / lfp.UPDATE_TRAVEL_M) <= 1  # one lap, plus the estimate at the start
     row = next(line for line in report.splitlines() if line.startswith("| 0.1 |"))

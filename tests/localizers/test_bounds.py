@@ -34,8 +34,8 @@ def trajectory(steps: int, increment: tuple[float, float, float]) -> tuple[np.nd
 def information(pose: np.ndarray, ids: list[int]) -> np.ndarray:
     """Fisher information of one frame, written out from the bearing gradient."""
     J = np.zeros((3, 3))
-    for l in ids:
-        dx, dy = LANDMARKS[l] - pose[:2]
+    for j in ids:
+        dx, dy = LANDMARKS[j] - pose[:2]
         r2 = dx * dx + dy * dy
         h = np.array([dy / r2, -dx / r2, -1.0])
         J += np.outer(h, h) / SIGMA**2

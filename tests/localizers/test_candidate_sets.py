@@ -14,7 +14,7 @@ import pytest
 
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, MeasurementError, OdometryDelta
 from localizers.candidate_sets import CandidateSetLocalizer, CandidateSetParams, fuse_poses, generate_candidates
-from localizers.geometry import between, bearings_to, compose, wrap_angle
+from localizers.geometry import bearings_to, between, compose, wrap_angle
 from localizers.schema import ConfigError, from_mapping, load_yaml
 
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "localizers" / "candidate_sets.yaml"

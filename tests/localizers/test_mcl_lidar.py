@@ -389,7 +389,7 @@ def test_kld_sampling_shrinks_the_set_once_localized() -> None:
     loc = LidarMCL(room(ASYMMETRIC), params, dt_s=0.1)
     loc.reset(np.random.default_rng(5), PoseEstimate(*poses[0], np.diag([0.25, 0.25, 0.1])))
     sizes = []
-    for est in run_filter(loc, poses, ASYMMETRIC, seed=5):
+    for est in run_filter(loc, poses, ASYMMETRIC, seed=5):  # noqa: B007 (the last estimate is checked below)
         sizes.append(loc.particles.shape[0])
     assert sizes[-1] <= 300, sizes[-5:]  # one pose: a few bins, close to min_particles
     assert pose_error(est, poses[-1])[0] < 0.1
@@ -424,7 +424,7 @@ def test_updates_wait_for_travel_and_motion_is_applied_once() -> None:
     loc.update(noisy_scan(start, ROOM, rng))
     assert loc.updates == 1  # the first scan is always weighed
     pose = start.copy()
-    for k in range(39):  # 0.4875 m: not yet due
+    for _k in range(39):  # 0.4875 m: not yet due
         loc.predict(OdometryDelta(0.0125, 0.0, 0.0))
         pose[0] += 0.0125
         loc.update(noisy_scan(pose, ROOM, rng))
@@ -459,7 +459,7 @@ def test_empty_scan_is_legal_and_changes_nothing() -> None:
 def test_same_seed_same_particles_and_reset_starts_over() -> None:
     def run(loc: LidarMCL) -> np.ndarray:
         loc.reset(np.random.default_rng(3), PoseEstimate(2.0, 3.0, 0.2, np.diag([0.01, 0.01, 0.01])))
-        for est in run_filter(loc, loop_path(10), ROOM, seed=4):
+        for _est in run_filter(loc, loop_path(10), ROOM, seed=4):
             pass
         return loc.particles
 
