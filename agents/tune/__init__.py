@@ -1,0 +1,84 @@
+"""``crowdloc tune``: learn a localizer's parameters with Optuna instead of setting them by hand.
+
+The candidate-set paper (PAPERS.md A) set its thresholds by hand; this module searches any
+bearing localizer's parameters for a given world, crowd density and motion scenario:
+
+* **Search space**: ``configs/tuning/<localizer>.yaml`` (:func:`load_search_space`), per
+  parameter ``{low, high[, log][, step]}`` or ``{choices: [...]}``; dotted names reach nested
+  parameters (``mcl.hit_std_m``). Parameters not in the space keep their YAML defaults.
+* **Episodes, recorded once**: ``--train-seeds`` episodes are rolled out once
+  (:func:`agents.replay.record`) and every trial replays its localizer into the same
+  recordings. This is exact, not an approximation: the world, the crowd, the scenario driver
+  and the sensors never read the localizer (the driver steers on the *true* pose, and a
+  localizer draws from its own generator), so the observation stream of a seed is the same
+  whatever the parameters are; replaying it equals running the localizer online
+  (``tests/agents/test_replay.py``). It also gives every trial identical data (common random
+  numbers), which makes trial-to-trial differences due to the parameters alone. (An active
+  policy that steers on the estimate would break this; the scenarios here never read it.)
+* **Objective** (:func:`score_episode`, minimized): per episode, the mean position error
+  from the localizer's first fix on (m), plus ``penalty_m`` (default 1 m) times the share of
+  the episode without a valid estimate (a late first fix or lost tracks cost up to 1 m); a
+  localizer that never fixes scores the map diagonal plus the penalty. The trial value is
+  the mean over the training episodes.
+* **Search**: seeded TPE with median pruning: after each episode the running mean is
+  reported, and a trial whose running mean is worse than the median of earlier trials at the
+  same episode is stopped (from episode ``PRUNER_WARMUP_STEPS + 1`` on, once
+  ``PRUNER_STARTUP_TRIALS`` trials have finished). The YAML defaults
+  (``configs/localizers/<name>.yaml``) are the first trial of a new study, run in the main
+  process before the workers start, so they are always in the comparison.
+* **Storage**: any SQLAlchemy URL (default ``sqlite:///results/tuning.db``); several workers
+  (``--workers``, or a Ray cluster with ``--ray-address`` and a database server they can
+  all reach) run ``study.optimize`` against the same study. A study remembers the episode
+  setup it was created with and refuses to mix trials from another one.
+* **Held-out check**: the best parameters and the defaults are replayed on ``--eval-seeds``
+  episodes with env seeds ``EVAL_SEED_BASE + i`` (never a tuning seed, which are ``0..n-1``);
+  ``<out>/report.md`` has the table, ``best_params.yaml`` (ready as ``localizer_params``),
+  the parameter importances and the optimization history as PNG figures.
+
+Modules: :mod:`~agents.tune.space` (the search space), :mod:`~agents.tune.objective` (episodes,
+scores, the trial function), :mod:`~agents.tune.study` (configuration, storage, workers,
+:func:`tune`, the command line), :mod:`~agents.tune.report` (``best_params.yaml``, figures,
+``report.md``).
+"""
+
+from agents.tune.objective import (
+    DEFAULT_ENV_ID,
+    DEFAULT_PENALTY_M,
+    SCENARIOS,
+    EpisodeScore,
+    EpisodeSetup,
+    WorldFacts,
+    eval_seeds,
+    score_episode,
+    tuning_seeds,
+)
+from agents.tune.report import best_params_yaml, param_importances, write_report
+from agents.tune.space import TUNING_CONFIG_DIR, ParamRange, SearchSpace, load_search_space, space_path
+from agents.tune.study import DEFAULT_STORAGE, StudyPlan, TuneConfig, TuneResult, add_arguments, run_cli, tune
+
+__all__ = [
+    "DEFAULT_ENV_ID",
+    "DEFAULT_PENALTY_M",
+    "DEFAULT_STORAGE",
+    "SCENARIOS",
+    "TUNING_CONFIG_DIR",
+    "EpisodeScore",
+    "EpisodeSetup",
+    "ParamRange",
+    "SearchSpace",
+    "StudyPlan",
+    "TuneConfig",
+    "TuneResult",
+    "WorldFacts",
+    "add_arguments",
+    "best_params_yaml",
+    "eval_seeds",
+    "load_search_space",
+    "param_importances",
+    "run_cli",
+    "score_episode",
+    "space_path",
+    "tune",
+    "tuning_seeds",
+    "write_report",
+]

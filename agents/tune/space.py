@@ -1,0 +1,234 @@
+"""The search space of ``crowdloc tune``: ``configs/tuning/<localizer>.yaml`` and its checks.
+
+Per parameter ``{low, high[, log][, step]}`` or ``{choices: [...]}``; dotted names reach nested
+parameters (``mcl.hit_std_m``). Parameters not in the space keep their YAML defaults.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import math
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import optuna
+
+from agents.util import nest
+from localizers.registry import load_params, spec
+from localizers.schema import ConfigError, load_yaml
+
+TUNING_CONFIG_DIR = Path(__file__).resolve().parent.parent.parent / "configs" / "tuning"
+_SPEC_KEYS = ("low", "high", "log", "step", "choices")
+
+
+@dataclass(frozen=True)
+class ParamRange:
+    """One searched parameter.
+
+    Attributes:
+        name: the parameter, dotted for nested ones (``mcl.hit_std_m``).
+        kind: ``"float"``, ``"int"`` or ``"categorical"``.
+        low, high: bounds (``float``/``int`` kinds), ``low < high``.
+        log: sample on a log scale.
+        step: discretization step (optional, not with ``log``).
+        choices: the values of a categorical parameter.
+    """
+
+    name: str
+    kind: str
+    low: float | None = None
+    high: float | None = None
+    log: bool = False
+    step: float | None = None
+    choices: tuple[Any, ...] = ()
+
+    def suggest(self, trial: optuna.Trial) -> Any:
+        """Draw this parameter for ``trial``."""
+        if self.kind == "categorical":
+            return trial.suggest_categorical(self.name, list(self.choices))
+        assert self.low is not None and self.high is not None
+        if self.kind == "int":
+            return trial.suggest_int(self.name, int(self.low), int(self.high), step=int(self.step or 1), log=self.log)
+        return trial.suggest_float(self.name, self.low, self.high, step=self.step, log=self.log)
+
+    def contains(self, value: Any) -> bool:
+        """Whether ``value`` is a point of this range (for enqueueing the defaults)."""
+        if self.kind == "categorical":
+            return value in self.choices
+        assert self.low is not None and self.high is not None
+        if not self.low <= value <= self.high:
+            return False
+        if self.step is not None:
+            k = (value - self.low) / self.step
+            return abs(k - round(k)) < 1e-9
+        return True
+
+    def describe(self) -> str:
+        """Human-readable range, e.g. ``[0.5, 60] log``."""
+        if self.kind == "categorical":
+            return "{" + ", ".join(map(repr, self.choices)) + "}"
+        text = f"[{self.low:g}, {self.high:g}]"
+        if self.log:
+            text += " log"
+        if self.step is not None:
+            text += f" step {self.step:g}"
+        return text
+
+
+@dataclass(frozen=True)
+class SearchSpace:
+    """A localizer's search space (:func:`load_search_space`)."""
+
+    localizer: str
+    path: Path
+    params: tuple[ParamRange, ...]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    def suggest(self, trial: optuna.Trial) -> dict[str, Any]:
+        """Draw every parameter: ``{dotted name: value}``."""
+        return {p.name: p.suggest(trial) for p in self.params}
+
+    def defaults(self) -> dict[str, Any]:
+        """The YAML defaults of the searched parameters: ``{dotted name: value}``."""
+        params = load_params(self.localizer)
+        out = {}
+        for name in self.names:
+            value: Any = params
+            for part in name.split("."):
+                value = getattr(value, part)
+            out[name] = value
+        return out
+
+
+def _unwrap_optional(tp: Any) -> Any:
+    args = typing.get_args(tp)
+    if typing.get_origin(tp) in (typing.Union, types.UnionType) and type(None) in args:
+        rest = [a for a in args if a is not type(None)]
+        return rest[0] if len(rest) == 1 else tp
+    return tp
+
+
+def _field_type(params_cls: type, name: str, where: str, localizer: str) -> Any:
+    """The annotation of dotted parameter ``name`` of ``params_cls``, or a ConfigError naming it."""
+    cls: Any = params_cls
+    tp: Any = None
+    for i, part in enumerate(name.split(".")):
+        fields = {f.name for f in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) else set()
+        if part not in fields:
+            prefix = ".".join(name.split(".")[:i])
+            valid = ", ".join(sorted(f"{prefix}.{f}" if prefix else f for f in fields))
+            raise ConfigError(
+                f"{where}: {name!r} is not a parameter of localizer {localizer!r} ({params_cls.__name__}; valid: {valid})"
+            )
+        tp = _unwrap_optional(typing.get_type_hints(cls)[part])
+        cls = tp
+    return tp
+
+
+def _number(value: Any, integer: bool) -> bool:
+    if isinstance(value, bool):
+        return False
+    return isinstance(value, int) if integer else isinstance(value, (int, float)) and math.isfinite(value)
+
+
+def _parse_range(name: str, entry: Any, tp: Any, where: str) -> ParamRange:
+    """Check one search-space entry against the parameter's type; bounds are checked by the caller."""
+    here = f"{where}: {name}"
+    if not isinstance(entry, Mapping):
+        raise ConfigError(f"{here}: expected a mapping like {{low: 1, high: 10}} or {{choices: [...]}}, got {entry!r}")
+    unknown = sorted(set(entry) - set(_SPEC_KEYS))
+    if unknown:
+        raise ConfigError(f"{here}: unknown key {unknown[0]!r} (valid: {', '.join(_SPEC_KEYS)})")
+    if "choices" in entry:
+        if set(entry) != {"choices"}:
+            raise ConfigError(f"{here}: give either choices or low/high, not both")
+        choices = entry["choices"]
+        if not isinstance(choices, list) or len(choices) < 2:
+            raise ConfigError(f"{here}: choices must be a list of at least 2 values, got {choices!r}")
+        for c in choices:
+            if c is not None and not isinstance(c, (bool, int, float, str)):
+                raise ConfigError(f"{here}: choice {c!r} is not a number, string, bool or null")
+        if len(set(map(repr, choices))) != len(choices):
+            raise ConfigError(f"{here}: choices {choices!r} repeat a value")
+        return ParamRange(name, "categorical", choices=tuple(choices))
+    if tp not in (int, float):
+        raise ConfigError(f"{here}: a {getattr(tp, '__name__', tp)} parameter needs choices: [...], not low/high")
+    missing = [k for k in ("low", "high") if k not in entry]
+    if missing:
+        raise ConfigError(f"{here}: missing {missing[0]!r}")
+    integer = tp is int
+    kind = "int" if integer else "float"
+    for key in ("low", "high", "step"):
+        if key in entry and not _number(entry[key], integer):
+            raise ConfigError(f"{here}: {key} must be {'an integer' if integer else 'a finite number'}, got {entry[key]!r}")
+    low, high = entry["low"], entry["high"]
+    if low >= high:
+        raise ConfigError(f"{here}: low ({low!r}) must be < high ({high!r})")
+    log = entry.get("log", False)
+    if not isinstance(log, bool):
+        raise ConfigError(f"{here}: log must be true or false, got {log!r}")
+    if log and low <= 0:
+        raise ConfigError(f"{here}: a log range needs low > 0, got {low!r}")
+    step = entry.get("step")
+    if step is not None:
+        if step <= 0:
+            raise ConfigError(f"{here}: step must be > 0, got {step!r}")
+        if log:
+            raise ConfigError(f"{here}: step and log cannot be combined")
+    return ParamRange(name, kind, float(low) if not integer else low, float(high) if not integer else high, log,
+                      None if step is None else (step if integer else float(step)))  # fmt: skip
+
+
+def space_path(localizer: str) -> Path:
+    """``configs/tuning/<localizer>.yaml``."""
+    return TUNING_CONFIG_DIR / f"{localizer}.yaml"
+
+
+def load_search_space(localizer: str, path: str | Path | None = None) -> SearchSpace:
+    """Read and check a localizer's search space.
+
+    The file's top level is ``parameters:``, a mapping of parameter name (dotted for nested
+    parameters) to ``{low, high, log?, step?}`` or ``{choices: [...]}``. Integer parameters
+    need integer bounds. Every bound and choice must itself be a valid value of the parameter
+    (checked by building the localizer's parameters with it).
+
+    Args:
+        localizer: a registered localizer name.
+        path: the YAML file (default ``configs/tuning/<localizer>.yaml``).
+
+    Raises:
+        ConfigError: one line naming the localizer, file, parameter or bound at fault.
+    """
+    s = spec(localizer)
+    p = Path(path) if path is not None else space_path(localizer)
+    if path is None and not p.is_file():
+        raise ConfigError(f"no search space for localizer {localizer!r}: write {p} (see configs/tuning/candidate_sets.yaml)")
+    data = load_yaml(p)
+    unknown = sorted(set(data) - {"parameters"})
+    if unknown:
+        raise ConfigError(f"{p}: unknown top-level key {unknown[0]!r} (valid: parameters)")
+    entries = data.get("parameters")
+    if not isinstance(entries, Mapping) or not entries:
+        raise ConfigError(f"{p}: 'parameters' must be a non-empty mapping of parameter name to range")
+    params_cls = getattr(importlib.import_module(s.module), s.params_cls)
+    ranges = []
+    for name, entry in entries.items():
+        if not isinstance(name, str):
+            raise ConfigError(f"{p}: parameter names must be strings, got {name!r}")
+        r = _parse_range(name, entry, _field_type(params_cls, name, str(p), localizer), str(p))
+        points = r.choices if r.kind == "categorical" else (r.low, r.high)
+        for value in points:
+            try:
+                load_params(localizer, nest({name: value}))
+            except ConfigError as exc:
+                raise ConfigError(f"{p}: {name} = {value!r} is not a valid value: {exc}") from None
+        ranges.append(r)
+    return SearchSpace(localizer, p, tuple(ranges))

@@ -1,0 +1,388 @@
+"""Running a ``crowdloc tune`` study: its configuration, storage, workers and :func:`tune`.
+
+The study lives in any SQLAlchemy database (SQLite by default); several workers (local
+processes or a Ray cluster) run ``study.optimize`` against it. A study remembers the episode
+setup it was created with and refuses to mix trials from another one.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import optuna
+
+from agents.sweep import run_tasks
+from agents.tune.objective import (
+    DEFAULT_PENALTY_M,
+    SCENARIOS,
+    SOCCER_START_POSE,
+    EpisodeSetup,
+    Objective,
+    WorldFacts,
+    eval_seeds,
+    evaluate_task,
+    record_task,
+    seed_base_text,
+    tuning_seeds,
+)
+from agents.tune.report import write_report
+from agents.tune.space import SearchSpace, load_search_space
+from agents.util import flatten, nest
+from localizers.registry import LOCALIZERS, spec
+from localizers.schema import ConfigError
+
+DEFAULT_STORAGE = "sqlite:///results/tuning.db"
+#: median pruning: trials run unpruned until this many finished; none is pruned before its second episode
+PRUNER_STARTUP_TRIALS = 5
+PRUNER_WARMUP_STEPS = 1
+#: study attributes that define the objective; a stored study must match them
+_SETUP_ATTRS = ("localizer", "env_id", "crowd_size", "scenario", "episode_steps", "env_overrides", "train_seeds", "penalty_m")
+
+
+# ------------------------------------------------------------------------------------ configuration
+
+
+@dataclass(frozen=True)
+class TuneConfig:
+    """One ``crowdloc tune`` run.
+
+    Attributes:
+        localizer: a registered bearing localizer.
+        setup: the episodes.
+        space_path: search-space YAML (default ``configs/tuning/<localizer>.yaml``).
+        trials: trials to add to the study in this run (split over the workers).
+        train_seeds: training episodes (env seeds ``0 .. n - 1``).
+        eval_seeds: held-out episodes (env seeds ``EVAL_SEED_BASE + i``).
+        workers: parallel workers, each running ``study.optimize`` on the shared storage.
+        ray_address: run the workers on a Ray cluster instead of local processes.
+        storage: SQLAlchemy database URL of the study.
+        study_name: default ``<localizer>-<env>-crowd<N>-<scenario>``.
+        out: report folder (default ``results/tuning/<study>``).
+        seed: sampler seed.
+        penalty_m: metres added per unit of unavailability.
+        verbose: log every trial and show progress bars.
+    """
+
+    localizer: str
+    setup: EpisodeSetup = field(default_factory=EpisodeSetup)
+    space_path: Path | None = None
+    trials: int = 40
+    train_seeds: int = 4
+    eval_seeds: int = 8
+    workers: int = 1
+    ray_address: str | None = None
+    storage: str = DEFAULT_STORAGE
+    study_name: str | None = None
+    out: Path | None = None
+    seed: int = 0
+    penalty_m: float = DEFAULT_PENALTY_M
+    verbose: bool = True
+
+
+@dataclass(frozen=True)
+class TuneResult:
+    """What a run produced."""
+
+    study_name: str
+    report: Path
+    best_params_file: Path
+    best_params: dict[str, Any]
+    n_trials: int
+    summary: dict[str, Any]
+
+
+def default_study_name(localizer: str, setup: EpisodeSetup, crowd_size: int) -> str:
+    """``candidate_sets-RoboCupCrowded-v0-crowd10-soccer`` (+ ``-camera.dropout_probability=0.5`` per world override)."""
+    name = f"{localizer}-{setup.env_id.split('/')[-1]}-crowd{crowd_size}-{setup.scenario}"
+    for key, value in sorted(flatten(setup.env_overrides).items()):
+        name += f"-{key}={value}"
+    return name
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    """A checked :class:`TuneConfig`: the study, its report folder and its episodes.
+
+    Attributes:
+        name: the study name.
+        out: the report folder.
+        space: the search space.
+        world: the effective world's crowd size and time step.
+        train_seeds: env seeds of the training episodes.
+        held_out_seeds: env seeds of the held-out episodes (never a training seed).
+        attrs: the study's user attributes: the objective's definition (``_SETUP_ATTRS``) and the space.
+    """
+
+    name: str
+    out: Path
+    space: SearchSpace
+    world: WorldFacts
+    train_seeds: tuple[int, ...]
+    held_out_seeds: tuple[int, ...]
+    attrs: Mapping[str, Any]
+
+
+def _check_config(config: TuneConfig) -> tuple[SearchSpace, WorldFacts]:
+    s = spec(config.localizer)
+    if s.measurement != "bearings":
+        bearing = ", ".join(sorted(n for n, x in LOCALIZERS.items() if x.measurement == "bearings"))
+        raise ConfigError(f"localizer {config.localizer!r} consumes {s.measurement}; crowdloc tune replays bearing "
+                          f"recordings (bearing localizers: {bearing})")  # fmt: skip
+    for name in ("trials", "train_seeds", "eval_seeds", "workers"):
+        value = getattr(config, name)
+        if value < 1:
+            raise ConfigError(f"{name.replace('_', '-')} must be >= 1, got {value}")
+    if not (math.isfinite(config.penalty_m) and config.penalty_m >= 0):
+        raise ConfigError(f"penalty must be a finite number >= 0, got {config.penalty_m}")
+    world = config.setup.facts()
+    return load_search_space(config.localizer, config.space_path), world
+
+
+def plan_study(config: TuneConfig) -> StudyPlan:
+    """Check ``config`` and settle the study name, report folder, seeds and study attributes."""
+    space, world = _check_config(config)
+    setup = config.setup
+    name = config.study_name or default_study_name(config.localizer, setup, world.crowd_size)
+    out = config.out if config.out is not None else Path("results") / "tuning" / name
+    train = tuning_seeds(config.train_seeds)
+    held_out = eval_seeds(config.eval_seeds)
+    assert not set(train) & set(held_out)
+    attrs = {
+        "localizer": config.localizer,
+        "env_id": setup.env_id,
+        "crowd_size": world.crowd_size,
+        "scenario": setup.scenario,
+        "episode_steps": setup.episode_steps,
+        "env_overrides": json.loads(json.dumps(dict(setup.env_overrides))),
+        "train_seeds": list(train),
+        "penalty_m": config.penalty_m,
+        "space": {r.name: r.describe() for r in space.params},
+    }
+    return StudyPlan(name, out, space, world, train, held_out, attrs)
+
+
+# ------------------------------------------------------------------------------------ storage and workers
+
+
+def _set_log_level(verbose: bool) -> None:
+    optuna.logging.set_verbosity(optuna.logging.INFO if verbose else optuna.logging.WARNING)
+
+
+def _sampler(seed: int) -> optuna.samplers.BaseSampler:
+    return optuna.samplers.TPESampler(seed=seed)
+
+
+def _pruner() -> optuna.pruners.BasePruner:
+    return optuna.pruners.MedianPruner(n_startup_trials=PRUNER_STARTUP_TRIALS, n_warmup_steps=PRUNER_WARMUP_STEPS)
+
+
+def _storage(url: str) -> optuna.storages.BaseStorage:
+    """An RDB storage for ``url``; for a SQLite file its folder is created first."""
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import ArgumentError
+
+    try:
+        parsed = make_url(url)
+    except ArgumentError as exc:
+        raise ConfigError(f"--storage {url!r} is not a database URL (e.g. {DEFAULT_STORAGE}): {exc}") from None
+    engine_kwargs: dict[str, Any] = {}
+    if parsed.get_backend_name() == "sqlite":
+        if parsed.database and parsed.database != ":memory:":
+            Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
+        engine_kwargs["connect_args"] = {"timeout": 60}  # parallel workers wait for the write lock
+    return optuna.storages.RDBStorage(url, engine_kwargs=engine_kwargs)
+
+
+def _open_study(config: TuneConfig, plan: StudyPlan) -> optuna.Study:
+    """Create or load the study; check it was made for the same objective; enqueue the defaults once."""
+    name, attrs, space = plan.name, plan.attrs, plan.space
+    study = optuna.create_study(
+        storage=_storage(config.storage),
+        study_name=name,
+        direction="minimize",
+        load_if_exists=True,
+        sampler=_sampler(config.seed),
+        pruner=_pruner(),
+    )
+    stored = study.user_attrs
+    if stored:
+        diff = [k for k in _SETUP_ATTRS if stored.get(k) != attrs[k]]
+        if diff:
+            k = diff[0]
+            raise ConfigError(f"study {name!r} in {config.storage} was created with {k}={stored.get(k)!r}, this run has "
+                              f"{k}={attrs[k]!r}; use another --study-name")  # fmt: skip
+    else:
+        for k, v in attrs.items():
+            study.set_user_attr(k, v)
+    if not study.trials:
+        defaults = space.defaults()
+        if all(r.contains(defaults[r.name]) for r in space.params):
+            study.enqueue_trial(defaults, user_attrs={"defaults": True})
+    return study
+
+
+@dataclass(frozen=True)
+class _WorkerTask:
+    storage: str
+    study_name: str
+    objective: Objective
+    trials: int
+    sampler_seed: int
+    verbose: bool
+
+
+def _optimize_worker(task: _WorkerTask) -> int:
+    """One worker: ``study.optimize`` for its share of trials against the shared storage."""
+    _set_log_level(task.verbose)
+    study = optuna.load_study(
+        study_name=task.study_name,
+        storage=_storage(task.storage),
+        sampler=_sampler(task.sampler_seed),
+        pruner=_pruner(),
+    )
+    study.optimize(task.objective, n_trials=task.trials, catch=(ConfigError,))
+    return task.trials
+
+
+def _optimize(config: TuneConfig, study: optuna.Study, objective: Objective, first_new: int) -> None:
+    """Run ``config.trials`` trials: the enqueued defaults here, the rest split over the workers.
+
+    Worker ``i`` samples with seed ``SeedSequence([config.seed, i, first_new])``, ``first_new``
+    being the study's trial count when this run opened it.
+    """
+    remaining = config.trials
+    if study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.WAITING,)):
+        # the enqueued defaults run here, before any worker starts: on SQLite two processes
+        # can pop the same waiting trial (optuna issue #4002)
+        study.optimize(objective, n_trials=1, catch=(ConfigError,))
+        remaining -= 1
+    workers = min(config.workers, remaining)
+    shares = [remaining // workers + (i < remaining % workers) for i in range(workers)] if workers else []
+    tasks = [
+        _WorkerTask(config.storage, study.study_name, objective, n,
+                    int(np.random.SeedSequence([config.seed, i, first_new]).generate_state(1)[0]), config.verbose)
+        for i, n in enumerate(shares)
+    ]  # fmt: skip
+    if tasks:
+        run_tasks(_optimize_worker, tasks, workers=workers, ray_address=config.ray_address, desc="tuning workers",
+                  progress=False)  # fmt: skip
+
+
+# ------------------------------------------------------------------------------------ driver
+
+
+def tune(config: TuneConfig) -> TuneResult:
+    """Search, evaluate on held-out seeds and write the report (see :mod:`agents.tune`).
+
+    Raises:
+        ConfigError: a bad localizer, search space, episode setup, count or storage URL, or a
+            stored study made for another setup.
+    """
+    plan = plan_study(config)
+    setup = config.setup
+    _set_log_level(config.verbose)
+    study = _open_study(config, plan)
+    first_new = len(study.trials)
+    recordings = run_tasks(record_task, [(setup, s) for s in plan.train_seeds], workers=config.workers,
+                           desc="record training episodes", progress=config.verbose)  # fmt: skip
+    _optimize(config, study, Objective(plan.space, tuple(recordings), config.penalty_m), first_new)
+
+    study = optuna.load_study(study_name=plan.name, storage=_storage(config.storage))
+    if not any(t.state == optuna.trial.TrialState.COMPLETE for t in study.trials):
+        raise ConfigError(f"study {plan.name!r}: no trial completed (all pruned or failed); see the log above")
+    best = study.best_trial
+    tuned = nest(best.params)
+    tasks = [(setup, s, config.localizer, tuned, config.penalty_m) for s in plan.held_out_seeds]
+    evals = run_tasks(evaluate_task, tasks, workers=config.workers, ray_address=config.ray_address,
+                      desc="held-out episodes", progress=config.verbose)  # fmt: skip
+    summary = write_report(plan, config, study, evals)
+    out = plan.out
+    return TuneResult(plan.name, out / "report.md", out / "best_params.yaml", dict(best.params), len(study.trials), summary)
+
+
+# ------------------------------------------------------------------------------------ command line
+
+
+def _count(minimum: int) -> Any:
+    """argparse type: an integer >= ``minimum``, with a one-line error."""
+    import argparse
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {value}")
+        return value
+
+    return parse
+
+
+def add_arguments(parser: Any) -> None:
+    """The ``crowdloc tune`` options; their defaults are :class:`TuneConfig`'s and :class:`EpisodeSetup`'s."""
+    config, setup = TuneConfig(localizer=""), EpisodeSetup()
+    bearing = ", ".join(n for n, s in LOCALIZERS.items() if s.measurement == "bearings")
+    x_m, y_m, _ = SOCCER_START_POSE
+    parser.add_argument("localizer", help=f"a bearing localizer: {bearing}")
+    parser.add_argument("--space", type=Path, help="search-space YAML (default configs/tuning/LOCALIZER.yaml)")
+    parser.add_argument("--env-id", default=setup.env_id, help=f"a bearing world (default {setup.env_id})")
+    parser.add_argument("--crowd-size", type=_count(0), help="crowd size (default: the world's own)")
+    parser.add_argument("--scenario", choices=SCENARIOS, default=setup.scenario,
+                        help=f"soccer: Exp 2's chase-dribble-shoot driver from ({x_m:g}, {y_m:g}) m; random_walk: the "
+                             f"RandomWalk policy from the world's start (default {setup.scenario})")  # fmt: skip
+    parser.add_argument("--episode-steps", type=_count(1), default=setup.episode_steps,
+                        help=f"steps per episode (default {setup.episode_steps})")  # fmt: skip
+    parser.add_argument("--env-set", action="append", default=[], metavar="KEY=VALUE",
+                        help="world override, e.g. --env-set camera.dropout_probability=0.5 (repeatable)")  # fmt: skip
+    parser.add_argument("--train-seeds", type=_count(1), default=config.train_seeds,
+                        help=f"tuning episodes, env seeds 0..N-1 (default {config.train_seeds})")  # fmt: skip
+    parser.add_argument("--eval-seeds", type=_count(1), default=config.eval_seeds,
+                        help=f"held-out episodes, env seeds {seed_base_text()} + i (default {config.eval_seeds})")  # fmt: skip
+    parser.add_argument("--trials", type=_count(1), default=config.trials,
+                        help=f"trials to add to the study (default {config.trials})")  # fmt: skip
+    parser.add_argument("--workers", type=_count(1), default=config.workers,
+                        help=f"parallel study.optimize workers (default {config.workers})")  # fmt: skip
+    parser.add_argument("--ray-address", help="run the workers on this Ray cluster (use a storage all nodes reach)")
+    parser.add_argument("--storage", default=config.storage, help=f"SQLAlchemy database URL (default {config.storage})")
+    parser.add_argument("--study-name", help="default LOCALIZER-ENV-crowdN-SCENARIO; an existing study is continued")
+    parser.add_argument("--seed", type=int, default=config.seed, help=f"sampler seed (default {config.seed})")
+    parser.add_argument("--penalty-m", type=float, default=config.penalty_m,
+                        help=f"metres added to the objective per unit of unavailability (default {config.penalty_m:g})")  # fmt: skip
+    parser.add_argument("--out", type=Path, help="report folder (default results/tuning/STUDY)")
+    parser.add_argument("--quiet", action="store_true", help="no per-trial log, no progress bars")
+
+
+def run_cli(args: Any) -> TuneResult:
+    """``crowdloc tune`` from parsed arguments (raises ConfigError for bad values)."""
+    from agents.train import parse_overrides
+
+    config = TuneConfig(
+        localizer=args.localizer,
+        setup=EpisodeSetup(
+            env_id=args.env_id,
+            crowd_size=args.crowd_size,
+            scenario=args.scenario,
+            episode_steps=args.episode_steps,
+            env_overrides=nest(parse_overrides(args.env_set)),
+        ),
+        space_path=args.space,
+        trials=args.trials,
+        train_seeds=args.train_seeds,
+        eval_seeds=args.eval_seeds,
+        workers=args.workers,
+        ray_address=args.ray_address,
+        storage=args.storage,
+        study_name=args.study_name,
+        out=args.out,
+        seed=args.seed,
+        penalty_m=args.penalty_m,
+        verbose=not args.quiet,
+    )
+    return tune(config)
