@@ -8,6 +8,7 @@ are counter-clockwise from the robot's heading, in ``[-pi, pi)``.
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -209,3 +210,49 @@ class Localizer(Protocol):
 
     def overlay(self) -> Overlay:
         """Hypotheses to draw."""
+
+
+# --------------------------------------------------------------------------------------
+# The input checks every localizer makes. Each message names the localizer (``owner``) and
+# the bad value; the exception types are part of the interface.
+
+
+def require_reset(owner: str, ready: bool) -> None:
+    """Raise ``RuntimeError`` unless ``reset()`` has been called (``ready``)."""
+    if not ready:
+        raise RuntimeError(f"{owner}: call reset() before predict() or update()")
+
+
+def checked_dt(owner: str, dt_s: float) -> float:
+    """``dt_s`` as a float, or ``ValueError`` when it is not a finite number > 0."""
+    if not (math.isfinite(dt_s) and dt_s > 0.0):
+        raise ValueError(f"{owner}: dt_s must be a positive number of seconds, got {dt_s!r}")
+    return float(dt_s)
+
+
+def checked_odometry(owner: str, odometry: OdometryDelta) -> NDArray[np.float64]:
+    """The ``(3,)`` increment ``(dx, dy, dtheta)``, or :class:`MeasurementError` when it is not finite.
+
+    Only NaN and infinities are rejected: an absurd but finite increment passes.
+    """
+    if not isinstance(odometry, OdometryDelta):
+        raise MeasurementError(f"{owner}: expected an OdometryDelta, got {type(odometry).__name__}")
+    d = odometry.as_array()
+    if not np.isfinite(d).all():
+        raise MeasurementError(f"{owner}: odometry increment {d.tolist()} is not finite")
+    return d
+
+
+def checked_bearings(owner: str, measurement: BearingMeasurement, landmark_count: int) -> BearingMeasurement:
+    """:meth:`BearingMeasurement.validated`, after checking that it is one (:class:`MeasurementError`)."""
+    if not isinstance(measurement, BearingMeasurement):
+        raise MeasurementError(f"{owner}: expected a BearingMeasurement, got {type(measurement).__name__}")
+    return measurement.validated(landmark_count, source=owner)
+
+
+def finite_covariance(estimate: PoseEstimate) -> NDArray[np.float64] | None:
+    """The estimate's covariance as float64 when it is a finite ``(3, 3)``, else ``None`` (unknown)."""
+    cov = np.asarray(estimate.covariance, dtype=np.float64)
+    if cov.shape == (3, 3) and np.isfinite(cov).all():
+        return cov
+    return None

@@ -49,7 +49,17 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
+from localizers.base import (
+    BearingMeasurement,
+    LandmarkMap,
+    OdometryDelta,
+    Overlay,
+    PoseEstimate,
+    checked_bearings,
+    checked_dt,
+    checked_odometry,
+    require_reset,
+)
 from localizers.geometry import between, circular_std, compose
 from localizers.motion import wrap_scalar
 from localizers.resection import inscribed_arc_poses, solve_triples, triple_indices
@@ -175,7 +185,7 @@ def _atan2_f32(y: np.float32, x: np.float32) -> np.float32:
         r = _HALF_PI32 - r
     if x < _ZERO32:
         r = _PI32 - r
-    return math.copysign(r, y)
+    return np.float32(math.copysign(r, y))  # a no-op in numba (float32 in, float32 out); a float in Python
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -327,7 +337,7 @@ def _fused_output(
                 _add_deviation(cov, dev, best[a], pose)
         samples = n_kept
     else:  # that of the candidates of the one kept set
-        a = np.argmax(kept)
+        a = int(np.argmax(kept))
         p = np.empty(3)
         for i in range(spans[a, 0], spans[a, 1]):
             _current_pose(store, i, ox, oy, ot, p)
@@ -585,11 +595,9 @@ class CandidateSetLocalizer:
     name: ClassVar[str] = "candidate_sets"
 
     def __init__(self, landmarks: LandmarkMap, params: CandidateSetParams, *, dt_s: float) -> None:
-        if not (math.isfinite(dt_s) and dt_s > 0.0):
-            raise ValueError(f"CandidateSetLocalizer: dt_s must be a positive number of seconds, got {dt_s!r}")
+        self._dt = checked_dt("CandidateSetLocalizer", dt_s)
         self._map = landmarks
         self._params = params
-        self._dt = float(dt_s)
         self._lx32 = landmarks.positions_xy_m[:, 0].astype(np.float32)
         self._ly32 = landmarks.positions_xy_m[:, 1].astype(np.float32)
         self._floors = np.array([params.position_floor_m**2] * 2 + [params.heading_floor_rad**2])
@@ -626,8 +634,7 @@ class CandidateSetLocalizer:
         self._clear()
 
     def _require_reset(self) -> None:
-        if not self._started:
-            raise RuntimeError("CandidateSetLocalizer: call reset() before predict() or update()")
+        require_reset("CandidateSetLocalizer", self._started)
 
     def _ensure_capacity(self, m: int) -> None:
         """Grow the candidate store to hold ``m`` candidates (m <= max_live_candidates)."""
@@ -643,9 +650,7 @@ class CandidateSetLocalizer:
     def predict(self, odometry: OdometryDelta) -> None:
         """Propagate every candidate by the increment (lazily: one SE(2) product)."""
         self._require_reset()
-        dx, dy, dth = float(odometry.dx_m), float(odometry.dy_m), float(odometry.dtheta_rad)
-        if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dth)):
-            raise MeasurementError(f"candidate_sets: odometry increment {[dx, dy, dth]} is not finite")
+        dx, dy, dth = checked_odometry(self.name, odometry).tolist()
         _accumulate(self._odo, dx, dy, dth)
         self._path_m += math.hypot(dx, dy)
         self._turn_rad += abs(dth)
@@ -654,9 +659,7 @@ class CandidateSetLocalizer:
     def update(self, measurement: BearingMeasurement) -> None:
         """Evaluate, prune, abort, determine and generate with one frame's bearings."""
         self._require_reset()
-        if not isinstance(measurement, BearingMeasurement):
-            raise MeasurementError(f"candidate_sets: expected a BearingMeasurement, got {type(measurement).__name__}")
-        meas = measurement.validated(self._map.count, source="candidate_sets")
+        meas = checked_bearings(self.name, measurement, self._map.count)
         self._cached = None
         self._pending += self._pending_next
         self._pending_next = 0

@@ -21,7 +21,18 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
+from localizers.base import (
+    BearingMeasurement,
+    LandmarkMap,
+    OdometryDelta,
+    Overlay,
+    PoseEstimate,
+    checked_bearings,
+    checked_dt,
+    checked_odometry,
+    finite_covariance,
+    require_reset,
+)
 from localizers.geometry import compose, wrap_angle
 from localizers.schema import check
 
@@ -62,11 +73,9 @@ class DeadReckoningLocalizer:
     name: ClassVar[str] = "dead_reckoning"
 
     def __init__(self, landmarks: LandmarkMap, params: DeadReckoningParams, *, dt_s: float) -> None:
-        if not (math.isfinite(dt_s) and dt_s > 0.0):
-            raise ValueError(f"DeadReckoningLocalizer: dt_s must be a positive number of seconds, got {dt_s!r}")
+        self._dt = checked_dt("DeadReckoningLocalizer", dt_s)
         self._map = landmarks
         self._params = params
-        self._dt = float(dt_s)
         self._pose: NDArray[np.float64] | None = None
         self._cov = np.zeros((3, 3))
 
@@ -83,24 +92,23 @@ class DeadReckoningLocalizer:
                 "dead reckoning only integrates odometry from a known start"
             )
         self._pose = np.array([prior.x_m, prior.y_m, wrap_angle(prior.theta_rad)])
-        cov = np.asarray(prior.covariance, dtype=np.float64)
-        if cov.shape == (3, 3) and np.isfinite(cov).all():
+        cov = finite_covariance(prior)
+        if cov is not None:
             self._cov = 0.5 * (cov + cov.T)
         else:
             p = self._params
             self._cov = np.diag([p.initial_position_std_m**2] * 2 + [p.initial_heading_std_rad**2])
 
     def _require_reset(self) -> NDArray[np.float64]:
-        if self._pose is None:
-            raise RuntimeError("DeadReckoningLocalizer: call reset() before predict() or update()")
-        return self._pose
+        pose = self._pose
+        require_reset("DeadReckoningLocalizer", pose is not None)
+        assert pose is not None  # for mypy: require_reset raised otherwise
+        return pose
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Compose the increment and propagate the covariance ``F P F^T + G Q G^T``."""
         pose = self._require_reset()
-        d = odometry.as_array()
-        if not np.isfinite(d).all():
-            raise MeasurementError(f"dead_reckoning: odometry increment {d.tolist()} is not finite")
+        d = checked_odometry(self.name, odometry)
         c, s = math.cos(pose[2]), math.sin(pose[2])
         # Jacobians of compose(pose, d): F w.r.t. the pose, G w.r.t. the increment.
         F = np.array([[1.0, 0.0, -s * d[0] - c * d[1]], [0.0, 1.0, c * d[0] - s * d[1]], [0.0, 0.0, 1.0]])
@@ -115,9 +123,7 @@ class DeadReckoningLocalizer:
     def update(self, measurement: BearingMeasurement) -> None:
         """Validate (bad bearings still raise) and otherwise ignore the measurement."""
         self._require_reset()
-        if not isinstance(measurement, BearingMeasurement):
-            raise MeasurementError(f"dead_reckoning: expected a BearingMeasurement, got {type(measurement).__name__}")
-        measurement.validated(self._map.count, source="dead_reckoning")
+        checked_bearings(self.name, measurement, self._map.count)
 
     @property
     def estimate(self) -> PoseEstimate:

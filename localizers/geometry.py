@@ -128,4 +128,4 @@ def in_field_of_view(
 def ring_directions(count: int) -> NDArray[np.float64]:
     """``(count,)`` directions spread evenly around a full turn, from 0 counter-clockwise: the
     layout of a sensor ring (the sonar's cone centres, relative to the heading)."""
-    return np.arange(count) * (TWO_PI / count)
+    return np.arange(count, dtype=np.float64) * (TWO_PI / count)

@@ -25,7 +25,18 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
+from localizers.base import (
+    BearingMeasurement,
+    LandmarkMap,
+    OdometryDelta,
+    Overlay,
+    PoseEstimate,
+    checked_bearings,
+    checked_dt,
+    checked_odometry,
+    finite_covariance,
+    require_reset,
+)
 from localizers.geometry import wrap_angle
 from localizers.resection import DEFAULT_MIN_CONDITIONING, resect_all_triples
 from localizers.schema import check
@@ -213,11 +224,9 @@ class KalmanLocalizer:
     name: ClassVar[str] = "kalman"
 
     def __init__(self, landmarks: LandmarkMap, params: KalmanParams, *, dt_s: float) -> None:
-        if not (math.isfinite(dt_s) and dt_s > 0.0):
-            raise ValueError(f"KalmanLocalizer: dt_s must be a positive number of seconds, got {dt_s!r}")
+        self._dt = checked_dt("KalmanLocalizer", dt_s)
         self._map = landmarks
         self._params = params
-        self._dt = float(dt_s)
         self._F, self._Q = constant_acceleration_model(
             self._dt,
             [params.jerk_psd_xy_m2_per_s5, params.jerk_psd_xy_m2_per_s5, params.jerk_psd_heading_rad2_per_s5],
@@ -253,23 +262,20 @@ class KalmanLocalizer:
             return
         x = np.zeros((3, 3))
         x[:, 0] = [prior.x_m, prior.y_m, wrap_angle(prior.theta_rad)]
-        cov = np.asarray(prior.covariance, dtype=np.float64)
-        var = np.diag(cov).copy() if cov.shape == (3, 3) and np.isfinite(cov).all() else np.full(3, np.nan)
+        cov = finite_covariance(prior)
+        var = np.diag(cov).copy() if cov is not None else np.full(3, np.nan)
         if not np.isfinite(var).all() or (var < 0).any():
             p = self._params
             var = np.array([p.initial_position_std_m**2] * 2 + [p.initial_heading_std_rad**2])
         self._x, self._P = x, self._initial_covariance(var)
 
     def _require_reset(self) -> None:
-        if not self._ready:
-            raise RuntimeError("KalmanLocalizer: call reset() before predict() or update()")
+        require_reset("KalmanLocalizer", self._ready)
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Time update by ``dt_s``, then the dead-reckoning velocity update (eq. A.4)."""
         self._require_reset()
-        d = odometry.as_array()
-        if not np.isfinite(d).all():
-            raise MeasurementError(f"kalman: odometry increment {d.tolist()} is not finite")
+        d = checked_odometry(self.name, odometry)
         if self._x is None or self._P is None:
             return
         heading = self._x[2, 0] + 0.5 * d[2]  # mid-step heading, rotates the increment into the world
@@ -283,9 +289,7 @@ class KalmanLocalizer:
     def update(self, measurement: BearingMeasurement) -> None:
         """Vision update (eq. A.5) with the robust all-triples resection when >= 3 bearings are seen."""
         self._require_reset()
-        if not isinstance(measurement, BearingMeasurement):
-            raise MeasurementError(f"kalman: expected a BearingMeasurement, got {type(measurement).__name__}")
-        meas = measurement.validated(self._map.count, source="kalman")
+        meas = checked_bearings(self.name, measurement, self._map.count)
         if meas.landmark_ids.size < 3:
             return
         res = resect_all_triples(

@@ -24,7 +24,17 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
+from localizers.base import (
+    BearingMeasurement,
+    LandmarkMap,
+    OdometryDelta,
+    Overlay,
+    PoseEstimate,
+    checked_bearings,
+    checked_dt,
+    checked_odometry,
+    require_reset,
+)
 from localizers.geometry import compose, wrap_angle
 from localizers.particles import (
     gaussian_poses,
@@ -121,10 +131,8 @@ class _ParticleLocalizer:
     name: ClassVar[str] = ""
 
     def __init__(self, landmarks: LandmarkMap, *, dt_s: float, alphas: ArrayLike, floors: tuple[float, float]) -> None:
-        if not (math.isfinite(dt_s) and dt_s > 0.0):
-            raise ValueError(f"{type(self).__name__}: dt_s must be a positive number of seconds, got {dt_s!r}")
+        self._dt = checked_dt(type(self).__name__, dt_s)
         self._map = landmarks
-        self._dt = float(dt_s)
         self._alphas = np.asarray(alphas, dtype=np.float64)
         self._floor_m, self._floor_rad = floors
         self._rng: np.random.Generator | None = None
@@ -133,22 +141,14 @@ class _ParticleLocalizer:
         self._cache: tuple[Array, Array] | None = None
 
     def _generator(self) -> np.random.Generator:
-        if self._rng is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before predict() or update()")
-        return self._rng
+        rng = self._rng
+        require_reset(type(self).__name__, rng is not None)
+        assert rng is not None  # for mypy: require_reset raised otherwise
+        return rng
 
     def _validated(self, measurement: BearingMeasurement) -> BearingMeasurement:
         self._generator()
-        if not isinstance(measurement, BearingMeasurement):
-            raise MeasurementError(f"{self.name}: expected a BearingMeasurement, got {type(measurement).__name__}")
-        return measurement.validated(self._map.count, source=self.name)
-
-    @staticmethod
-    def _checked_odometry(name: str, odometry: OdometryDelta) -> Array:
-        d = odometry.as_array()
-        if not np.isfinite(d).all():
-            raise MeasurementError(f"{name}: odometry increment {d.tolist()} is not finite")
-        return d
+        return checked_bearings(self.name, measurement, self._map.count)
 
     def _propagate(self, d: Array) -> None:
         rng = self._generator()
@@ -295,8 +295,8 @@ class PaperBearingMCL(_ParticleLocalizer):
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Move every particle, and the dead-reckoned pose while MCL yields none."""
-        d = self._checked_odometry(self.name, odometry)
         self._generator()
+        d = checked_odometry(self.name, odometry)
         if not self._has_pose and self._fallback is not None:
             self._fallback = (compose(self._fallback[0], d), self._fallback[1])
         self._propagate(d)
@@ -496,7 +496,7 @@ class BearingMCL(_ParticleLocalizer):
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Sample the odometry motion model for every particle."""
-        self._propagate(self._checked_odometry(self.name, odometry))
+        self._propagate(checked_odometry(self.name, odometry))
 
     def update(self, measurement: BearingMeasurement) -> None:
         """Weight by the bearing likelihood; resample (with injection) when needed."""

@@ -42,7 +42,17 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate, ScanMeasurement
+from localizers.base import (
+    LandmarkMap,
+    MeasurementError,
+    OdometryDelta,
+    Overlay,
+    PoseEstimate,
+    ScanMeasurement,
+    checked_dt,
+    checked_odometry,
+    require_reset,
+)
 from localizers.geometry import compose, wrap_angle
 from localizers.particles import (
     gaussian_poses,
@@ -152,7 +162,7 @@ class LidarMCLParams:
             len(self.alphas_base) == 4 and all(math.isfinite(a) and a >= 0.0 for a in self.alphas_base),
             f"{name}.alphas_base must be four finite values >= 0, got {self.alphas_base!r}",
         )
-        positive = ("sampling", "hit_std_m", "lambda_short", "table_resolution_m")
+        positive: tuple[str, ...] = ("sampling", "hit_std_m", "lambda_short", "table_resolution_m")
         positive += ("kld_epsilon", "kld_bin_xy_m", "kld_bin_theta_rad")
         for key in positive:
             value = getattr(self, key)
@@ -571,7 +581,7 @@ class BeamModel:
         zmax = table.max_range_m
         sigma = params.hit_std_m
         dz = min(0.01, sigma / 4.0)
-        zq = np.arange(int(zmax / dz + 0.5) + 1) * dz
+        zq = np.arange(int(zmax / dz + 0.5) + 1, dtype=np.float64) * dz
         norms = np.empty((zq.size, 2), dtype=np.float32)
         norms[:, 0] = params.z_hit * _hit_eta(zq, sigma, zmax) / (math.sqrt(2.0 * math.pi) * sigma)
         norms[:, 1] = params.z_short * _short_eta(zq, params.lambda_short)
@@ -725,11 +735,9 @@ class LidarMCL:
     name: ClassVar[str] = "mcl_lidar"
 
     def __init__(self, landmarks: LandmarkMap, params: LidarMCLParams, *, dt_s: float) -> None:
-        if not (math.isfinite(dt_s) and dt_s > 0.0):
-            raise ValueError(f"{type(self).__name__}: dt_s must be a positive number of seconds, got {dt_s!r}")
+        self._dt = checked_dt(type(self).__name__, dt_s)
         self._map = landmarks
         self._params = params
-        self._dt = float(dt_s)
         self._alphas = np.asarray(params.alphas, dtype=np.float64)
         self._beam_models: dict[float, BeamModel] = {}
         self._field: LikelihoodFieldModel | None = None
@@ -787,9 +795,7 @@ class LidarMCL:
     def predict(self, odometry: OdometryDelta) -> None:
         """Compose the increment into the motion not yet applied to the particles."""
         self._generator()
-        d = odometry.as_array()
-        if not np.isfinite(d).all():
-            raise MeasurementError(f"{self.name}: odometry increment {d.tolist()} is not finite")
+        d = checked_odometry(self.name, odometry)
         self._pending = compose(self._pending, d)
         self._travel_m += math.hypot(d[0], d[1])
         self._turn_rad += abs(d[2])
@@ -894,9 +900,10 @@ class LidarMCL:
 
     # ------------------------------------------------------------------ internals
     def _generator(self) -> np.random.Generator:
-        if self._rng is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before predict() or update()")
-        return self._rng
+        rng = self._rng
+        require_reset(type(self).__name__, rng is not None)
+        assert rng is not None  # for mypy: require_reset raised otherwise
+        return rng
 
     def _set_uniform_weights(self, n: int) -> None:
         self._log_w = np.full(n, -math.log(n))

@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import PoseEstimate
+from localizers.base import PoseEstimate, finite_covariance
 from localizers.geometry import circular_mean, wrap_angle
 from localizers.motion import odometry_noise_std, to_rot_trans_rot
 
@@ -144,8 +144,8 @@ def gaussian_poses(center: ArrayLike, cov: ArrayLike, count: int, rng: np.random
 
 def prior_covariance(prior: PoseEstimate, position_std_m: float, heading_std_rad: float) -> Array:
     """The prior's covariance when it is a finite PSD ``(3, 3)``, else the params' diagonal."""
-    cov = np.asarray(prior.covariance, dtype=np.float64)
-    if cov.shape == (3, 3) and np.isfinite(cov).all():
+    cov = finite_covariance(prior)
+    if cov is not None:
         cov = 0.5 * (cov + cov.T)
         if np.linalg.eigvalsh(cov).min() >= -1e-12:
             return cov

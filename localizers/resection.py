@@ -49,7 +49,17 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import BearingMeasurement, LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate
+from localizers.base import (
+    BearingMeasurement,
+    LandmarkMap,
+    OdometryDelta,
+    Overlay,
+    PoseEstimate,
+    checked_bearings,
+    checked_dt,
+    checked_odometry,
+    require_reset,
+)
 from localizers.geometry import circular_mean, wrap_angle
 from localizers.motion import wrap_scalar
 from localizers.schema import check
@@ -427,11 +437,9 @@ class ResectionLocalizer:
     name: ClassVar[str] = "resection"
 
     def __init__(self, landmarks: LandmarkMap, params: ResectionParams, *, dt_s: float) -> None:
-        if not (math.isfinite(dt_s) and dt_s > 0.0):
-            raise ValueError(f"ResectionLocalizer: dt_s must be a positive number of seconds, got {dt_s!r}")
+        self._dt = checked_dt("ResectionLocalizer", dt_s)
         self._map = landmarks
         self._params = params
-        self._dt = float(dt_s)
         self._started = False
         self._estimate = PoseEstimate.invalid()
         self._last: TripleResection | None = None
@@ -444,24 +452,19 @@ class ResectionLocalizer:
         self._last = None
 
     def _require_reset(self) -> None:
-        if not self._started:
-            raise RuntimeError("ResectionLocalizer: call reset() before predict() or update()")
+        require_reset("ResectionLocalizer", self._started)
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Check the increment and drop the estimate (no motion model in this baseline)."""
         self._require_reset()
-        d = odometry.as_array()
-        if not np.isfinite(d).all():
-            raise MeasurementError(f"resection: odometry increment {d.tolist()} is not finite")
+        checked_odometry(self.name, odometry)
         self._estimate = PoseEstimate.invalid()
         self._last = None
 
     def update(self, measurement: BearingMeasurement) -> None:
         """Resect from this frame's bearings (>= 3 needed, else the estimate is invalid)."""
         self._require_reset()
-        if not isinstance(measurement, BearingMeasurement):
-            raise MeasurementError(f"resection: expected a BearingMeasurement, got {type(measurement).__name__}")
-        m = measurement.validated(self._map.count, source="resection")
+        m = checked_bearings(self.name, measurement, self._map.count)
         p = self._params
         res = resect_all_triples(
             self._map.positions_xy_m, m.landmark_ids, m.bearings_rad,

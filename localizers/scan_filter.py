@@ -29,7 +29,16 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import LandmarkMap, MeasurementError, OdometryDelta, Overlay, PoseEstimate, ScanMeasurement
+from localizers.base import (
+    LandmarkMap,
+    OdometryDelta,
+    Overlay,
+    PoseEstimate,
+    ScanMeasurement,
+    checked_dt,
+    checked_odometry,
+    require_reset,
+)
 from localizers.geometry import compose, wrap_angle
 from localizers.mcl_lidar import LidarMCL, LidarMCLParams, validated_scan
 from localizers.schema import check
@@ -184,9 +193,7 @@ class ScanFilter:
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Integrate one odometry increment into the odometry-frame pose."""
-        d = odometry.as_array()
-        if not np.isfinite(d).all():
-            raise MeasurementError(f"scan filter: odometry increment {d.tolist()} is not finite")
+        d = checked_odometry("scan filter", odometry)
         self._pose = compose(self._pose, d)
         self._travel_m += math.hypot(d[0], d[1])
         self._far = None
@@ -333,23 +340,28 @@ class FarPointMCL:
 
     def __init__(self, landmarks: LandmarkMap, params: FarPointMCLParams, *, dt_s: float) -> None:
         self.params = params
-        self.mcl = LidarMCL(landmarks, params.mcl, dt_s=dt_s)
+        self.mcl = LidarMCL(landmarks, params.mcl, dt_s=checked_dt(type(self).__name__, dt_s))
         self.filter = ScanFilter(params.filter)
+        self._ready = False
         self._last: ScanMeasurement | None = None
         self._processed: ScanMeasurement | None = None
 
     def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
         self.mcl.reset(rng, prior)
         self.filter.reset()
+        self._ready = True
         self._last = None
         self._processed = None
 
     def predict(self, odometry: OdometryDelta) -> None:
+        require_reset(type(self).__name__, self._ready)
+        checked_odometry(self.name, odometry)  # named for this localizer (the parts check again)
         self.mcl.predict(odometry)
         self.filter.predict(odometry)
 
     def update(self, measurement: ScanMeasurement) -> None:
         """Accumulate the scan; when MCL is due, weigh the particles by the far-point scan."""
+        require_reset(type(self).__name__, self._ready)
         self.filter.add_scan(measurement)  # validates
         self._last = measurement
         if self.mcl.update_due:
