@@ -32,6 +32,7 @@ from tqdm import tqdm
 import envs
 from agents.metrics import beam_breakdown
 from agents.policies import RandomWalk
+from envs.sensors import RangeSensor
 from localizers.raycast import cast_rays
 
 if TYPE_CHECKING:
@@ -86,14 +87,16 @@ def run_world(env_id: str, crowd_size: int, steps: int, seed: int) -> RunStats:
             obs, info = env.reset()
             policy.reset()
     seconds = time.perf_counter() - start
-    if base.lidar is not None:
+    lidar = base.sensor_of_type("lidar")
+    if lidar is not None:
+        lidar_key = lidar.key
         # a second, untimed pass: how many beams reach the static map instead of a person
         obs, info = env.reset(seed=seed)
         policy.reset(seed)
         for _ in range(min(steps, 400)):
             action, _ = policy.predict(obs)
             obs, _, _, _, info = env.step(action)
-            hit, total = _wall_beams(base, obs["lidar"], info["true_pose"])
+            hit, total = _wall_beams(base, obs[lidar_key], info["true_pose"])
             wall_hits += hit
             beams += total
     env.close()
@@ -111,18 +114,19 @@ def run_world(env_id: str, crowd_size: int, steps: int, seed: int) -> RunStats:
 
 def _wall_beams(env: envs.LocalizationEnv, ranges: NDArray[np.float32], pose: NDArray[np.float64]) -> tuple[int, int]:
     """Beams whose measured range matches the empty room's (within 0.1 m) and the beam count."""
-    assert env.lidar is not None
+    lidar = env.sensor_of_type("lidar")
+    assert isinstance(lidar, RangeSensor)
     world = env.world
     empty = cast_rays(
         pose[:2],
-        env.lidar.relative_angles + pose[2],
-        env.lidar.config.max_range_m,
+        lidar.relative_angles + pose[2],
+        lidar.config.max_range_m,
         world.seg_a,
         world.seg_b,
         np.zeros((0, 2)),
         np.zeros(0),
     )
-    match, _, _, _ = beam_breakdown(ranges, empty, env.lidar.config.max_range_m)
+    match, _, _, _ = beam_breakdown(ranges, empty, lidar.config.max_range_m)
     return match, int(ranges.size)
 
 

@@ -62,6 +62,7 @@ from agents import metrics
 from agents.policies import FIXED_POLICIES
 from agents.rewards import ActiveLocalizationReward, RewardWeights
 from agents.train import EVAL_SEED_BASE
+from localizers.measurements import find_sensor, measurement_kind
 from localizers.schema import ConfigError, check
 
 Array = NDArray[np.float64]
@@ -173,11 +174,16 @@ class EvalSpec:
         for key in ("crowd_size", "max_episode_steps", "localizer", "localizer_params", "render_mode"):
             check(key not in conditions, f"env_kwargs may not set {key!r}: the evaluation grid sets it")
         world = apply_overrides(load_world(ENV_WORLDS[self.env_id]), **conditions)
-        check(world.camera is not None, f"eval needs a bearing env (a world with a camera); {self.env_id} has none")
+        check(
+            world.sensor_of_type("bearing_camera") is not None,
+            f"eval needs a bearing env (a world with a camera); {self.env_id} has none",
+        )
         for name in self.localizers:
-            entry = localizer_spec(name)
-            check(entry.measurement != "scan" or world.lidar is not None,
-                  f"localizer {name!r} needs a LIDAR; {self.env_id} has none")  # fmt: skip
+            kind = measurement_kind(localizer_spec(name).measurement)
+            check(
+                world.sensor_of_type(kind.sensor_type) is not None,
+                f"localizer {name!r} needs a {kind.sensor_type} sensor ({kind.name} measurements); {self.env_id} has none",
+            )
         ppo = [policy for policy in self.policies if policy.startswith(PPO_PREFIX)]
         if ppo:
             env = gym.make(self.env_id, localizer=self.localizers[0], **dict(self.env_kwargs))
@@ -370,7 +376,9 @@ def _rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> tuple[dict[str
         if terminated or truncated:
             break
     base = env.unwrapped
-    cam = base.config.camera  # type: ignore[attr-defined]
+    meta = base.sensor_metadata  # type: ignore[attr-defined]
+    cam = meta[find_sensor("bearings", meta, "the evaluation's bound")]
+    odo = next(m for m in meta.values() if m["type"] == "odometry")
     data = {
         "time_s": np.array(rows["time_s"]),
         "true_pose": np.stack(rows["true_pose"]),
@@ -381,8 +389,8 @@ def _rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> tuple[dict[str
         "visible": np.stack(rows["visible"]),
         "rewards": np.array(rewards, dtype=np.float64),
         "landmark_map": base.landmark_map,  # type: ignore[attr-defined]
-        "bearing_std_rad": float(cam.noise_std_rad),
-        "alphas": tuple(base.config.odometry.alphas),  # type: ignore[attr-defined]
+        "bearing_std_rad": float(cam["noise_std_rad"]),
+        "alphas": tuple(odo["alphas"]),
         "dt_s": float(base.config.dt_s),  # type: ignore[attr-defined]
     }
     env.close()

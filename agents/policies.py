@@ -29,6 +29,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
+from envs.sensors import BearingCameraConfig
 from localizers.base import LandmarkMap
 from localizers.bounds import bearing_information
 from localizers.geometry import in_field_of_view, ring_directions, wrap_angle
@@ -439,7 +440,8 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
     if name == "patrol":
         return PatrolPath.exp1(env, **kwargs)
     if name in ("landmark_seeking", "greedy_info_gain"):
-        cam = base.config.camera
+        cam = base.config.sensor_of_type("bearing_camera")
+        assert cam is None or isinstance(cam, BearingCameraConfig)
         kwargs.setdefault("max_range_m", cam.max_range_m if cam is not None else math.inf)
         kwargs.setdefault("fov_rad", cam.fov_rad if cam is not None else 2 * math.pi)
         if name == "greedy_info_gain":

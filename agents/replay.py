@@ -1,9 +1,9 @@
 """Record one rollout, then replay its observation stream into any number of localizers.
 
-:func:`record` steps an env with a scenario driver once and keeps, per step, the
-observation leaves (odometry, the camera's landmark slots or the LIDAR's ranges) beside the
-ground truth from ``info`` (true pose, truly visible landmarks, false detections, contacts).
-:func:`replay` feeds the *observation leaves only* to a localizer exactly as
+:func:`record` steps an env with a scenario driver once and keeps, per step, every
+sensor's observation array (a mapping by observation key) and the sensors' metadata, beside
+the ground truth from ``info`` (true pose, truly visible landmarks, false detections,
+contacts). :func:`replay` feeds the *observations only* to a localizer exactly as
 :class:`localizers.wrappers.LocalizationObservation` does online (``reset`` with an optional
 known start pose, an update with the first frame, then ``predict`` and ``update`` per step),
 so every localizer runs on identical data and the results equal the online wrapper's for the
@@ -13,8 +13,9 @@ same generator. Ground truth is used for the prior only when asked (``prior="sta
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import gymnasium as gym
@@ -25,8 +26,8 @@ import envs  # noqa: F401  (registers the crowdloc ids)
 from agents.scenarios import Driver
 from envs.localization_env import LocalizationEnv
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
+from localizers.measurements import decode, find_sensor, measurement_kind, measurement_kinds
 from localizers.registry import make_localizer, spec
-from localizers.wrappers import bearing_measurement
 
 #: the covariance of the known start pose handed to localizers that need it (as the wrapper does)
 PRIOR_COVARIANCE = np.diag([1e-6, 1e-6, 1e-6])
@@ -34,15 +35,17 @@ PRIOR_COVARIANCE = np.diag([1e-6, 1e-6, 1e-6])
 
 @dataclass(frozen=True)
 class Recording:
-    """One rollout: observation leaves and ground truth, ``T`` steps (row 0 is the reset).
+    """One rollout: every sensor's observations and the ground truth, ``T`` steps (row 0 is the reset).
 
     Attributes:
         env_id: the env it came from.
         seed: the env seed.
         dt_s: time step.
         landmark_map: the map a localizer gets.
-        odometry: ``(T, 3)`` float32 odometry leaves (row 0: zeros, the reset observation).
-        landmarks: ``(T, 3 L)`` float32 camera slots (``(T, 0)`` without a camera).
+        observations: observation key -> ``(T, ...)`` float32 array of that sensor's readings.
+        sensors: sensor name -> its metadata (``type``, observation ``key`` and what the
+            sensor says about its readings: beam angles, noise, ...; see
+            ``LocalizationEnv.sensor_metadata``).
         true_pose: ``(T, 3)`` ground truth.
         time_s: ``(T,)`` simulated time.
         visible: ``(T, L)`` landmarks truly in sight (before dropout).
@@ -50,34 +53,91 @@ class Recording:
         contacts: ``(T,)`` contacts of our robot that began in each step.
         commanded: ``(T - 1, 3)`` the motion commanded in steps 1..T-1 (what the odometry
             measures before noise; contacts move the body beyond it).
-        camera_noise_std_rad: the camera's bearing noise (0 without a camera).
-        odometry_alphas: the odometry's alpha1..alpha4.
-        lidar: ``(T, B)`` float32 LIDAR ranges, or None without a LIDAR.
-        lidar_angles_rad: ``(B,)`` beam angles in the robot frame (None without a LIDAR).
-        lidar_max_range_m: the LIDAR's maximum range (0 without a LIDAR).
     """
 
     env_id: str
     seed: int
     dt_s: float
     landmark_map: LandmarkMap
-    odometry: NDArray[np.float32]
-    landmarks: NDArray[np.float32]
+    observations: Mapping[str, NDArray[np.float32]]
+    sensors: Mapping[str, Mapping[str, Any]]
     true_pose: NDArray[np.float64]
     time_s: NDArray[np.float64]
     visible: NDArray[np.bool_]
     false_detections: NDArray[np.bool_]
     contacts: NDArray[np.int64]
-    commanded: NDArray[np.float64]
-    camera_noise_std_rad: float
-    odometry_alphas: tuple[float, float, float, float]
-    lidar: NDArray[np.float32] | None = None
-    lidar_angles_rad: NDArray[np.float64] | None = None
-    lidar_max_range_m: float = 0.0
+    commanded: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def steps(self) -> int:
         return int(self.true_pose.shape[0])
+
+    def sensor_of(self, sensor_type: str) -> tuple[str, Mapping[str, Any]] | None:
+        """``(name, metadata)`` of the first sensor of a registered type, or None."""
+        for name, meta in self.sensors.items():
+            if meta.get("type") == sensor_type:
+                return name, meta
+        return None
+
+    def readings(self, sensor_type: str) -> NDArray[np.float32] | None:
+        """``(T, ...)`` observations of the first sensor of ``sensor_type``, or None."""
+        found = self.sensor_of(sensor_type)
+        return None if found is None else self.observations[found[1]["key"]]
+
+    def without(self, *sensor_types: str) -> Recording:
+        """The same recording without the observations of these sensor types (to keep results small)."""
+        drop = {name for name, meta in self.sensors.items() if meta.get("type") in sensor_types}
+        keys = {self.sensors[name]["key"] for name in drop}
+        return dataclasses.replace(
+            self,
+            observations={k: v for k, v in self.observations.items() if k not in keys},
+            sensors={n: m for n, m in self.sensors.items() if n not in drop},
+        )
+
+    # -- the shipped sensors' readings by their usual names (views of ``observations``)
+    @property
+    def odometry(self) -> NDArray[np.float32]:
+        """``(T, 3)`` odometry leaves (row 0: zeros, the reset observation)."""
+        odo = self.readings("odometry")
+        if odo is None:
+            raise ValueError(f"the recording of {self.env_id} has no odometry")
+        return odo
+
+    @property
+    def landmarks(self) -> NDArray[np.float32]:
+        """``(T, 3 L)`` bearing-camera slots (``(T, 0)`` without a camera)."""
+        slots = self.readings("bearing_camera")
+        return np.zeros((self.steps, 0), dtype=np.float32) if slots is None else slots
+
+    @property
+    def lidar(self) -> NDArray[np.float32] | None:
+        """``(T, B)`` LIDAR ranges, or None without a LIDAR."""
+        return self.readings("lidar")
+
+    @property
+    def lidar_angles_rad(self) -> NDArray[np.float64] | None:
+        """``(B,)`` LIDAR beam angles in the robot frame (None without a LIDAR)."""
+        found = self.sensor_of("lidar")
+        return None if found is None else np.asarray(found[1]["beam_angles_rad"], dtype=np.float64)
+
+    @property
+    def lidar_max_range_m(self) -> float:
+        """The LIDAR's maximum range (0 without a LIDAR)."""
+        found = self.sensor_of("lidar")
+        return 0.0 if found is None else float(found[1]["max_range_m"])
+
+    @property
+    def camera_noise_std_rad(self) -> float:
+        """The bearing camera's noise (0 without a camera)."""
+        found = self.sensor_of("bearing_camera")
+        return 0.0 if found is None else float(found[1]["noise_std_rad"])
+
+    @property
+    def odometry_alphas(self) -> tuple[float, float, float, float]:
+        found = self.sensor_of("odometry")
+        if found is None:
+            raise ValueError(f"the recording of {self.env_id} has no odometry")
+        return tuple(found[1]["alphas"])  # type: ignore[return-value]
 
     def detected(self, landmark_subset: Sequence[int] | None = None) -> NDArray[np.bool_]:
         """``(T, L)`` slots reported as seen (true or false detections), limited to a subset."""
@@ -121,26 +181,28 @@ def record(
     env = gym.make(env_id, **dict(env_kwargs or {}))
     base = env.unwrapped
     assert isinstance(base, LocalizationEnv)
-    if base.camera is None and base.lidar is None:
-        raise ValueError(f"record: {env_id} has neither a bearing camera nor a LIDAR")
+    sensors = base.sensor_metadata
+    readable = {meta["type"] for meta in sensors.values()} & {measurement_kind(k).sensor_type for k in measurement_kinds()}
+    if not readable:
+        raise ValueError(f"record: {env_id} has no sensor that a localizer reads (sensors: {', '.join(sensors)})")
     obs, info = env.reset(seed=seed, options=dict(reset_options) if reset_options else None)
     drv: Driver = driver if hasattr(driver, "act") else driver(base)
     drv.reset(base)
     # the driver may have moved the ball or the crowd: observations are unchanged (the ball
     # does not occlude; parked members sit outside the field), the truth is re-read below
-    n_lm = base.world.landmark_xy.shape[0]
-    rows: list[tuple[Any, ...]] = []
-
-    no_slots = np.zeros(0, dtype=np.float32)
+    n_lm = base.landmark_map.count
+    keys = [str(meta["key"]) for meta in sensors.values()]
+    observed: dict[str, list[NDArray[np.float32]]] = {key: [] for key in keys}
+    truth: list[tuple[Any, ...]] = []
 
     def keep(o: Mapping[str, Any], i: Mapping[str, Any]) -> None:
+        for key in keys:
+            observed[key].append(o[key].copy())
         vis = np.zeros(n_lm, dtype=bool)
         vis[np.asarray(i.get("visible_landmarks", ()), dtype=np.int64)] = True
         false = np.zeros(n_lm, dtype=bool)
         false[np.asarray(i.get("false_detections", ()), dtype=np.int64)] = True
-        scan = o["lidar"].copy() if "lidar" in o else None
-        rows.append((o["odometry"].copy(), o.get("landmarks", no_slots).copy(), np.asarray(i["true_pose"]).copy(),
-                     float(i["time_s"]), vis, false, len(i["contacts"]), scan))  # fmt: skip
+        truth.append((np.asarray(i["true_pose"]).copy(), float(i["time_s"]), vis, false, len(i["contacts"])))
 
     keep(obs, info)
     commanded = []
@@ -153,26 +215,19 @@ def record(
         keep(obs, info)
         if terminated or truncated:
             break
-    cam = base.config.camera
-    lidar = base.config.lidar
     rec = Recording(
         env_id=env_id,
         seed=seed,
         dt_s=float(base.config.dt_s),
         landmark_map=base.landmark_map,
-        odometry=np.stack([r[0] for r in rows]),
-        landmarks=np.stack([r[1] for r in rows]),
-        true_pose=np.stack([r[2] for r in rows]),
-        time_s=np.array([r[3] for r in rows]),
-        visible=np.stack([r[4] for r in rows]),
-        false_detections=np.stack([r[5] for r in rows]),
-        contacts=np.array([r[6] for r in rows], dtype=np.int64),
+        observations={key: np.stack(rows) for key, rows in observed.items()},
+        sensors=sensors,
+        true_pose=np.stack([r[0] for r in truth]),
+        time_s=np.array([r[1] for r in truth]),
+        visible=np.stack([r[2] for r in truth]),
+        false_detections=np.stack([r[3] for r in truth]),
+        contacts=np.array([r[4] for r in truth], dtype=np.int64),
         commanded=np.array(commanded, dtype=np.float64).reshape(-1, 3),
-        camera_noise_std_rad=float(cam.noise_std_rad) if cam is not None else 0.0,
-        odometry_alphas=base.config.odometry.alphas,
-        lidar=np.stack([r[7] for r in rows]) if lidar is not None else None,
-        lidar_angles_rad=base.lidar_beam_angles_rad,
-        lidar_max_range_m=float(lidar.max_range_m) if lidar is not None else 0.0,
     )
     env.close()
     return rec
@@ -188,30 +243,48 @@ def commanded_increment(action: NDArray[np.float32], env: LocalizationEnv) -> ND
     return np.array([v * dt * np.cos(half), v * dt * np.sin(half), omega * dt])
 
 
-def measurements(recording: Recording, landmark_subset: Sequence[int] | None = None) -> list[BearingMeasurement]:
-    """The ``T`` bearing measurements a localizer is fed, built from the camera leaves only."""
-    keep = subset_mask(recording.landmark_map.count, landmark_subset)
+def stream(recording: Recording, kind: str) -> list[Any]:
+    """The ``T`` measurements of ``kind`` a localizer is fed, decoded from the observations only
+    (:func:`localizers.measurements.decode`, with the recorded sensor metadata).
+
+    Raises:
+        ConfigError: if the recording has no (or more than one) sensor that ``kind`` reads.
+    """
+    name = find_sensor(kind, recording.sensors, f"replay of {kind} measurements from {recording.env_id}")
+    meta = recording.sensors[name]
+    return [decode(kind, row, meta) for row in recording.observations[meta["key"]]]
+
+
+def restricted(stream: Sequence[BearingMeasurement], count: int, landmark_subset: Sequence[int]) -> list[BearingMeasurement]:
+    """Bearing measurements limited to the landmark ids of a subset (the others dropped)."""
+    keep = subset_mask(count, landmark_subset)
     out = []
-    for slots in recording.landmarks:
-        m = bearing_measurement(slots)
-        if landmark_subset is not None:
-            sel = keep[m.landmark_ids]
-            m = BearingMeasurement(m.landmark_ids[sel], m.bearings_rad[sel])
-        out.append(m)
+    for m in stream:
+        sel = keep[m.landmark_ids]
+        out.append(BearingMeasurement(m.landmark_ids[sel], m.bearings_rad[sel]))
     return out
 
 
-def scans(recording: Recording) -> list[ScanMeasurement]:
-    """The ``T`` LIDAR scans a scan localizer is fed, built from the LIDAR leaves only.
+def measurements(recording: Recording, landmark_subset: Sequence[int] | None = None) -> list[BearingMeasurement]:
+    """The ``T`` bearing measurements a localizer is fed, built from the camera leaves only."""
+    out = stream(recording, "bearings")
+    return out if landmark_subset is None else restricted(out, recording.landmark_map.count, landmark_subset)
 
-    Raises:
-        ValueError: for a recording without a LIDAR.
-    """
-    if recording.lidar is None or recording.lidar_angles_rad is None:
-        raise ValueError(f"scans: the recording of {recording.env_id} has no LIDAR")
-    angles = np.asarray(recording.lidar_angles_rad, dtype=np.float64)
-    ranges = recording.lidar.astype(np.float64)
-    return [ScanMeasurement(r, angles, recording.lidar_max_range_m) for r in ranges]
+
+def scans(recording: Recording) -> list[ScanMeasurement]:
+    """The ``T`` LIDAR scans a scan localizer is fed, built from the LIDAR leaves only."""
+    return stream(recording, "scan")
+
+
+def fed_slots(stream: Sequence[Any], count: int) -> NDArray[np.bool_]:
+    """``(T, L)`` the landmark ids each measurement hands over (measurements that identify
+    landmarks have ``landmark_ids``; others hand over none)."""
+    fed = np.zeros((len(stream), count), dtype=bool)
+    for t, m in enumerate(stream):
+        ids = getattr(m, "landmark_ids", None)
+        if ids is not None:
+            fed[t, ids] = True
+    return fed
 
 
 def odometry_deltas(recording: Recording) -> list[OdometryDelta]:
@@ -325,18 +398,17 @@ def replay_into(
         rng: the localizer's own generator.
         prior: handed to ``reset`` (``None``: the localizer starts without a pose).
         landmark_subset: landmark ids it may use; bearings to others are dropped.
-        measurement: ``"bearings"`` (the camera's slots) or ``"scan"`` (the LIDAR's ranges).
+        measurement: a registered measurement kind (``"bearings"``: the camera's slots;
+            ``"scan"``: the LIDAR's ranges), decoded from the sensor it reads.
         read, observer: see :func:`feed`.
     """
-    if measurement == "scan":
-        stream: Sequence[Any] = scans(recording)
-        fed = np.zeros((recording.steps, 0), dtype=bool)
-    elif measurement == "bearings":
-        stream = measurements(recording, landmark_subset)
-        fed = recording.detected(landmark_subset)
-    else:
-        raise ValueError(f"measurement must be 'bearings' or 'scan', got {measurement!r}")
-    est, valid, updated = feed(localizer, odometry_deltas(recording), stream, rng, prior=prior, read=read, observer=observer)
+    fed_stream: list[Any] = stream(recording, measurement)
+    if landmark_subset is not None:
+        if measurement_kind(measurement).sensor_type != "bearing_camera":
+            raise ValueError(f"landmark_subset applies to bearing measurements, not {measurement!r}")
+        fed_stream = restricted(fed_stream, recording.landmark_map.count, landmark_subset)
+    fed = fed_slots(fed_stream, recording.landmark_map.count)
+    est, valid, updated = feed(localizer, odometry_deltas(recording), fed_stream, rng, prior=prior, read=read, observer=observer)
     return ReplayResult(est, valid, fed, updated)
 
 

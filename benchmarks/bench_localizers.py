@@ -76,7 +76,7 @@ def _time_localizer(name: str, landmarks: LandmarkMap, poses: np.ndarray, alphas
 
 def run_all(quick: bool = False) -> list[Result]:
     landmarks = envs.LocalizationEnv("robocup_crowded").landmark_map
-    alphas = np.asarray(envs.load_world("robocup_crowded").odometry.alphas)
+    alphas = np.asarray(envs.load_world("robocup_crowded").sensors["odometry"].alphas)
     steps = 600 if quick else 3000
     warm = 30
     poses = _drive(steps + warm, np.random.default_rng(0))

@@ -1,5 +1,8 @@
 """World configurations: frozen dataclasses loaded from ``configs/worlds/<name>.yaml``.
 
+The sensors are a mapping from name to a config tagged by ``type`` (the registered sensor
+types of :mod:`envs.sensors`); each sensor module owns its config dataclass.
+
 Every unit is in the field name (``_m``, ``_rad``, ``_s``, ``_mps``). Loading goes through
 :func:`localizers.schema.from_mapping`, which rejects unknown keys and wrong types with
 the key and the file in the message; ranges are checked in ``__post_init__``.
@@ -8,10 +11,12 @@ the key and the file in the message; ranges are checked in ``__post_init__``.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
+from envs.sensors import SensorConfig
 from localizers.schema import ConfigError, check, from_mapping, load_yaml
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
@@ -44,6 +49,8 @@ class RobotConfig:
     friction: float = 0.5
     start_pose: tuple[float, float, float] | None = None  # fixed start; None: random in start_region_m
     start_region_m: tuple[float, float, float, float] | None = None  # (xmin, ymin, xmax, ymax)
+    slip_probability: float = 0.0  # per step: the wheels slip and the body moves less than commanded
+    slip_max_fraction: float = 0.5  # a slipping step loses U(0, this) of the commanded motion
 
     def __post_init__(self) -> None:
         check(self.radius_m > 0, f"robot.radius_m must be > 0, got {self.radius_m}")
@@ -54,104 +61,8 @@ class RobotConfig:
             self.start_pose is not None or self.start_region_m is not None,
             "robot: give start_pose or start_region_m",
         )
-
-
-@dataclass(frozen=True)
-class OdometryConfig:
-    """Probabilistic Robotics odometry noise (variances per squared unit) and wheel slip."""
-
-    alpha1: float = 0.01  # rad^2 / rad^2   rotation noise from rotation
-    alpha2: float = 0.01  # rad^2 / m^2     rotation noise from translation
-    alpha3: float = 0.01  # m^2 / m^2       translation noise from translation
-    alpha4: float = 0.01  # m^2 / rad^2     translation noise from rotation
-    slip_probability: float = 0.0  # per step: the wheels slip and the body moves less than reported
-    slip_max_fraction: float = 0.5  # a slipping step loses U(0, this) of the commanded motion
-
-    def __post_init__(self) -> None:
-        for name in ("alpha1", "alpha2", "alpha3", "alpha4"):
-            check(getattr(self, name) >= 0, f"odometry.{name} must be >= 0, got {getattr(self, name)}")
-        check(0 <= self.slip_probability <= 1, f"odometry.slip_probability must be in [0, 1], got {self.slip_probability}")
-        check(0 <= self.slip_max_fraction <= 1, f"odometry.slip_max_fraction must be in [0, 1], got {self.slip_max_fraction}")
-
-    @property
-    def alphas(self) -> tuple[float, float, float, float]:
-        return (self.alpha1, self.alpha2, self.alpha3, self.alpha4)
-
-
-@dataclass(frozen=True)
-class BearingCameraConfig:
-    """Camera reporting landmark bearings: omnidirectional (the papers' robots) or, with
-    ``fov_rad`` below a full turn, a forward-looking one that must be turned toward landmarks."""
-
-    noise_std_rad: float = math.radians(1.0)
-    max_range_m: float = math.inf  # applies to every landmark on top of its own max_range_m
-    fov_rad: float = 2 * math.pi  # horizontal field of view centred on the robot's heading
-    dropout_probability: float = 0.0  # a visible landmark is missed in a frame
-    false_detection_probability: float = 0.0  # per slot and frame: a wrong bearing is reported
-
-    def __post_init__(self) -> None:
-        check(self.noise_std_rad >= 0, f"camera.noise_std_rad must be >= 0, got {self.noise_std_rad}")
-        check(self.max_range_m > 0, f"camera.max_range_m must be > 0, got {self.max_range_m}")
-        check(0 < self.fov_rad <= 2 * math.pi, f"camera.fov_rad must be in (0, 2 pi], got {self.fov_rad}")
-        check(0 <= self.dropout_probability <= 1, f"camera.dropout_probability must be in [0, 1], got {self.dropout_probability}")
-        check(
-            0 <= self.false_detection_probability <= 1,
-            f"camera.false_detection_probability must be in [0, 1], got {self.false_detection_probability}",
-        )
-
-
-@dataclass(frozen=True)
-class LidarConfig:
-    """2-D scanning range finder (default: Hokuyo UTM-30LX)."""
-
-    fov_rad: float = math.radians(270.0)
-    beams: int = 1081
-    max_range_m: float = 30.0
-    range_std_m: float = 0.01
-
-    def __post_init__(self) -> None:
-        check(0 < self.fov_rad <= 2 * math.pi, f"lidar.fov_rad must be in (0, 2 pi], got {self.fov_rad}")
-        check(self.beams >= 1, f"lidar.beams must be >= 1, got {self.beams}")
-        check(self.max_range_m > 0, f"lidar.max_range_m must be > 0, got {self.max_range_m}")
-        check(self.range_std_m >= 0, f"lidar.range_std_m must be >= 0, got {self.range_std_m}")
-
-    @property
-    def relative_angles_rad(self) -> tuple[float, float]:
-        """First and last beam angle relative to the robot heading."""
-        if self.beams == 1:
-            return (0.0, 0.0)
-        full_turn = math.isclose(self.fov_rad, 2 * math.pi)
-        span = self.fov_rad * (self.beams - 1) / self.beams if full_turn else self.fov_rad
-        return (-span / 2, span / 2)
-
-
-@dataclass(frozen=True)
-class SonarConfig:
-    """A ring of sonar range sensors around the body: how near the walls and the crowd are.
-
-    ``sensors`` transducers, evenly spaced from the heading counter-clockwise, each report
-    the nearest wall or moving body inside its cone (``cone_rad`` wide, sampled by
-    ``rays_per_cone`` rays), measured from the robot's centre; ``max_range_m`` when
-    nothing is within range. None of the papers' worlds has one: it is the obstacle
-    awareness a learned policy may use (add it with the env kwarg ``sonar={}``).
-    """
-
-    sensors: int = 12
-    cone_rad: float = math.radians(30.0)
-    rays_per_cone: int = 5
-    max_range_m: float = 2.0
-    range_std_m: float = 0.02
-
-    def __post_init__(self) -> None:
-        check(self.sensors >= 1, f"sonar.sensors must be >= 1, got {self.sensors}")
-        spacing = 2 * math.pi / self.sensors
-        check(
-            0 < self.cone_rad <= spacing + 1e-12,
-            f"sonar.cone_rad must be in (0, 2 pi / sensors = {spacing:.4f}] (cones may not overlap), got {self.cone_rad}",
-        )
-        check(self.rays_per_cone >= 1, f"sonar.rays_per_cone must be >= 1, got {self.rays_per_cone}")
-        check(self.max_range_m > 0, f"sonar.max_range_m must be > 0, got {self.max_range_m}")
-        check(self.range_std_m >= 0, f"sonar.range_std_m must be >= 0, got {self.range_std_m}")
+        check(0 <= self.slip_probability <= 1, f"robot.slip_probability must be in [0, 1], got {self.slip_probability}")
+        check(0 <= self.slip_max_fraction <= 1, f"robot.slip_max_fraction must be in [0, 1], got {self.slip_max_fraction}")
 
 
 @dataclass(frozen=True)
@@ -237,7 +148,7 @@ class CrowdConfig:
 
 @dataclass(frozen=True)
 class WorldConfig:
-    """One scenario: geometry, landmarks, crowd, robot, sensors and noise."""
+    """One scenario: geometry, landmarks, crowd, robot and its sensors (in observation order)."""
 
     name: str
     description: str
@@ -248,10 +159,7 @@ class WorldConfig:
     walls: tuple[tuple[float, float, float, float], ...] = ()  # extra segments (x1, y1, x2, y2)
     boundary_margin_m: float = 0.0  # boundary walls this far outside the field
     landmarks: tuple[LandmarkConfig, ...] = ()
-    odometry: OdometryConfig = field(default_factory=OdometryConfig)
-    camera: BearingCameraConfig | None = None
-    lidar: LidarConfig | None = None
-    sonar: SonarConfig | None = None
+    sensors: Mapping[str, SensorConfig] = field(default_factory=dict)  # name -> config tagged by type
     crowd: CrowdConfig = field(default_factory=CrowdConfig)
 
     def __post_init__(self) -> None:
@@ -260,10 +168,34 @@ class WorldConfig:
         check(self.dt_s > 0, f"world {self.name!r}: dt_s must be > 0, got {self.dt_s}")
         check(self.max_episode_steps >= 1, f"world {self.name!r}: max_episode_steps must be >= 1, got {self.max_episode_steps}")
         check(self.boundary_margin_m >= 0, f"world {self.name!r}: boundary_margin_m must be >= 0, got {self.boundary_margin_m}")
-        check(self.camera is not None or self.lidar is not None, f"world {self.name!r}: needs a camera or a lidar")
-        check(self.camera is None or len(self.landmarks) > 0, f"world {self.name!r}: a camera needs landmarks")
         names = [lm.name for lm in self.landmarks]
         check(len(set(names)) == len(names), f"world {self.name!r}: landmark names repeat: {names}")
+        check(len(self.sensors) > 0, f"world {self.name!r}: needs at least one sensor (sensors: name -> {{type: ...}})")
+        keys: dict[str, str] = {}
+        for name, sensor in self.sensors.items():
+            check(isinstance(sensor, SensorConfig), f"world {self.name!r}: sensor {name!r} is not a sensor config: {sensor!r}")
+            check(
+                sensor.key not in keys,
+                f"world {self.name!r}: sensors {keys.get(sensor.key)!r} and {name!r} both write observation key "
+                f"{sensor.key!r}; give one of them another key",
+            )
+            keys[sensor.key] = name
+            sensor.check_world(self, name)
+        object.__setattr__(self, "sensors", dict(self.sensors))  # a copy: the caller's dict may change
+
+    def sensors_of_type(self, type_name: str) -> dict[str, SensorConfig]:
+        """The sensors of one registered type (``"lidar"``), by name, in config order."""
+        return {name: s for name, s in self.sensors.items() if s.type_name == type_name}
+
+    def sensor_of_type(self, type_name: str) -> SensorConfig | None:
+        """The world's one sensor of a registered type, None without one.
+
+        Raises:
+            ConfigError: if the world has several (name the one you mean in ``sensors``).
+        """
+        found = self.sensors_of_type(type_name)
+        check(len(found) <= 1, f"world {self.name!r} has several {type_name} sensors: {', '.join(found)}")
+        return next(iter(found.values()), None)
 
     @property
     def arena_m(self) -> tuple[float, float, float, float]:

@@ -1,16 +1,15 @@
 """``LocalizationEnv``: a robot localizing itself among a crowd, as a Gymnasium environment.
 
-Observation (a ``spaces.Dict``, float32, every bound finite):
-
-- ``odometry``: ``(3,)`` noisy commanded increment ``(dx, dy, dtheta)`` since the last step;
-- ``landmarks``: ``(3 L,)`` per-landmark ``(visible, cos, sin)`` of the bearing, flattened (worlds with a camera);
-- ``lidar``: ``(B,)`` ranges (worlds with a LIDAR);
-- ``sonar``: ``(S,)`` nearest range in each sonar cone (with a sonar ring, e.g. ``sonar={}``).
+Observation: a ``spaces.Dict`` with one float32 entry per sensor the world config names
+(``sensors:`` in its YAML), under the sensor's ``key``; every bound is finite. The shipped
+worlds have ``odometry`` ``(3,)`` (the noisy commanded increment since the last step) and
+either ``landmarks`` ``(3 L,)`` (a bearing camera's ``(visible, cos, sin)`` per landmark,
+flattened) or ``lidar`` ``(B,)``; ``sonar={}`` adds a sonar ring (``sonar`` ``(S,)``).
 
 Action: ``Box(-1, 1, (2,))``, scaled to the world's forward speed and turn rate limits.
-Ground truth (``true_pose``, ``visible_landmarks``, ``false_detections``, ``contacts``) is in
-``info`` only. The base environment's reward is 0: tasks add rewards as wrappers
-(``agents.rewards``).
+Ground truth (``true_pose``, ``contacts``, the sensors' facts such as ``visible_landmarks``
+and ``false_detections``) is in ``info`` only. The base environment's reward is 0: tasks
+add rewards as wrappers (``agents.rewards``).
 """
 
 from __future__ import annotations
@@ -25,13 +24,14 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from envs.config import WorldConfig, load_world
-from envs.sensors import BearingCamera, Lidar, Odometry, Sensor, Sonar
+from envs.sensors import Sensor, build_sensor, sensor_types
+from envs.state import WorldState
 from envs.world import World
 from localizers.base import LandmarkMap
 from localizers.schema import ConfigError, replace_checked
 
-#: keyword overrides accepted by the env (besides ``world`` and ``render_mode``)
-OVERRIDE_SECTIONS = ("robot", "odometry", "camera", "lidar", "sonar", "crowd")
+#: keyword overrides of world sections accepted by the env (besides the sensors, by name or type)
+OVERRIDE_SECTIONS = ("robot", "crowd")
 
 Overlay = Callable[[Any], None]
 
@@ -43,10 +43,11 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         world: a shipped world name (``"robocup_crowded"``), a YAML path or a ``WorldConfig``.
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
         crowd_size: number of moving obstacles (robots or people), the crowd density.
-        robot, odometry, camera, lidar, sonar, crowd: mappings overriding fields of that
-            section of the world config, for example ``camera={"noise_std_rad": 0.0}``; a
-            sensor the world lacks is added with its defaults and the overrides
-            (``sonar={}`` gives a robot a sonar ring).
+        robot, crowd: mappings overriding fields of that section of the world config.
+        **overrides: a sensor's name (``camera={"noise_std_rad": 0.0}``) overrides fields of
+            that sensor; a registered sensor type the world lacks is added under its type
+            name with its defaults and the given fields (``sonar={}`` gives a robot a
+            sonar ring).
 
     Raises:
         ConfigError: for an unknown keyword, key or value, naming it.
@@ -72,18 +73,10 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         rc = config.robot
         self.max_speed_mps = rc.max_speed_mps
         self.max_turn_rate_rps = rc.max_turn_rate_rps
-        self.odometry = Odometry(config.odometry, rc.max_speed_mps, rc.max_turn_rate_rps, config.dt_s)
-        self.sensors: list[Sensor] = [self.odometry]
-        self.camera = BearingCamera(config.camera, self.world) if config.camera is not None else None
-        if self.camera is not None:
-            self.sensors.append(self.camera)
-        self.lidar = Lidar(config.lidar, self.world) if config.lidar is not None else None
-        if self.lidar is not None:
-            self.sensors.append(self.lidar)
-        self.sonar = Sonar(config.sonar, self.world) if config.sonar is not None else None
-        if self.sonar is not None:
-            self.sensors.append(self.sonar)
-        self.observation_space = spaces.Dict({s.key: s.space() for s in self.sensors})
+        state = self.world.snapshot()
+        #: the sensors by name, in the config's order (which is also the order they draw randomness)
+        self.sensors: dict[str, Sensor] = {name: build_sensor(name, sc, config, state) for name, sc in config.sensors.items()}
+        self.observation_space = spaces.Dict({s.key: s.space() for s in self.sensors.values()})
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self._overlays: list[Overlay] = []
         self._renderer: Any = None
@@ -109,7 +102,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
             if pose.shape != (3,) or not np.all(np.isfinite(pose)):
                 raise ValueError(f"options['robot_pose'] must be three finite numbers (x_m, y_m, theta_rad), got {given!r}")
             self.world.set_robot_pose(pose)
-        for sensor in self.sensors:
+        for sensor in self.sensors.values():
             sensor.reset()
         obs, info = self._observe()
         if self.render_mode == "human":
@@ -125,11 +118,12 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         # the commanded motion: turn by omega dt while driving the chord of that arc
         half = 0.5 * omega * dt
         commanded = np.array([v * dt * math.cos(half), v * dt * math.sin(half), omega * dt])
-        self.odometry.command(commanded, self._sensor_rng)
+        for sensor in self.sensors.values():
+            sensor.command(commanded, self._sensor_rng)
         slip = 1.0
-        odo = self.config.odometry
-        if odo.slip_probability > 0 and self._world_rng.random() < odo.slip_probability:
-            slip = 1.0 - self._world_rng.uniform(0.0, odo.slip_max_fraction)
+        rc = self.config.robot
+        if rc.slip_probability > 0 and self._world_rng.random() < rc.slip_probability:
+            slip = 1.0 - self._world_rng.uniform(0.0, rc.slip_max_fraction)
         heading = theta + half
         velocity = np.array([v * slip * math.cos(heading), v * slip * math.sin(heading)])
         n_contacts = len(self.world.contacts)
@@ -171,9 +165,22 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         return LandmarkMap(self.world.landmark_xy.copy(), self.world.landmark_names, (0.0, 0.0, w, h), walls)
 
     @property
-    def lidar_beam_angles_rad(self) -> NDArray[np.float64] | None:
-        """``(B,)`` the LIDAR's beam angles relative to the heading (ascending), or None without a LIDAR."""
-        return None if self.lidar is None else self.lidar.relative_angles.copy()
+    def sensor_metadata(self) -> dict[str, dict[str, Any]]:
+        """Per sensor name: its ``type``, observation ``key`` and the sensor's own metadata
+        (what a localizer or a recording needs to read its observations: a LIDAR's beam
+        angles and maximum range, a camera's landmark count and noise). Plain values only."""
+        return {name: {"type": s.config.type_name, "key": s.key, **s.metadata()} for name, s in self.sensors.items()}
+
+    def sensor_of_type(self, type_name: str) -> Sensor | None:
+        """The env's one sensor of a registered type (``"lidar"``), None without one (see
+        :meth:`WorldConfig.sensor_of_type`)."""
+        config = self.config.sensor_of_type(type_name)
+        return None if config is None else next(s for s in self.sensors.values() if s.config is config)
+
+    @property
+    def state(self) -> WorldState:
+        """The frozen snapshot of the world at the current step (ground truth: not for policies)."""
+        return self.world.snapshot()
 
     @property
     def last_observation(self) -> dict[str, NDArray[np.float32]]:
@@ -186,8 +193,9 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
     def _observe(self) -> tuple[dict[str, NDArray[np.float32]], dict[str, Any]]:
         obs: dict[str, NDArray[np.float32]] = {}
         info: dict[str, Any] = {"true_pose": self.world.robot_pose, "time_s": self.world.time_s, "contacts": []}
-        for sensor in self.sensors:
-            value, extra = sensor.observe(self.world, self._sensor_rng)
+        state = self.world.snapshot()
+        for sensor in self.sensors.values():
+            value, extra = sensor.observe(state, self._sensor_rng)
             obs[sensor.key] = value
             info.update(extra)
         self._last_obs = obs
@@ -208,21 +216,36 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
 def apply_overrides(config: WorldConfig, crowd_size: int | None = None, **overrides: Any) -> WorldConfig:
     """Apply env keyword overrides to a world config, checking every key and value.
 
+    A keyword is a world section (``robot``, ``crowd``), the name of one of the world's
+    sensors (its fields are overridden), or a registered sensor type the world lacks (added
+    under that name with its defaults and the given fields).
+
     Raises:
         ConfigError: naming an unknown keyword, an unknown key inside a section, or a bad value.
     """
-    unknown = sorted(set(overrides) - set(OVERRIDE_SECTIONS))
-    if unknown:
-        valid = ["world", "render_mode", "crowd_size", *OVERRIDE_SECTIONS]
-        raise ConfigError(f"unknown env keyword {unknown[0]!r} = {overrides[unknown[0]]!r} (valid: {', '.join(valid)})")
     changes: dict[str, Any] = {}
+    sensors: dict[str, Any] = {}
     for section, value in overrides.items():
+        known = section in OVERRIDE_SECTIONS or section in config.sensors or section in sensor_types()
+        if not known:
+            valid = ["world", "render_mode", "crowd_size", *OVERRIDE_SECTIONS, *config.sensors]
+            added = [t for t in sensor_types() if t not in config.sensors]
+            raise ConfigError(
+                f"unknown env keyword {section!r} = {value!r} (valid: {', '.join(valid)}; "
+                f"or a sensor type to add: {', '.join(added)})"
+            )
         if value is None:
             continue
         if not isinstance(value, Mapping):
             raise ConfigError(f"env kwarg {section!r} must be a mapping of overrides, got {type(value).__name__} {value!r}")
-        # a sensor the world lacks (camera, lidar, sonar) is added: its defaults, then the overrides
-        changes[section] = dict(value)
+        if section in OVERRIDE_SECTIONS:
+            changes[section] = dict(value)
+        elif section in config.sensors:
+            sensors[section] = dict(value)
+        else:  # a sensor type the world lacks: its defaults, then the overrides
+            sensors[section] = {"type": section, **value}
+    if sensors:
+        changes["sensors"] = sensors
     if crowd_size is not None:
         crowd = dict(changes.get("crowd", {}))
         if "count" in crowd:

@@ -1,8 +1,9 @@
 """Drawing a :class:`~envs.localization_env.LocalizationEnv` as ``rgb_array`` frames or a window.
 
 The frame shows the floor, walls, landmarks (coloured while the camera really sees them,
-grey otherwise), the crowd and ball, the true robot pose, sight lines to the visible
-landmarks, LIDAR hit points and a one-line caption. Wrappers add their own drawing through
+grey otherwise), the crowd and ball, the true robot pose, what each sensor draws of itself
+(a camera's sight lines under the bodies, range sensors' hit points over them) and a
+one-line caption. Wrappers add their own drawing through
 ``env.add_overlay(draw)``: every frame calls ``draw(canvas)`` with a :class:`Canvas` whose
 methods take world coordinates (metres, y up).
 
@@ -75,9 +76,6 @@ CROWD_OUTLINE: Color = (10, 10, 10)
 BALL: Color = (255, 120, 0)
 ROBOT_FILL: Color = (250, 250, 250)
 ROBOT_OUTLINE: Color = (220, 0, 0)
-SIGHT_LINE: Color = (255, 255, 160)
-LIDAR_HIT: Color = (255, 20, 20)
-SONAR_HIT: Color = (0, 200, 255)  # sonar readings, drawn at each cone's centre
 
 
 def landmark_color(index: int) -> Color:
@@ -357,35 +355,30 @@ class Renderer:
         Returns:
             ``(H, W, 3)`` uint8 frame in ``"rgb_array"`` mode, ``None`` in ``"human"`` mode.
         """
-        world = env.world
+        state = env.world.snapshot()
         if self._background is None:
-            self._background = self._draw_background(world.seg_a, world.seg_b)
+            self._background = self._draw_background(state.seg_a, state.seg_b)
         self.surface.blit(self._background, (0, 0))
         canvas = self.canvas()
-        pose = world.robot_pose
-        visible = np.asarray(env.last_info.get("visible_landmarks", ()), dtype=np.int64)
-
-        for j in visible:
-            canvas.line(pose[:2], world.landmark_xy[j], SIGHT_LINE, 1)
-        camera = env.config.camera
-        if camera is not None and camera.fov_rad < 2 * np.pi:  # the edges of a narrow camera's view
-            reach = float(np.hypot(*np.ptp(world.seg_a, axis=0))) if len(world.seg_a) else 10.0
-            for side in (-0.5, 0.5):
-                edge = pose[2] + side * camera.fov_rad
-                canvas.line(pose[:2], pose[:2] + reach * np.array([np.cos(edge), np.sin(edge)]), SIGHT_LINE, 1)
-        for xy, r in zip(world.positions[world.crowd_rows], world.radii_m[world.crowd_rows]):
+        pose = state.robot_pose
+        readings, info = env.last_observation, env.last_info
+        sensors = [s for s in env.sensors.values() if s.key in readings]
+        for sensor in sensors:
+            if sensor.draw_layer == "under":
+                sensor.draw(canvas, state, readings[sensor.key], info)
+        for xy, r in zip(state.positions[state.crowd_rows], state.radii_m[state.crowd_rows]):
             canvas.circle(xy[0], xy[1], r, self.crowd_fill, 0)
             canvas.circle(xy[0], xy[1], r, CROWD_OUTLINE, 1)
-        if world.ball_row >= 0:
-            bx, by = world.positions[world.ball_row]
-            canvas.circle(bx, by, world.radii_m[world.ball_row], BALL, 0)
-        self._draw_landmarks(canvas, world.landmark_xy, world.landmark_radius_m, visible)
-        canvas.circle(pose[0], pose[1], world.radii_m[0], ROBOT_FILL, 0)
-        canvas.pose(pose[0], pose[1], pose[2], ROBOT_OUTLINE, world.radii_m[0], 2)
-        for sensor, colour, size in ((env.lidar, LIDAR_HIT, 2), (env.sonar, SONAR_HIT, 4)):
-            scan = env.last_observation.get(sensor.key) if sensor is not None else None
-            if scan is not None:
-                canvas.points(sensor.hit_points(scan, pose), colour, size)
+        if state.ball_row >= 0:
+            bx, by = state.positions[state.ball_row]
+            canvas.circle(bx, by, state.radii_m[state.ball_row], BALL, 0)
+        visible = np.asarray(info.get("visible_landmarks", ()), dtype=np.int64)
+        self._draw_landmarks(canvas, state.landmark_xy, state.landmark_radius_m, visible)
+        canvas.circle(pose[0], pose[1], state.radii_m[0], ROBOT_FILL, 0)
+        canvas.pose(pose[0], pose[1], pose[2], ROBOT_OUTLINE, state.radii_m[0], 2)
+        for sensor in sensors:
+            if sensor.draw_layer != "under":
+                sensor.draw(canvas, state, readings[sensor.key], info)
 
         for draw in overlays:
             draw(canvas)

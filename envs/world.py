@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from envs.config import WorldConfig
 from envs.crowd import Crowd, make_crowd
+from envs.state import WorldState
 
 # collision types
 ROBOT, CROWD, BALL, WALL, LANDMARK = 1, 2, 3, 4, 5
@@ -99,6 +100,8 @@ class World:
         ball_occludes = has_ball and config.crowd.soccer.ball_occludes
         self.occluder_rows = slice(1, 1 + self.crowd.count + (1 if ball_occludes else 0))
         self.occluder_radius_m = self.radii_m[self.occluder_rows].copy()
+        for static in (self.seg_a, self.seg_b, self.landmark_xy, self.landmark_radius_m, self.landmark_max_range_m, self.radii_m):
+            static.setflags(write=False)  # shared by every snapshot
         self._state_buffer = pbatch.Buffer()
         # per body (vx, vy, omega, fx, fy), the layout pymunk.batch expects for _FIELDS_COMMAND
         self._command = np.zeros((self.body_count + 1, 5), dtype=np.float64)
@@ -270,6 +273,29 @@ class World:
         self.positions = self._state[:, 0:2]
         self.angles = self._state[:, 2]
         self.velocities = self._state[:, 3:5]
+        self._snapshot: WorldState | None = None
+
+    def snapshot(self) -> WorldState:
+        """The frozen :class:`~envs.state.WorldState` of the current step (made once per step)."""
+        if self._snapshot is None:
+            self._snapshot = WorldState(
+                time_s=self.time_s,
+                step=self.step_count,
+                positions=self.positions,
+                angles=self.angles,
+                velocities=self.velocities,
+                radii_m=self.radii_m,
+                crowd_rows=self.crowd_rows,
+                ball_row=self.ball_row,
+                occluder_rows=self.occluder_rows,
+                seg_a=self.seg_a,
+                seg_b=self.seg_b,
+                landmark_xy=self.landmark_xy,
+                landmark_radius_m=self.landmark_radius_m,
+                landmark_max_range_m=self.landmark_max_range_m,
+                landmark_names=self.landmark_names,
+            )
+        return self._snapshot
 
     # ------------------------------------------------------------------ dynamics
     def step(self, robot_velocity_xy: NDArray[np.float64], robot_omega: float, rng: np.random.Generator) -> None:

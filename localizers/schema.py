@@ -94,7 +94,11 @@ def replace_checked(obj: T, overrides: Mapping[str, Any], where: str) -> T:
 
     Nested dataclass fields may be overridden by a mapping, which is merged field by field;
     a mapping field (``env_kwargs``) is merged key by key (:func:`merge_nested`), so that an
-    override of one key keeps the others.
+    override of one key keeps the others; a dataclass inside a mapping field (a world's
+    sensors) is again merged field by field.
+
+    A class with a ``__from_config__(value, where)`` classmethod builds itself from a value
+    (a config tagged by a registered type name does).
     """
     if not dataclasses.is_dataclass(obj) or isinstance(obj, type):
         raise TypeError(f"replace_checked needs a dataclass instance, got {type(obj).__name__}")
@@ -111,6 +115,13 @@ def replace_checked(obj: T, overrides: Mapping[str, Any], where: str) -> T:
         if dataclasses.is_dataclass(current) and isinstance(value, Mapping):
             changes[key] = replace_checked(current, value, f"{where}.{key}")
         elif isinstance(current, Mapping) and isinstance(value, Mapping):
+            # entries that are dataclasses (a world's sensors) take their overrides field by field
+            value = {
+                k: replace_checked(current[k], v, f"{where}.{key}.{k}")
+                if dataclasses.is_dataclass(current.get(k)) and isinstance(v, Mapping)
+                else v
+                for k, v in value.items()
+            }
             changes[key] = _convert(hints[key], merge_nested(current, value), f"{where}.{key}")
         else:
             changes[key] = _convert(hints[key], value, f"{where}.{key}")
@@ -129,6 +140,10 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
     args = typing.get_args(tp)
     if tp is Any:
         return value
+    if isinstance(tp, type) and "__from_config__" in vars(tp):
+        # a type that builds itself (its own hook, not a base class's), e.g. a base config
+        # whose ``type`` entry names the registered subclass to build
+        return tp.__from_config__(value, where)
     if origin in (typing.Union, types.UnionType):
         if value is None and type(None) in args:
             return None

@@ -18,9 +18,10 @@ and adds to the observation:
 
 ``info["estimate"]`` holds the :class:`PoseEstimate` in world units for metrics. The
 localizer draws from its own generator, seeded from the env seed, so filtering never
-changes the world's random stream. This module knows the observation layout of crowdloc
-envs (keys ``odometry``, ``landmarks``, ``lidar``) but imports nothing from ``envs``: the
-LIDAR's beam angles come from the base env's ``lidar_beam_angles_rad``.
+changes the world's random stream. The measurements come from the sensor that the
+localizer's measurement kind reads (:mod:`localizers.measurements`), found through the base
+env's ``sensor_metadata``; odometry from the ``odometry`` sensor. This module imports
+nothing from ``envs``.
 """
 
 from __future__ import annotations
@@ -34,8 +35,9 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, Overlay, PoseEstimate, ScanMeasurement
+from localizers.base import LandmarkMap, Localizer, OdometryDelta, Overlay, PoseEstimate
 from localizers.geometry import circular_std
+from localizers.measurements import bearing_measurement, find_sensor, measurement_kind, measurement_kinds
 from localizers.registry import make_localizer, spec
 from localizers.schema import ConfigError
 
@@ -79,12 +81,18 @@ def decode_estimate(encoded: NDArray[np.float32], bounds_m: tuple[float, float, 
     )
 
 
-def bearing_measurement(landmarks_obs: NDArray[np.float32]) -> BearingMeasurement:
-    """Turn the camera's flat ``(3 L,)`` slots ``(visible, cos, sin)`` into a :class:`BearingMeasurement`."""
-    slots = np.asarray(landmarks_obs, dtype=np.float64).reshape(-1, 3)
-    seen = np.flatnonzero(slots[:, 0] > 0.5)
-    slots = slots[seen]
-    return BearingMeasurement(seen.astype(np.int64), np.arctan2(slots[:, 2], slots[:, 1]))
+def _first_kind(sensors: Mapping[str, Mapping[str, Any]], name: str) -> str:
+    """The first registered measurement kind whose sensor the world has."""
+    types = {meta.get("type") for meta in sensors.values()}
+    for kind in measurement_kinds():
+        if measurement_kind(kind).sensor_type in types:
+            return kind
+    raise ConfigError(
+        f"localizer {name!r}: this world has no sensor that a measurement kind reads ({', '.join(map(str, types))})"
+    )
+
+
+__all__ = ["LocalizationObservation", "bearing_measurement", "decode_estimate", "encode_estimate", "hypothesis_spread"]
 
 
 class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
@@ -99,7 +107,8 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         belief_spread: also observe the spread of the localizer's hypotheses (module docstring).
 
     Raises:
-        ConfigError: unknown localizer or parameter, or a world without the sensor it needs.
+        ConfigError: unknown localizer or parameter, a world without the sensor it needs, or
+            an env whose observation already has a key the wrapper adds.
     """
 
     def __init__(
@@ -120,41 +129,56 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         base = env.unwrapped
         if not isinstance(env.observation_space, spaces.Dict):
             raise ConfigError(f"LocalizationObservation needs a Dict observation space, got {env.observation_space!r}")
+        sensed = env.observation_space.spaces
+        added = {
+            "estimate": spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32),
+            "estimate_valid": spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32),
+            "estimate_spread": spaces.Box(0.0, 1.0, shape=(2,), dtype=np.float32),
+            **({"belief_spread": spaces.Box(0.0, 1.0, shape=(2,), dtype=np.float32)} if belief_spread else {}),
+        }
+        for key in added:
+            if key in sensed:
+                raise ConfigError(
+                    f"LocalizationObservation adds the observation key {key!r}, which the env already has "
+                    f"(keys: {', '.join(sensed)}); wrap an env without it"
+                )
+        for needed in ("landmark_map", "sensor_metadata", "config"):
+            if not hasattr(base, needed):
+                raise ConfigError(f"LocalizationObservation needs a crowdloc env (its unwrapped env has no {needed!r})")
         self.landmark_map: LandmarkMap = base.landmark_map  # type: ignore[attr-defined]
         dt_s = float(base.config.dt_s)  # type: ignore[attr-defined]
-        sensed = env.observation_space.spaces
+        sensors: dict[str, dict[str, Any]] = base.sensor_metadata  # type: ignore[attr-defined]
         if isinstance(localizer, str):
             entry = spec(localizer)
-            if entry.measurement == "bearings" and "landmarks" not in sensed:
-                raise ConfigError(f"localizer {localizer!r} needs a bearing camera; this world has none")
             self.measurement = entry.measurement
-            self._scan_format(base, localizer)
             self.localizer_name = localizer
+            self._sensor = find_sensor(self.measurement, sensors, f"localizer {localizer!r}")
             self.localizer: Localizer = make_localizer(localizer, self.landmark_map, dt_s=dt_s, params=localizer_params)
             default_prior = "start" if entry.needs_prior else "none"
         else:
             if localizer_params:
                 raise ConfigError("localizer_params only apply to a localizer given by name")
             self.localizer_name = type(localizer).__name__
-            # a ready localizer gets bearings where the world has a camera, else LIDAR scans
-            self.measurement = "bearings" if "landmarks" in sensed or "lidar" not in sensed else "scan"
-            self._scan_format(base, self.localizer_name)
+            # a ready localizer names its kind (a ``measurement`` attribute) or gets the first the world offers
+            self.measurement = getattr(localizer, "measurement", None) or _first_kind(sensors, self.localizer_name)
+            self._sensor = find_sensor(self.measurement, sensors, f"localizer {self.localizer_name!r}")
             self.localizer = localizer
             default_prior = "none"
+        self._decode = measurement_kind(self.measurement).decode
+        self._sensor_key = str(sensors[self._sensor]["key"])
+        self._sensor_meta = sensors[self._sensor]
+        odometry = [meta["key"] for meta in sensors.values() if meta.get("type") == "odometry"]
+        if len(odometry) != 1:
+            raise ConfigError(
+                f"localizer {self.localizer_name!r} needs exactly one odometry sensor; this world has {len(odometry)}"
+            )
+        self._odometry_key = str(odometry[0])
         self.prior = prior or default_prior
         if self.prior not in ("start", "none"):
             raise ConfigError(f"prior must be 'start' or 'none', got {self.prior!r}")
         xmin, ymin, xmax, ymax = self.landmark_map.bounds_m
         self._diag = float(np.hypot(xmax - xmin, ymax - ymin))
-        self.observation_space = spaces.Dict(
-            {
-                **env.observation_space.spaces,
-                "estimate": spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32),
-                "estimate_valid": spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32),
-                "estimate_spread": spaces.Box(0.0, 1.0, shape=(2,), dtype=np.float32),
-                **({"belief_spread": spaces.Box(0.0, 1.0, shape=(2,), dtype=np.float32)} if belief_spread else {}),
-            }
-        )
+        self.observation_space = spaces.Dict({**sensed, **added})
         own_spread = getattr(self.localizer, "hypothesis_spread", None)  # a faster route to the same numbers
         self._hypothesis_spread = own_spread if callable(own_spread) else lambda: hypothesis_spread(self.localizer.overlay())
         self._rng = np.random.default_rng()
@@ -181,27 +205,11 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         info["estimate"] = self._estimate
         return self.observation(obs), float(reward), terminated, truncated, info
 
-    def _scan_format(self, base: Any, name: str) -> None:
-        """For a scan localizer: the LIDAR's beam angles and maximum range, or a ConfigError."""
-        self._scan_angles: NDArray[np.float64] | None = None
-        self._scan_max_range_m = 0.0
-        if self.measurement != "scan":
-            return
-        angles = getattr(base, "lidar_beam_angles_rad", None)
-        if angles is None or "lidar" not in self.env.observation_space.spaces:  # type: ignore[attr-defined]
-            raise ConfigError(f"localizer {name!r} needs a LIDAR; this world has none")
-        self._scan_angles = np.asarray(angles, dtype=np.float64)
-        self._scan_max_range_m = float(base.config.lidar.max_range_m)
-
     def _update(self, obs: Mapping[str, NDArray[np.float32]], first: bool) -> None:
         if not first:
-            d = obs["odometry"]
+            d = obs[self._odometry_key]
             self.localizer.predict(OdometryDelta(float(d[0]), float(d[1]), float(d[2])))
-        if self._scan_angles is not None:
-            ranges = np.asarray(obs["lidar"], dtype=np.float64)
-            self.localizer.update(ScanMeasurement(ranges, self._scan_angles, self._scan_max_range_m))
-        elif "landmarks" in obs:
-            self.localizer.update(bearing_measurement(obs["landmarks"]))
+        self.localizer.update(self._decode(obs[self._sensor_key], self._sensor_meta))
         self._estimate = self.localizer.estimate
 
     def observation(self, observation: dict[str, NDArray[np.float32]]) -> dict[str, NDArray[np.float32]]:

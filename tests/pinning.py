@@ -39,7 +39,7 @@ CASES: tuple[tuple[str, str, dict[str, Any]], ...] = (
             "sonar": {},
             "prior": "none",
             "belief_spread": True,
-            "odometry": {"slip_probability": 0.1},
+            "robot": {"slip_probability": 0.1},  # was odometry={...} before the sensor plug-ins
         },
     ),
     ("room_mcl_lidar", "crowdloc/CrowdedRoom-v0", {"localizer": "mcl_lidar", "lidar": {"beams": 271}}),

@@ -4,7 +4,7 @@ Episodes are recorded once (:func:`agents.replay.record`) and every trial replay
 localizer into the same recordings (see :mod:`agents.tune`); :func:`score_episode` is the
 per-episode objective, :class:`Objective` the Optuna trial function.
 
-The reads of the world's internals (camera, crowd kind, ball, crowd count, time step) are
+The reads of the world's config (its bearing camera, crowd kind, ball, crowd count, time step) are
 all in :meth:`EpisodeSetup.world` and :meth:`EpisodeSetup.facts`.
 """
 
@@ -127,7 +127,7 @@ class EpisodeSetup:
         if self.crowd_size is not None and self.crowd_size < 0:
             raise ConfigError(f"crowd size must be >= 0, got {self.crowd_size}")
         world = apply_overrides(envs.load_world(envs.ENV_WORLDS[self.env_id]), self.crowd_size, **dict(self.env_overrides))
-        if world.camera is None:
+        if world.sensor_of_type("bearing_camera") is None:
             raise ConfigError(f"{self.env_id} has no bearing camera; crowdloc tune replays bearing recordings")
         if self.scenario == "soccer" and not (world.crowd.kind == "soccer" and world.crowd.soccer.ball):
             raise ConfigError(f"scenario 'soccer' needs a world with a ball; {self.env_id} has none (try --scenario random_walk)")

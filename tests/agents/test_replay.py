@@ -197,7 +197,15 @@ def test_scans_are_the_lidar_leaves(room: Recording) -> None:
     assert len(fed) == room.steps and fed[5].max_range_m == room.lidar_max_range_m == 30.0
     np.testing.assert_array_equal(fed[5].ranges_m, room.lidar[5].astype(np.float64))
     np.testing.assert_array_equal(fed[5].angles_rad, room.lidar_angles_rad)
-    with pytest.raises(ValueError, match="no LIDAR"):
+    with pytest.raises(ValueError, match="needs a lidar sensor"):
         scans(exp1(max_steps=3))
+
+
+def test_a_recording_holds_every_sensor_by_key_with_its_metadata(room: Recording) -> None:
+    assert set(room.observations) == {"odometry", "lidar"}
+    assert {name: meta["type"] for name, meta in room.sensors.items()} == {"odometry": "odometry", "lidar": "lidar"}
+    assert room.observations["lidar"].shape == (room.steps, 1081) and room.observations["lidar"].dtype == np.float32
+    smaller = room.without("lidar")
+    assert set(smaller.observations) == {"odometry"} and smaller.lidar is None and room.lidar is not None
     with pytest.raises(ValueError, match="updates counter"):
         replay(exp1(max_steps=3), "candidate_sets", rng_seed=0, read="updates")

@@ -54,6 +54,13 @@ def edit_nested(section: str, key: str, value: object) -> Callable[[dict], None]
     return edit
 
 
+def edit_sensor(sensor: str, key: str, value: object) -> Callable[[dict], None]:
+    def edit(d: dict) -> None:
+        d["sensors"][sensor][key] = value
+
+    return edit
+
+
 def edit_landmark(key: str, value: object) -> Callable[[dict], None]:
     def edit(d: dict) -> None:
         d["landmarks"][1][key] = value
@@ -66,23 +73,32 @@ def edit_landmark(key: str, value: object) -> Callable[[dict], None]:
     [
         ("robocup_crowded", edit_top("bogus_key", 1), ["'bogus_key'"]),
         ("robocup_static", edit_nested("robot", "raduis_m", 0.2), ["'raduis_m'", "RobotConfig"]),
-        ("crowded_room", edit_nested("lidar", "beems", 10), ["'beems'"]),
+        ("crowded_room", edit_sensor("lidar", "beems", 10), ["'beems'"]),
         ("robocup_crowded", edit_landmark("colour", "red"), ["'colour'", "landmarks[1]"]),
         ("robocup_crowded", edit_top("dt_s", "fast"), ["'fast'", "dt_s", "expected a number"]),
-        ("crowded_room", edit_nested("lidar", "beams", 10.5), ["10.5", "beams", "expected an integer"]),
-        ("robocup_static", edit_nested("camera", "noise_std_rad", True), ["True", "noise_std_rad"]),
+        ("crowded_room", edit_sensor("lidar", "beams", 10.5), ["10.5", "beams", "expected an integer"]),
+        ("robocup_static", edit_sensor("camera", "noise_std_rad", True), ["True", "noise_std_rad"]),
         ("robocup_crowded", edit_top("size_m", [5.0]), ["size_m", "[5.0]", "expected 2 values"]),
         ("robocup_crowded", edit_nested("crowd", "kind", "zombies"), ["'zombies'", "kind"]),
         ("robocup_crowded", edit_nested("crowd", "count", 20), ["20", "crowd.count", "[0, 14]"]),
         ("robocup_crowded", edit_nested("crowd", "count", -1), ["-1", "crowd.count"]),
         ("robocup_crowded", edit_top("dt_s", 0.0), ["dt_s must be > 0, got 0.0"]),
         ("robocup_static", edit_landmark("max_range_m", -4.6), ["-4.6", "max_range_m"]),
-        ("robocup_static", edit_nested("odometry", "alpha3", -0.1), ["-0.1", "odometry.alpha3"]),
-        ("crowded_room", edit_nested("lidar", "fov_rad", 7.0), ["7.0", "lidar.fov_rad"]),
-        ("robocup_static", edit_nested("camera", "dropout_probability", 1.5), ["1.5", "dropout_probability"]),
+        ("robocup_static", edit_sensor("odometry", "alpha3", -0.1), ["-0.1", "odometry.alpha3"]),
+        ("crowded_room", edit_sensor("lidar", "fov_rad", 7.0), ["7.0", "lidar.fov_rad"]),
+        ("robocup_static", edit_sensor("camera", "dropout_probability", 1.5), ["1.5", "dropout_probability"]),
         ("robocup_crowded", edit_top("name", None), ["None", "name"]),
         ("robocup_crowded", lambda d: d.pop("dt_s"), ["missing required key 'dt_s'"]),
-        ("robocup_static", lambda d: d.pop("camera"), ["needs a camera or a lidar"]),
+        ("robocup_static", lambda d: d.pop("sensors"), ["needs at least one sensor"]),
+        ("robocup_static", edit_sensor("camera", "type", "telescope"), ["'telescope'", "sensors.camera", "bearing_camera"]),
+        ("robocup_static", lambda d: d["sensors"]["camera"].pop("type"), ["sensors.camera", "needs a 'type'"]),
+        ("crowded_room", edit_sensor("lidar", "type", "bearing_camera"), ["'beams'", "BearingCameraConfig"]),
+        ("crowded_room", lambda d: d["sensors"].update(camera={"type": "bearing_camera"}), ["'camera'", "needs landmarks"]),
+        (
+            "crowded_room",
+            lambda d: d["sensors"].update(rear={"type": "lidar", "beams": 9}),
+            ["sensors 'lidar' and 'rear' both write observation key 'lidar'"],
+        ),
         (
             "robocup_static",
             lambda d: d["landmarks"].append(dict(d["landmarks"][0])),
@@ -212,8 +228,11 @@ def test_good_env_kwargs_reach_the_config() -> None:
     )
     config = env.unwrapped.config
     assert config.crowd.count == 3
-    assert config.camera.noise_std_rad == 0.0 and isinstance(config.camera.noise_std_rad, float)
-    assert config.odometry.alpha1 == 0.1 and config.odometry.alpha2 == load_world("robocup_crowded").odometry.alpha2
+    assert config.sensors["camera"].noise_std_rad == 0.0 and isinstance(config.sensors["camera"].noise_std_rad, float)
+    assert (
+        config.sensors["odometry"].alpha1 == 0.1
+        and config.sensors["odometry"].alpha2 == load_world("robocup_crowded").sensors["odometry"].alpha2
+    )
     assert config.crowd.soccer.ball is False and config.crowd.soccer.goalkeeper is True
     assert env.unwrapped.world.ball_body is None
     env.close()

@@ -34,7 +34,7 @@ def commanded_increment(env: LocalizationEnv, action: np.ndarray) -> np.ndarray:
 
 def test_reported_odometry_noise_follows_the_alpha_model() -> None:
     env = LocalizationEnv("robocup_static", crowd_size=0)  # no TimeLimit: one long episode
-    alphas = env.config.odometry.alphas
+    alphas = env.config.sensors["odometry"].alphas
     assert min(alphas) > 0
     action = np.array([0.5, 0.5], dtype=np.float32)
     clean = to_rot_trans_rot(commanded_increment(env, action))
@@ -125,8 +125,8 @@ def test_a_push_moves_the_robot_without_odometry() -> None:
 
 
 def test_a_slip_moves_the_robot_less_than_reported() -> None:
-    slipping = {**NO_NOISE, "slip_probability": 1.0, "slip_max_fraction": 0.5}
-    env = LocalizationEnv("robocup_static", crowd_size=0, odometry=slipping)
+    slipping = {"slip_probability": 1.0, "slip_max_fraction": 0.5}
+    env = LocalizationEnv("robocup_static", crowd_size=0, odometry=NO_NOISE, robot=slipping)
     start = np.array([2.5, 5.0, 0.0])
     env.reset(seed=0, options={"robot_pose": start})
     action = np.array([0.5, 0.0], dtype=np.float32)

@@ -98,7 +98,7 @@ def test_occluded_landmark_is_grey_and_visible_landmarks_are_coloured() -> None:
 
 
 def test_a_narrow_camera_draws_the_edges_of_its_view() -> None:
-    from envs.render import SIGHT_LINE
+    from envs.sensors.bearing_camera import SIGHT_LINE
 
     frames = {}
     for fov in (2 * np.pi, np.pi / 2):
@@ -235,7 +235,9 @@ def test_record_video_writes_an_mp4(env_id: str, tmp_path: Path) -> None:
 
 
 def test_sonar_readings_are_drawn_where_they_hit() -> None:
-    from envs.render import SONAR_HIT
+    from envs.sensors import Sonar
+
+    SONAR_HIT = Sonar.hit_color
 
     frames = []
     for sonar in ({"range_std_m": 0.0}, None):

@@ -146,7 +146,7 @@ def test_noise_free_bearings_match_the_geometry(theta: float) -> None:
 
 def test_bearing_noise_has_the_configured_spread() -> None:
     env = static_env(crowd_size=0)
-    std = env.unwrapped.config.camera.noise_std_rad
+    std = env.unwrapped.config.sensors["camera"].noise_std_rad
     obs, _ = env.reset(seed=5, options={"robot_pose": [2.5, 7.0, 0.0]})
     landmark_xy = env.unwrapped.world.landmark_xy
     truth = np.arctan2(landmark_xy[:, 1] - 7.0, landmark_xy[:, 0] - 2.5)
@@ -194,7 +194,7 @@ def box_ranges(x: float, y: float, angles: np.ndarray, size: tuple[float, float]
 def test_lidar_in_the_empty_room_reads_the_wall_distances(pose: tuple[float, float, float]) -> None:
     env = gym.make("crowdloc/CrowdedRoom-v0", crowd_size=0, lidar={"range_std_m": 0.0})
     obs, _ = env.reset(seed=0, options={"robot_pose": list(pose)})
-    lidar = env.unwrapped.config.lidar
+    lidar = env.unwrapped.config.sensors["lidar"]
     lo, hi = lidar.relative_angles_rad
     assert hi - lo == pytest.approx(lidar.fov_rad)
     angles = pose[2] + np.linspace(lo, hi, lidar.beams)
@@ -210,7 +210,7 @@ def test_lidar_sees_a_person_in_front() -> None:
     world.place_crowd_member(0, (4.0, 3.0))
     world.place_crowd_member(1, (2.0, 0.8))  # to the right, at -90 deg (inside the 270 deg scan)
     obs, *_ = env.step(STILL)
-    lidar = env.unwrapped.config.lidar
+    lidar = env.unwrapped.config.sensors["lidar"]
     angles = np.linspace(*lidar.relative_angles_rad, lidar.beams)
     ahead = int(np.argmin(np.abs(angles)))
     below = int(np.argmin(np.abs(angles + math.pi / 2)))

@@ -616,13 +616,18 @@ def test_scan_localizer_passes_the_env_checker() -> None:
 
 def test_beam_angles_come_from_the_base_env() -> None:
     env = gym.make("crowdloc/CrowdedRoom-v0").unwrapped
-    angles = env.lidar_beam_angles_rad  # type: ignore[attr-defined]
+    meta = env.sensor_metadata["lidar"]  # type: ignore[attr-defined]
+    assert (meta["type"], meta["key"], meta["max_range_m"]) == ("lidar", "lidar", 30.0)
+    angles = meta["beam_angles_rad"]
     assert angles.shape == (1081,)
     assert angles[0] == pytest.approx(-0.75 * math.pi) and angles[-1] == pytest.approx(0.75 * math.pi)
-    assert gym.make("crowdloc/RoboCupCrowded-v0").unwrapped.lidar_beam_angles_rad is None  # type: ignore[attr-defined]
+    assert "lidar" not in gym.make("crowdloc/RoboCupCrowded-v0").unwrapped.sensor_metadata  # type: ignore[attr-defined]
 
 
 @pytest.mark.parametrize("name", ["mcl_lidar", "far_point_mcl"])
 def test_scan_localizer_on_a_world_without_lidar_is_refused(name: str) -> None:
-    with pytest.raises(ConfigError, match=rf"localizer '{name}' needs a LIDAR; this world has none"):
+    with pytest.raises(
+        ConfigError,
+        match=rf"localizer '{name}' needs a lidar sensor \(scan measurements\); this world has odometry \(odometry\), camera",
+    ):
         gym.make("crowdloc/RoboCupCrowded-v0", localizer=name)

@@ -224,5 +224,41 @@ def test_belief_spread_is_observed_only_when_asked_and_shows_the_hypotheses_befo
 
 
 def test_a_bearing_localizer_on_a_lidar_world_is_refused() -> None:
-    with pytest.raises(ConfigError, match="bearing camera"):
+    with pytest.raises(ConfigError, match="needs a bearing_camera sensor"):
         gym.make("crowdloc/CrowdedRoom-v0", localizer="candidate_sets")
+
+
+class _ExtraKey(gym.ObservationWrapper):
+    """Adds one constant observation entry ``key`` (to collide with the localizer wrapper's)."""
+
+    def __init__(self, env: gym.Env, key: str) -> None:
+        super().__init__(env)
+        self.key = key
+        self.observation_space = gym.spaces.Dict({**env.observation_space.spaces, key: gym.spaces.Box(0.0, 1.0, (1,))})
+
+    def observation(self, observation: dict) -> dict:
+        return {**observation, self.key: np.zeros(1, dtype=np.float32)}
+
+
+@pytest.mark.parametrize("key", ["estimate", "estimate_valid", "estimate_spread", "belief_spread"])
+def test_a_key_the_wrapper_adds_may_not_be_in_the_env_already(key: str) -> None:
+    env = _ExtraKey(gym.make("crowdloc/RoboCupCrowded-v0"), key)
+    with pytest.raises(ConfigError, match=rf"adds the observation key '{key}', which the env already has"):
+        LocalizationObservation(env, "candidate_sets", belief_spread=True)
+    if key == "belief_spread":  # only a wrapper that adds it refuses it
+        LocalizationObservation(env, "candidate_sets", belief_spread=False)
+
+
+def test_a_sensor_can_carry_the_bearings_under_another_key() -> None:
+    # the wrapper finds the camera by its type, not by the observation key
+    moved = gym.make("crowdloc/RoboCupCrowded-v0", localizer="candidate_sets", camera={"key": "bearings_seen"})
+    usual = gym.make("crowdloc/RoboCupCrowded-v0", localizer="candidate_sets")
+    a, _ = moved.reset(seed=0)
+    b, _ = usual.reset(seed=0)
+    assert "landmarks" not in a and a["bearings_seen"].shape == (24,)
+    for _ in range(20):
+        np.testing.assert_array_equal(a["estimate"], b["estimate"])
+        np.testing.assert_array_equal(a["bearings_seen"], b["landmarks"])
+        a, *_ = moved.step(np.array([0.5, 0.3], dtype=np.float32))
+        b, *_ = usual.step(np.array([0.5, 0.3], dtype=np.float32))
+    assert b["estimate_valid"][0] == 1.0

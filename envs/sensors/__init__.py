@@ -1,0 +1,42 @@
+"""Sensors as plug-ins: one module per sensor type, registered by type name.
+
+Built in: ``odometry`` (:mod:`.odometry`), ``bearing_camera`` (:mod:`.bearing_camera`),
+``lidar`` and ``sonar`` (:mod:`.ranging`). See :mod:`.base` for the interface and
+``docs/architecture.md`` for adding one.
+"""
+
+from __future__ import annotations
+
+from envs.sensors.base import (
+    Sensor,
+    SensorBase,
+    SensorConfig,
+    SensorType,
+    build_sensor,
+    register_sensor,
+    sensor_type,
+    sensor_types,
+)
+from envs.sensors.bearing_camera import BearingCamera, BearingCameraConfig
+from envs.sensors.odometry import Odometry, OdometryConfig
+from envs.sensors.ranging import Lidar, LidarConfig, RangeSensor, Sonar, SonarConfig
+
+__all__ = [
+    "BearingCamera",
+    "BearingCameraConfig",
+    "Lidar",
+    "LidarConfig",
+    "Odometry",
+    "OdometryConfig",
+    "RangeSensor",
+    "Sensor",
+    "SensorBase",
+    "SensorConfig",
+    "SensorType",
+    "Sonar",
+    "SonarConfig",
+    "build_sensor",
+    "register_sensor",
+    "sensor_type",
+    "sensor_types",
+]

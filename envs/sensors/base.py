@@ -1,0 +1,167 @@
+"""The sensor plug-in interface and its registry.
+
+A sensor type is a config dataclass (a :class:`SensorConfig`) plus a class built from it,
+registered under a type name with :func:`register_sensor`. A world YAML names its sensors
+as a mapping from sensor name to a config tagged by type::
+
+    sensors:
+      odometry: {type: odometry, alpha1: 0.02}
+      camera: {type: bearing_camera, noise_std_rad: 0.0175}
+
+and the env builds whatever is named there. Each config's ``key`` is the observation key
+its readings appear under (every type has a default). Adding a sensor is one module that
+registers its type, imported before the world is loaded (the built-in ones are imported by
+:mod:`envs.sensors`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeVar
+
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from envs.state import WorldState
+from localizers.schema import ConfigError, from_mapping
+
+if TYPE_CHECKING:
+    from envs.config import WorldConfig
+
+ConfigT = TypeVar("ConfigT", bound="SensorConfig")
+SensorT = TypeVar("SensorT")
+
+
+class SensorConfig:
+    """Base of every sensor config (a frozen dataclass with a ``key: str`` field).
+
+    Loaded from a mapping with a ``type`` entry naming a registered sensor type; the other
+    entries are that type's fields, checked by the strict loader.
+    """
+
+    type_name: ClassVar[str] = ""
+    key: str
+
+    @classmethod
+    def __from_config__(cls, value: Any, where: str) -> SensorConfig:
+        """Build the config of the type named by ``value["type"]`` (the strict loader's hook)."""
+        if isinstance(value, SensorConfig):
+            return value
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{where}: expected a mapping with a 'type' (one of {', '.join(sensor_types())}), got {value!r}")
+        if "type" not in value:
+            raise ConfigError(f"{where}: a sensor needs a 'type' (one of {', '.join(sensor_types())})")
+        entry = sensor_type(value["type"], where)
+        return from_mapping(entry.config_cls, {k: v for k, v in value.items() if k != "type"}, where)
+
+    def check_world(self, world: WorldConfig, name: str) -> None:
+        """Raise :class:`ConfigError` if this sensor cannot work in ``world`` (override as needed)."""
+
+
+class Sensor(Protocol):
+    """What the env calls on a sensor.
+
+    ``observe`` returns the observation array (float32, inside ``space()``) and a dict of
+    ground-truth facts for ``info``. ``command`` sees the exact commanded increment before
+    every physics step (odometry records it). ``metadata`` is what a localizer or a
+    recording needs to interpret the readings (plain numbers and arrays, no env objects).
+    ``draw`` adds the sensor to a rendered frame; ``draw_layer`` says whether it goes
+    under the bodies (``"under"``) or over them (``"over"``).
+    """
+
+    name: str
+    key: str
+    config: Any
+    draw_layer: str
+
+    def space(self) -> spaces.Box: ...
+
+    def reset(self) -> None: ...
+
+    def command(self, delta: NDArray[np.float64], rng: np.random.Generator) -> None: ...
+
+    def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]: ...
+
+    def metadata(self) -> dict[str, Any]: ...
+
+    def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None: ...
+
+
+class SensorBase:
+    """Defaults for the optional parts of :class:`Sensor` (no command hook, no metadata, drawn over the bodies)."""
+
+    name: str
+    key: str
+    draw_layer = "over"
+
+    def reset(self) -> None:
+        pass
+
+    def command(self, delta: NDArray[np.float64], rng: np.random.Generator) -> None:
+        pass
+
+    def metadata(self) -> dict[str, Any]:
+        return {}
+
+    def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None:
+        pass
+
+
+#: builds a sensor from its name, its config, the world config and the world's first state
+SensorFactory = Callable[[str, Any, "WorldConfig", WorldState], Sensor]
+
+
+@dataclass(frozen=True)
+class SensorType:
+    """A registered sensor type: its name, config class and factory."""
+
+    name: str
+    config_cls: type[SensorConfig]
+    build: SensorFactory
+
+
+_TYPES: dict[str, SensorType] = {}
+
+
+def register_sensor(type_name: str, config_cls: type[ConfigT]) -> Callable[[type[SensorT]], type[SensorT]]:
+    """Class decorator: register a sensor class (``cls(name, config, world, state)``) under ``type_name``.
+
+    Raises:
+        ValueError: if the name is taken by another class, or the config is not a
+            :class:`SensorConfig` dataclass with a ``key`` field.
+    """
+    if not (dataclasses.is_dataclass(config_cls) and issubclass(config_cls, SensorConfig)):
+        raise ValueError(f"sensor type {type_name!r}: {config_cls.__name__} must be a dataclass subclassing SensorConfig")
+    if "key" not in {f.name for f in dataclasses.fields(config_cls)}:
+        raise ValueError(f"sensor type {type_name!r}: {config_cls.__name__} needs a 'key' field (its observation key)")
+
+    def decorate(cls: type[SensorT]) -> type[SensorT]:
+        current = _TYPES.get(type_name)
+        if current is not None and (current.build is not cls or current.config_cls is not config_cls):
+            qual = f"{current.build.__module__}.{getattr(current.build, '__qualname__', current.build)}"
+            raise ValueError(f"sensor type {type_name!r} is already registered by {qual}")
+        config_cls.type_name = type_name
+        _TYPES[type_name] = SensorType(type_name, config_cls, cls)  # type: ignore[arg-type]
+        return cls
+
+    return decorate
+
+
+def sensor_types() -> list[str]:
+    """The registered sensor type names, sorted."""
+    return sorted(_TYPES)
+
+
+def sensor_type(name: Any, where: str = "sensor type") -> SensorType:
+    """The registered type ``name``, or a :class:`ConfigError` listing the known ones."""
+    if not isinstance(name, str) or name not in _TYPES:
+        raise ConfigError(f"{where}: unknown sensor type {name!r} (registered: {', '.join(sensor_types())})")
+    return _TYPES[name]
+
+
+def build_sensor(name: str, config: SensorConfig, world: WorldConfig, state: WorldState) -> Sensor:
+    """The sensor ``config`` describes, named ``name``."""
+    return sensor_type(config.type_name, f"sensor {name!r}").build(name, config, world, state)

@@ -1,0 +1,82 @@
+"""``WorldState``: a frozen snapshot of what stands where, read by sensors, crowds and the renderer.
+
+The world exports one snapshot per step (:meth:`envs.world.World.snapshot`). Its arrays
+are never written after the snapshot is taken (the world makes fresh arrays every step and
+marks the static ones read-only), so a snapshot handed out earlier keeps describing its
+own step. Nothing here touches pymunk.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+@dataclass(frozen=True)
+class WorldState:
+    """The world at one step.
+
+    Attributes:
+        time_s: simulated time; ``step``: steps since the reset.
+        positions: ``(B, 2)`` body centres; row 0 is our robot, then the crowd's bodies.
+        angles: ``(B,)`` body headings (unwrapped); ``velocities``: ``(B, 2)``.
+        radii_m: ``(B,)`` body footprint radii.
+        crowd_rows: rows of the crowd's members (robots, people).
+        ball_row: the ball's row, or -1 without a ball.
+        occluder_rows: rows whose discs block a camera's sight lines.
+        seg_a, seg_b: ``(S, 2)`` wall segments (static; they occlude and collide).
+        landmark_xy: ``(L, 2)``, ``landmark_radius_m`` and ``landmark_max_range_m``: ``(L,)``;
+            ``landmark_names``: ``L`` names.
+    """
+
+    time_s: float
+    step: int
+    positions: NDArray[np.float64]
+    angles: NDArray[np.float64]
+    velocities: NDArray[np.float64]
+    radii_m: NDArray[np.float64]
+    crowd_rows: slice
+    ball_row: int
+    occluder_rows: slice
+    seg_a: NDArray[np.float64]
+    seg_b: NDArray[np.float64]
+    landmark_xy: NDArray[np.float64]
+    landmark_radius_m: NDArray[np.float64]
+    landmark_max_range_m: NDArray[np.float64]
+    landmark_names: tuple[str, ...]
+
+    @property
+    def body_count(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def robot_xy(self) -> NDArray[np.float64]:
+        """``(2,)`` our robot's position."""
+        return self.positions[0]
+
+    @property
+    def robot_heading_rad(self) -> float:
+        """Our robot's heading as pymunk integrates it (not wrapped)."""
+        return float(self.angles[0])
+
+    @property
+    def robot_pose(self) -> NDArray[np.float64]:
+        """``(3,)`` true pose of our robot, heading wrapped to ``[-pi, pi)``."""
+        x, y = self.positions[0]
+        theta = (self.angles[0] + math.pi) % (2 * math.pi) - math.pi
+        return np.array([x, y, theta])
+
+    @property
+    def robot_radius_m(self) -> float:
+        return float(self.radii_m[0])
+
+    @property
+    def occluder_xy(self) -> NDArray[np.float64]:
+        return self.positions[self.occluder_rows]
+
+    @property
+    def occluder_radius_m(self) -> NDArray[np.float64]:
+        return self.radii_m[self.occluder_rows]

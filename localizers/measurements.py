@@ -1,0 +1,106 @@
+"""Measurement kinds as plug-ins: how one sensor's observation becomes what a localizer consumes.
+
+A :class:`MeasurementKind` names the sensor type whose observations it reads and one
+``decode(observation, metadata)`` function that turns an observation array (and the
+sensor's metadata: beam angles, maximum range, ...) into a measurement dataclass of
+:mod:`localizers.base`. The localizer wrapper, the recordings of ``agents.replay`` and
+``crowdloc eval`` go through :func:`decode`, so they handle any registered kind without a
+branch on observation keys. Built in: ``bearings`` (a bearing camera's slots) and ``scan``
+(a LIDAR's ranges). This module imports nothing from ``envs``: metadata are plain values.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from localizers.base import BearingMeasurement, ScanMeasurement
+from localizers.schema import ConfigError
+
+Decoder = Callable[[NDArray[np.float32], Mapping[str, Any]], Any]
+
+
+@dataclass(frozen=True)
+class MeasurementKind:
+    """A registered measurement kind.
+
+    Attributes:
+        name: what localizer specs name (``"bearings"``).
+        sensor_type: the registered sensor type whose observations it decodes (``"bearing_camera"``).
+        decode: ``decode(observation, metadata) -> measurement``.
+        summary: one line for listings.
+    """
+
+    name: str
+    sensor_type: str
+    decode: Decoder
+    summary: str = ""
+
+
+_KINDS: dict[str, MeasurementKind] = {}
+
+
+def register_measurement(kind: MeasurementKind) -> MeasurementKind:
+    """Register ``kind`` (again with the same decoder is fine; another decoder is an error)."""
+    current = _KINDS.get(kind.name)
+    if current is not None and current != kind:
+        raise ValueError(f"measurement kind {kind.name!r} is already registered (decoding {current.sensor_type!r})")
+    _KINDS[kind.name] = kind
+    return kind
+
+
+def measurement_kinds() -> list[str]:
+    """The registered kinds, in registration order."""
+    return list(_KINDS)
+
+
+def measurement_kind(name: str) -> MeasurementKind:
+    """The registered kind ``name``, or a :class:`ConfigError` listing the known ones."""
+    if name not in _KINDS:
+        raise ConfigError(f"unknown measurement kind {name!r} (registered: {', '.join(_KINDS)})")
+    return _KINDS[name]
+
+
+def decode(kind: str, observation: NDArray[np.float32], metadata: Mapping[str, Any]) -> Any:
+    """The measurement of kind ``kind`` in one observation array of its sensor."""
+    return measurement_kind(kind).decode(observation, metadata)
+
+
+def find_sensor(kind: str, sensors: Mapping[str, Mapping[str, Any]], needed_by: str) -> str:
+    """The one sensor (by name) among ``sensors`` (name -> metadata with a ``type``) that
+    ``kind`` reads, or a :class:`ConfigError` saying which sensor is missing or ambiguous."""
+    want = measurement_kind(kind).sensor_type
+    names = [name for name, meta in sensors.items() if meta.get("type") == want]
+    if not names:
+        have = ", ".join(f"{n} ({m.get('type')})" for n, m in sensors.items()) or "none"
+        raise ConfigError(f"{needed_by} needs a {want} sensor ({kind} measurements); this world has {have}")
+    if len(names) > 1:
+        raise ConfigError(f"{needed_by} reads {kind} from a {want} sensor, and this world has several: {', '.join(names)}")
+    return names[0]
+
+
+def bearing_measurement(landmarks_obs: NDArray[np.float32], metadata: Mapping[str, Any] | None = None) -> BearingMeasurement:
+    """Turn the camera's flat ``(3 L,)`` slots ``(visible, cos, sin)`` into a :class:`BearingMeasurement`."""
+    slots = np.asarray(landmarks_obs, dtype=np.float64).reshape(-1, 3)
+    seen = np.flatnonzero(slots[:, 0] > 0.5)
+    slots = slots[seen]
+    return BearingMeasurement(seen.astype(np.int64), np.arctan2(slots[:, 2], slots[:, 1]))
+
+
+def scan_measurement(ranges: NDArray[np.float32], metadata: Mapping[str, Any]) -> ScanMeasurement:
+    """A LIDAR's ``(B,)`` ranges with the beam angles and maximum range of its metadata."""
+    return ScanMeasurement(
+        np.asarray(ranges, dtype=np.float64),
+        np.asarray(metadata["beam_angles_rad"], dtype=np.float64),
+        float(metadata["max_range_m"]),
+    )
+
+
+BEARINGS = register_measurement(
+    MeasurementKind("bearings", "bearing_camera", bearing_measurement, "identified landmark bearings")
+)
+SCAN = register_measurement(MeasurementKind("scan", "lidar", scan_measurement, "a 2-D range scan"))
