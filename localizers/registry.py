@@ -26,7 +26,7 @@ class LocalizerSpec:
     module: str
     cls: str
     params_cls: str
-    measurement: str  # "bearings" or "scan"
+    measurement: str  # a registered measurement kind (localizers.measurements): "bearings", "scan", ...
     needs_prior: bool  # needs the start pose (dead reckoning and the Kalman filter of the paper)
     summary: str
 
@@ -97,6 +97,25 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         "LIDAR MCL on scans accumulated over 0.5 m of travel, far point per angular bin (paper B's method)",
     ),
 }
+
+
+def register_localizer(name: str, entry: LocalizerSpec) -> LocalizerSpec:
+    """Add a localizer to the registry (a plug-in: its module, classes and measurement kind).
+
+    Its parameters are read from ``configs/localizers/<name>.yaml`` when that file exists,
+    else the params class's defaults apply.
+
+    Raises:
+        ConfigError: if ``name`` is taken by another entry or the measurement kind is unknown.
+    """
+    from localizers.measurements import measurement_kind
+
+    measurement_kind(entry.measurement)  # raises, naming the registered kinds
+    current = LOCALIZERS.get(name)
+    if current is not None and current != entry:
+        raise ConfigError(f"localizer {name!r} is already registered ({current.module}.{current.cls})")
+    LOCALIZERS[name] = entry
+    return entry
 
 
 def spec(name: str) -> LocalizerSpec:
