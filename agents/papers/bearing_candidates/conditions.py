@@ -230,9 +230,9 @@ def conditions(jobs: Sequence[Job]) -> Conditions:
             cs.max_live_candidates,
             kalman.vision_position_std_m,
             mcl.gate_rad,
-        ),  # fmt: skip
+        ),
         kicks=Kicks(
             math.degrees(driver.kick_out_spread_rad), driver.kick_out_speed_mps, driver.shot_speed_mps, driver.after_shot_s
-        ),  # fmt: skip
+        ),
         known_start=tuple(m.label for m in BASELINES if spec(m.localizer).needs_prior),
     )
