@@ -60,6 +60,7 @@ from numpy.typing import ArrayLike, NDArray
 import envs  # noqa: F401  (registers the crowdloc ids)
 from agents import metrics
 from agents.policies import FIXED_POLICIES
+from agents.replay import bound_rmse_along
 from agents.rewards import ActiveLocalizationReward, RewardWeights
 from agents.train import EVAL_SEED_BASE
 from localizers.measurements import find_sensor, measurement_kind
@@ -69,8 +70,6 @@ Array = NDArray[np.float64]
 
 PPO_PREFIX = "ppo:"
 _POLICY_SALT = 0x9011C7  # the policy's seed differs from the env's for the same evaluation seed
-#: the known-start prior covariance the localizer wrapper hands to localizers that need it
-_KNOWN_START_COV = np.diag([1e-6, 1e-6, 1e-6])
 
 
 @dataclass(frozen=True)
@@ -425,37 +424,6 @@ def _run_task(task: tuple[EvalSpec, Cell]) -> Episode:
 
 
 # --------------------------------------------------------------------------- pure functions
-def bound_rmse_along(
-    true_pose: ArrayLike,
-    odometry: ArrayLike,
-    visible: ArrayLike,
-    landmarks_xy: ArrayLike,
-    bearing_std_rad: float,
-    alphas: Sequence[float],
-    *,
-    known_start: bool,
-    bounds_m: tuple[float, float, float, float],
-) -> Array:
-    """``(T,)`` posterior-CRB position RMSE along a true path (NaN for a noise-free camera).
-
-    Args:
-        true_pose: ``(T, 3)``; odometry: ``(T - 1, 3)`` increments; visible: ``(T, L)`` mask.
-        landmarks_xy: ``(L, 2)``; bearing_std_rad: the camera noise; alphas: odometry alpha1..4.
-        known_start: prior = the known start pose, else uniform over the field and heading.
-        bounds_m: ``(xmin, ymin, xmax, ymax)`` of the field.
-    """
-    from localizers.bounds import bound_position_rmse, posterior_crb
-
-    truth = np.asarray(true_pose, dtype=np.float64)
-    if not bearing_std_rad > 0:
-        return np.full(truth.shape[0], np.nan)
-    xmin, ymin, xmax, ymax = bounds_m
-    vague = np.diag([(xmax - xmin) ** 2 / 12.0, (ymax - ymin) ** 2 / 12.0, math.pi**2 / 3.0])
-    cov = posterior_crb(truth, odometry, np.asarray(visible, dtype=bool), landmarks_xy, bearing_std_rad, alphas,
-                        _KNOWN_START_COV if known_start else vague)  # fmt: skip
-    return bound_position_rmse(cov)
-
-
 def episode_metrics(
     time_s: ArrayLike,
     true_pose: ArrayLike,

@@ -14,13 +14,14 @@ same generator. Ground truth is used for the prior only when asked (``prior="sta
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 import envs  # noqa: F401  (registers the crowdloc ids)
 from agents.scenarios import Driver
@@ -448,3 +449,34 @@ def replay(
         measurement=entry.measurement,
         read=read,
     )
+
+
+def bound_rmse_along(
+    true_pose: ArrayLike,
+    odometry: ArrayLike,
+    visible: ArrayLike,
+    landmarks_xy: ArrayLike,
+    bearing_std_rad: float,
+    alphas: Sequence[float],
+    *,
+    known_start: bool,
+    bounds_m: tuple[float, float, float, float],
+) -> NDArray[np.float64]:
+    """``(T,)`` posterior-CRB position RMSE along a true path (NaN for a noise-free camera).
+
+    Args:
+        true_pose: ``(T, 3)``; odometry: ``(T - 1, 3)`` increments; visible: ``(T, L)`` mask.
+        landmarks_xy: ``(L, 2)``; bearing_std_rad: the camera noise; alphas: odometry alpha1..4.
+        known_start: prior = the known start pose, else uniform over the field and heading.
+        bounds_m: ``(xmin, ymin, xmax, ymax)`` of the field.
+    """
+    from localizers.bounds import bound_position_rmse, posterior_crb
+
+    truth = np.asarray(true_pose, dtype=np.float64)
+    if not bearing_std_rad > 0:
+        return np.full(truth.shape[0], np.nan)
+    xmin, ymin, xmax, ymax = bounds_m
+    vague = np.diag([(xmax - xmin) ** 2 / 12.0, (ymax - ymin) ** 2 / 12.0, math.pi**2 / 3.0])
+    cov = posterior_crb(truth, odometry, np.asarray(visible, dtype=bool), landmarks_xy, bearing_std_rad, alphas,
+                        PRIOR_COVARIANCE if known_start else vague)  # fmt: skip
+    return bound_position_rmse(cov)

@@ -292,6 +292,8 @@ class SoccerDriver:
         chase_speed_mps: top speed when chasing (paper: 1.753 m/s maximum).
         dribble_speed_mps: speed while dribbling.
         shoot_line_y_m: the robot shoots once it has dribbled past this line.
+        kick_out_speed_mps: range of the keeper's kick-out speed.
+        kick_out_spread_rad: the kick-out direction is uniform within this of -y (toward our half).
     """
 
     KICKOFF, CHASE, DRIBBLE, AIM, AFTER_SHOT = range(5)
@@ -306,6 +308,7 @@ class SoccerDriver:
         kickoff_s: float = 0.5,
         after_shot_s: float = 1.5,
         kick_out_speed_mps: tuple[float, float] = (1.5, 2.5),
+        kick_out_spread_rad: float = 0.9,
         shot_speed_mps: float = 3.0,
         max_dribble_s: float = 5.0,
     ) -> None:
@@ -316,6 +319,7 @@ class SoccerDriver:
         self.kickoff_s = kickoff_s
         self.after_shot_s = after_shot_s
         self.kick_out_speed_mps = kick_out_speed_mps
+        self.kick_out_spread_rad = kick_out_spread_rad
         self.shot_speed_mps = shot_speed_mps
         self.max_dribble_s = max_dribble_s
         self.rng = np.random.default_rng(seed)
@@ -388,7 +392,7 @@ class SoccerDriver:
         if self.phase == self.KICKOFF:
             set_ball(world, self._ball_front_of_keeper(env))  # the keeper holds the ball
             if elapsed >= self.kickoff_s:
-                angle = -math.pi / 2 + self.rng.uniform(-0.9, 0.9)
+                angle = -math.pi / 2 + self.rng.uniform(-self.kick_out_spread_rad, self.kick_out_spread_rad)
                 speed = self.rng.uniform(*self.kick_out_speed_mps)
                 set_ball(world, ball, speed * np.array([math.cos(angle), math.sin(angle)]))
                 self._enter(env, self.CHASE)

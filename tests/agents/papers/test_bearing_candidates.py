@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from agents.cli import build_parser, main
-from agents.reproduce import bearing_candidates as bc
+from agents.papers.bearing_candidates import conditions, jobs
+from agents.papers.bearing_candidates.paper import PAPER
 from tests.pinning import PINNED_DIR, assert_same_numbers
 
-PAPERS_MD = Path(__file__).resolve().parents[2] / "docs" / "papers.md"
+PAPERS_MD = Path(__file__).resolve().parents[3] / "docs" / "papers.md"
 
 
 def parse(*argv: str):  # noqa: ANN201
@@ -30,23 +31,53 @@ def test_options_and_defaults() -> None:
 
 def test_the_default_plan_runs_20_seeds_of_each_experiment() -> None:
     args = parse("reproduce", "bearing-candidates")
-    jobs = bc.make_jobs(bc.make_plan(args))
-    count = {s: sum(j.study == s for j in jobs) for s in ("exp1", "exp2", "density", "false", "push")}
+    planned = jobs.make_jobs(jobs.make_plan(args))
+    count = {s: sum(j.study == s for j in planned) for s in ("exp1", "exp2", "density", "false", "push")}
     assert count == {"exp1": 20, "exp2": 20, "density": 6 * 5, "false": 5 * 5, "push": 10}
-    exp2 = next(j for j in jobs if j.study == "exp2")
+    exp2 = next(j for j in planned if j.study == "exp2")
     assert exp2.env_kwargs["crowd_size"] == 1 and exp2.robot_pose == (0.0, 3.0, 0.0)
     assert {m.key for m in exp2.methods} >= {"candidate_sets", "candidate_sets_k1", "candidate_sets_k5", "kalman"}
-    exp1 = next(j for j in jobs if j.study == "exp1")
+    exp1 = next(j for j in planned if j.study == "exp1")
     proposed = [m for m in exp1.methods if m.localizer == "candidate_sets"]
     assert proposed and all(m.landmarks == (1, 2) for m in proposed)  # L6 and L7 only
-    baselines = {m.key for m in bc.BASELINES}
+    baselines = {m.key for m in jobs.BASELINES}
     assert all(m.landmarks is None for m in exp1.methods if m.key in baselines)  # the paper's baselines see L5-L7
+
+
+def test_the_conditions_come_from_the_configs() -> None:
+    from envs.config import load_world
+    from localizers.registry import load_params
+
+    planned = jobs.make_jobs(jobs.make_plan(parse("reproduce", "bearing-candidates", "--quick")))
+    cond = conditions.conditions(planned)
+    static, crowded = load_world("robocup_static"), load_world("robocup_crowded")
+    assert cond.worlds["exp1"].odometry_alphas == static.sensors["odometry"].alphas
+    assert cond.worlds["exp1"].camera_noise_deg == pytest.approx(np.degrees(static.sensors["camera"].noise_std_rad))
+    assert cond.worlds["exp2"].dropout == jobs.EXP2_DROPOUT and cond.worlds["exp2"].crowd == jobs.EXP2_CROWD
+    assert cond.worlds["density"].dropout == crowded.sensors["camera"].dropout_probability
+    assert cond.shipped.cs_abort_rad == load_params("candidate_sets").abort_error_rad
+    assert cond.known_start == ("(1) dead reckoning", "(3) Kalman")
+    geo = cond.exp1
+    assert geo is not None and (geo.pole.name, [p.name for p in geo.posts]) == ("L5", ["L6", "L7"])
+    assert (geo.pole_seen, geo.pole_unseen, geo.far) == ("h-a-b-c-d", "d-e-f-g-h", "d-e-f")
+    assert geo.far_m == pytest.approx(7.5) and geo.subtended_deg == pytest.approx(14.93, abs=0.01)
+
+
+def test_stretches_and_the_expected_eq1_error() -> None:
+    names = list("abcdefgh")
+    assert conditions.cyclic_stretch(names, [n in "ab" for n in names]) == "h-a-b"
+    assert conditions.cyclic_stretch(names, [n in "gha" for n in names]) == "f-g-h-a"
+    # n = 2: two |e| terms and one |e1 - e2| term of 1-sigma Gaussian errors
+    rng = np.random.default_rng(0)
+    e = rng.normal(size=(200_000, 2))
+    sampled = np.abs(e).sum(axis=1) + np.abs(e[:, 0] - e[:, 1])
+    assert conditions.eq1_error_sigmas(2) == pytest.approx(sampled.mean(), rel=0.01)
 
 
 def test_paper_values_match_papers_md() -> None:
     text = PAPERS_MD.read_text()
     section = text[text.index("## A.") : text.index("## B.")]
-    for exp, rows in bc.PAPER.items():
+    for exp, rows in PAPER.items():
         for (pm, ps), (hm, hs) in rows.values():
             assert f"{pm:.0f} ± {ps:.0f}" in section or f"{pm:.0f} ± {ps:.0f}".replace(" ± ", " ") in section, exp
             assert f"{hm:.1f} ± {hs:.1f}" in section, exp

@@ -1,0 +1,387 @@
+"""Statistics of the candidate-set reproduction, as data (dataclasses and dicts, no prose).
+
+:func:`analyze` turns the job results into one :class:`Analysis`; :func:`results_json` is
+what ``results.json`` holds. Errors are taken "from the first fix of method (5) on", as the
+paper does (:func:`references` says whose first fix starts each method's statistics).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from agents import metrics
+from agents.papers.bearing_candidates.jobs import (
+    EXP1_METHODS,
+    EXP2_METHODS,
+    EXP2_TABLE_METHODS,
+    EXP3_METHODS,
+    FAIL_M,
+    PUSH_AT_S,
+    PUSH_BEFORE_S,
+    PUSH_PEAK_S,
+    PUSH_SECONDS,
+    PUSH_WINDOW_S,
+    RECOVER_HOLD_S,
+    RECOVER_M,
+    REFERENCE,
+    STUDIES,
+    SWEEP_METHODS,
+    SWEEP_WARMUP_S,
+    JobResult,
+    Method,
+    Plan,
+)
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Row:
+    """One method's statistics over the seeds of a study."""
+
+    key: str
+    label: str
+    pos_mm: tuple[float, float]  # seed-mean of the per-seed mean, seed-mean of the per-seed sd
+    head_deg: tuple[float, float]
+    pos_seed_sd_mm: float  # sd over seeds of the per-seed mean
+    pos_seed_median_mm: float  # median over seeds of the per-seed mean
+    first_fix_mm: tuple[float, float, int]  # mean, sd over seeds, seeds that fixed
+    first_fix_median_mm: float
+    first_fix_s: float
+    availability: float
+    failure: float
+    bound_mm: float
+    ratio: float
+    seeds: int
+
+
+def references(methods: Sequence[Method]) -> dict[str, str]:
+    """Whose first fix starts each method's statistics: the other variants of (5) (shipped
+    thresholds, K = 1, 5) their own, everything else that of the reference method (5)."""
+    return {m.key: m.key if m.localizer == "candidate_sets" else REFERENCE for m in methods}
+
+
+def _nanmedian(values: Sequence[float]) -> float:
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if v.size else float("nan")
+
+
+def study_rows(results: Sequence[JobResult], methods: Sequence[Method], reference: Mapping[str, str]) -> list[Row]:
+    """Per-method statistics "from the first fix of method (5) on" over the seeds.
+
+    ``reference[key]`` names the method whose first fix starts the statistics of ``key``.
+    """
+    rows = []
+    for m in methods:
+        per: dict[str, list[float]] = {k: [] for k in ("pm", "ps", "hm", "hs", "ffd", "fft", "av", "fail", "bnd", "ratio")}
+        for r in results:
+            run = r.runs[m.key]
+            t0 = metrics.first_fix(r.runs[reference[m.key]].valid)
+            ff = metrics.first_fix(run.valid)
+            pm, ps = metrics.mean_sd(run.position_error_m * 1000.0, t0)
+            hm, hs = metrics.mean_sd(np.degrees(run.heading_error_rad), t0)
+            per["pm"].append(pm)
+            per["ps"].append(ps)
+            per["hm"].append(hm)
+            per["hs"].append(hs)
+            per["ffd"].append(metrics.travelled(r.truth)[ff] * 1000.0 if ff is not None else np.nan)
+            per["fft"].append(r.time_s[ff] - r.time_s[0] if ff is not None else np.nan)
+            per["av"].append(metrics.availability(run.valid))
+            per["fail"].append(metrics.failure_rate(run.position_error_m, t0, FAIL_M))
+            valid_from = np.isfinite(run.position_error_m)
+            per["bnd"].append(metrics.rms(run.bound_m * 1000.0, t0, valid_from))
+            per["ratio"].append(metrics.error_bound_ratio(run.position_error_m, run.bound_m, t0))
+        s = {k: metrics.over_seeds(v) for k, v in per.items()}
+        rows.append(
+            Row(
+                m.key, m.label, (s["pm"].mean, s["ps"].mean), (s["hm"].mean, s["hs"].mean), s["pm"].sd,
+                _nanmedian(per["pm"]), (s["ffd"].mean, s["ffd"].sd, s["ffd"].n), _nanmedian(per["ffd"]),
+                s["fft"].mean, s["av"].mean, s["fail"].mean,
+                s["bnd"].mean, s["ratio"].mean, len(results),
+            )
+        )  # fmt: skip
+    return rows
+
+
+def per_seed(
+    results: Sequence[JobResult], methods: Sequence[Method], reference: Mapping[str, str]
+) -> dict[str, list[dict[str, Any]]]:
+    """Per method, one record per seed: mean position / heading error from the reference first fix,
+    first-fix distance and availability (for results.json)."""
+    out: dict[str, list[dict[str, Any]]] = {}
+    for m in methods:
+        rows = []
+        for r in results:
+            run = r.runs[m.key]
+            t0 = metrics.first_fix(r.runs[reference[m.key]].valid)
+            ff = metrics.first_fix(run.valid)
+            rows.append({
+                "seed": r.job.seed,
+                "position_mm": metrics.mean_sd(run.position_error_m * 1000.0, t0),
+                "heading_deg": metrics.mean_sd(np.degrees(run.heading_error_rad), t0),
+                "first_fix_mm": metrics.travelled(r.truth)[ff] * 1000.0 if ff is not None else None,
+                "availability": metrics.availability(run.valid),
+            })  # fmt: skip
+        out[m.key] = rows
+    return out
+
+
+@dataclass(frozen=True)
+class SweepCell:
+    """One method at one swept value, over the window ``t >= SWEEP_WARMUP_S``.
+
+    Attributes:
+        err: seed mean, sd and count of the per-seed mean position error [mm].
+        avail: seed mean and sd of the availability.
+        fail: seed mean of the share of steps with error >= ``FAIL_M``.
+        seeds: runs at this value.
+    """
+
+    err: tuple[float, float, int]
+    avail: tuple[float, float]
+    fail: float
+    seeds: int
+
+
+def sweep_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> dict[str, dict[float, SweepCell]]:
+    """Per method and swept value, the :class:`SweepCell`."""
+    out: dict[str, dict[float, SweepCell]] = {m.key: {} for m in methods}
+    points = sorted({r.job.point for r in results})
+    for m in methods:
+        for p in points:
+            runs = [r for r in results if r.job.point == p]
+            err, av, fail = [], [], []
+            for r in runs:
+                run = r.runs[m.key]
+                start = int(np.searchsorted(r.time_s - r.time_s[0], SWEEP_WARMUP_S))
+                err.append(metrics.mean_sd(run.position_error_m * 1000.0, start)[0])
+                av.append(metrics.availability(run.valid, start))
+                fail.append(metrics.failure_rate(run.position_error_m, start, FAIL_M))
+            e, a, f = metrics.over_seeds(err), metrics.over_seeds(av), metrics.over_seeds(fail)
+            out[m.key][p] = SweepCell((e.mean, e.sd, e.n), (a.mean, a.sd), f.mean, len(runs))
+    return out
+
+
+@dataclass(frozen=True)
+class PushStats:
+    """One method around the shove, over the seeds.
+
+    Attributes:
+        curve: median, lower and upper quartile of the error [m] at the times ``t_rel``.
+        recover_s: per seed, time from the shove's start until the error stays below
+            ``RECOVER_M`` for ``RECOVER_HOLD_S`` (inf: never within the run).
+        lost: per seed, whether the error reached ``RECOVER_M`` (or there was no pose)
+            within the shove and ``PUSH_PEAK_S`` after it.
+        before_mm: seed mean of the mean error over ``PUSH_BEFORE_S`` before the shove.
+        peak_mm: seed mean of the peak error within the shove and ``PUSH_PEAK_S`` after it.
+    """
+
+    curve: tuple[Array, Array, Array]
+    recover_s: Array
+    lost: NDArray[np.bool_]
+    before_mm: float
+    peak_mm: float
+
+    @property
+    def recover_when_lost_s(self) -> Array:
+        """The recovery times of the seeds that lost track."""
+        return self.recover_s[self.lost]
+
+
+def _push_index(r: JobResult, at_s: float) -> int:
+    return int(np.searchsorted(r.time_s - r.time_s[0], at_s - 1e-9))
+
+
+def push_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> tuple[Array, dict[str, PushStats]]:
+    """Error curves aligned at the push (median, quartiles over seeds) and recovery times."""
+    lo, hi = PUSH_WINDOW_S
+    dt = results[0].dt_s
+    t_rel = np.asarray(np.arange(round(lo / dt), round(hi / dt) + 1) * dt, dtype=np.float64)
+    out: dict[str, PushStats] = {}
+    for m in methods:
+        curves, recover, before, peak, lost = [], [], [], [], []
+        for r in results:
+            run = r.runs[m.key]
+            t = r.time_s - r.time_s[0]
+            k0 = _push_index(r, PUSH_AT_S)
+            idx = k0 + np.round(t_rel / dt).astype(int)
+            inside = (idx >= 0) & (idx < t.size)
+            e = np.full(t_rel.size, np.nan)
+            e[inside] = run.position_error_m[idx[inside]]
+            curves.append(e)
+            pre = run.position_error_m[max(0, k0 - round(PUSH_BEFORE_S / dt)) : k0]
+            before.append(float(np.nanmean(pre)) if np.isfinite(pre).any() else np.nan)
+            post = run.position_error_m[k0 : k0 + round((PUSH_SECONDS + PUSH_PEAK_S) / dt)]
+            peak.append(float(np.nanmax(post)) if np.isfinite(post).any() else np.nan)
+            lost.append(not (np.isfinite(post).all() and post.max() < RECOVER_M))
+            recover.append(metrics.time_to_recover(t, run.position_error_m, PUSH_AT_S, RECOVER_M, RECOVER_HOLD_S))
+        c = np.array(curves)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns (no pose in any seed)
+            q = np.nanpercentile(c, [50, 25, 75], axis=0)  # over the seeds with a pose at that time
+        out[m.key] = PushStats(
+            curve=(q[0], q[1], q[2]),
+            recover_s=np.array(recover),
+            lost=np.array(lost),
+            before_mm=metrics.over_seeds(np.array(before) * 1000.0).mean,
+            peak_mm=metrics.over_seeds(np.array(peak) * 1000.0).mean,
+        )
+    return t_rel, out
+
+
+def unseen_shift_m(results: Sequence[JobResult]) -> float:
+    """Seed mean of how far the shove moved the robot beyond what odometry saw: the change of
+    dead reckoning's position error vector from the shove's start to its end."""
+    shifts = []
+    for r in results:
+        error = r.runs["dead_reckoning"].estimates[:, :2] - r.truth[:, :2]
+        k0, k1 = _push_index(r, PUSH_AT_S), _push_index(r, PUSH_AT_S + PUSH_SECONDS)
+        shifts.append(float(np.hypot(*(error[k1] - error[k0]))))
+    return metrics.over_seeds(shifts).mean
+
+
+# ------------------------------------------------------------------------------------ studies
+
+
+@dataclass(frozen=True)
+class Exp1Stats:
+    """Exp 1 (Table 1): the rows, per-seed records and what the path looked like."""
+
+    rows: list[Row]
+    per_seed: dict[str, list[dict[str, Any]]]
+    seeds: int
+    path_m: float  # length of seed 0's true path
+    all_in_view: float  # share of the steps with every landmark in view (seed mean)
+
+
+@dataclass(frozen=True)
+class Exp2Stats:
+    """Exp 2 and Exp 3 (Tables 2, 3) on the same recordings."""
+
+    rows: list[Row]
+    exp3_rows: list[Row]
+    per_seed: dict[str, list[dict[str, Any]]]
+    seeds: int
+    speed_mps: tuple[float, float]  # our robot's maximum and mean true speed
+    detected: float  # landmarks reported per frame (seed mean)
+    visible: float  # landmarks in sight per frame (seed mean)
+    plays: float  # per seed
+    contacts: float  # per seed
+
+
+@dataclass(frozen=True)
+class SweepStudy:
+    """A swept study (crowd density, false detections)."""
+
+    points: list[float]
+    seeds: int  # per point
+    cells: dict[str, dict[float, SweepCell]]  # method key -> point -> cell
+
+
+@dataclass(frozen=True)
+class PushStudy:
+    """The shove-recovery study."""
+
+    t_rel: Array  # times of the error curves, relative to the shove's start
+    stats: dict[str, PushStats]
+    seeds: int
+    shift_m: float  # :func:`unseen_shift_m`
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """Every study's statistics (``None``: the study was not run)."""
+
+    exp1: Exp1Stats | None
+    exp2: Exp2Stats | None
+    density: SweepStudy | None
+    false: SweepStudy | None
+    push: PushStudy | None
+    cpu_s: float  # summed run time of the jobs
+
+
+def exp1_stats(results: Sequence[JobResult]) -> Exp1Stats:
+    """Table 1's rows and the path facts."""
+    return Exp1Stats(
+        rows=study_rows(results, EXP1_METHODS, references(EXP1_METHODS)),
+        per_seed=per_seed(results, EXP1_METHODS, references(EXP1_METHODS)),
+        seeds=len(results),
+        path_m=float(metrics.travelled(results[0].truth)[-1]),
+        all_in_view=float(np.mean([np.mean(r.visible_count >= r.landmarks_xy.shape[0]) for r in results])),
+    )
+
+
+def exp2_stats(results: Sequence[JobResult]) -> Exp2Stats:
+    """Tables 2 and 3 and the scenario's facts."""
+    sp = np.concatenate([metrics.speeds(r.truth, r.dt_s) for r in results])
+    return Exp2Stats(
+        rows=study_rows(results, EXP2_TABLE_METHODS, references(EXP2_TABLE_METHODS)),
+        exp3_rows=study_rows(results, EXP3_METHODS, references(EXP3_METHODS)),
+        per_seed=per_seed(results, EXP2_METHODS, references(EXP2_METHODS)),
+        seeds=len(results),
+        speed_mps=(float(np.max(sp)), float(np.mean(sp))),
+        detected=float(np.mean([r.detected_count.mean() for r in results])),
+        visible=float(np.mean([r.visible_count.mean() for r in results])),
+        plays=float(np.mean([r.plays for r in results])),
+        contacts=float(np.mean([r.contacts for r in results])),
+    )
+
+
+def sweep_study(results: Sequence[JobResult]) -> SweepStudy:
+    """A swept study over :data:`SWEEP_METHODS`."""
+    cells = sweep_stats(results, SWEEP_METHODS)
+    first = next(iter(cells.values()))
+    return SweepStudy(points=sorted(first), seeds=max(c.seeds for c in first.values()), cells=cells)
+
+
+def push_study(results: Sequence[JobResult]) -> PushStudy:
+    """The shove study over :data:`SWEEP_METHODS`."""
+    t_rel, stats = push_stats(results, SWEEP_METHODS)
+    return PushStudy(t_rel=t_rel, stats=stats, seeds=len(results), shift_m=unseen_shift_m(results))
+
+
+def by_study(results: Sequence[JobResult]) -> dict[str, list[JobResult]]:
+    """The results of each of :data:`STUDIES` (empty lists for those not run)."""
+    return {s: [r for r in results if r.job.study == s] for s in STUDIES}
+
+
+def analyze(results: Sequence[JobResult]) -> Analysis:
+    """Every study's statistics."""
+    by = by_study(results)
+    return Analysis(
+        exp1=exp1_stats(by["exp1"]) if by["exp1"] else None,
+        exp2=exp2_stats(by["exp2"]) if by["exp2"] else None,
+        density=sweep_study(by["density"]) if by["density"] else None,
+        false=sweep_study(by["false"]) if by["false"] else None,
+        push=push_study(by["push"]) if by["push"] else None,
+        cpu_s=float(sum(r.seconds for r in results)),
+    )
+
+
+def results_json(analysis: Analysis, plan: Plan, wall_s: float, workers: int) -> dict[str, Any]:
+    """What ``results.json`` holds: the plan, the table rows, per-seed records and the extra studies."""
+    out: dict[str, Any] = {"plan": asdict(plan), "wall_s": wall_s, "workers": workers}
+    if analysis.exp1:
+        out["exp1"] = [asdict(r) for r in analysis.exp1.rows]
+        out["exp1_per_seed"] = analysis.exp1.per_seed
+    if analysis.exp2:
+        out["exp2"] = [asdict(r) for r in analysis.exp2.rows]
+        out["exp3"] = [asdict(r) for r in analysis.exp2.exp3_rows]
+        out["exp2_per_seed"] = analysis.exp2.per_seed
+        out["exp2_speed_mps"] = analysis.exp2.speed_mps
+    for name, study in (("density", analysis.density), ("false", analysis.false)):
+        if study:
+            out[name] = {k: {str(p): asdict(c) for p, c in d.items()} for k, d in study.cells.items()}
+    if analysis.push:
+        out["push"] = {
+            k: {"recover_s": v.recover_s.tolist(), "lost": v.lost.tolist(), "before_mm": v.before_mm, "peak_mm": v.peak_mm}
+            for k, v in analysis.push.stats.items()
+        }
+    return out
