@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 import optuna
 
+import crowdloc_configs
 from agents import metrics
 from agents.replay import Recording, record, replay
 from agents.scenarios import SoccerDriver
@@ -61,7 +62,7 @@ from agents.util import flatten, nest
 from localizers.registry import LOCALIZERS, load_params, spec
 from localizers.schema import ConfigError, load_yaml
 
-TUNING_CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "tuning"
+TUNING_CONFIG_DIR = crowdloc_configs.path("tuning")  # package data (configs/ in the checkout)
 DEFAULT_STORAGE = "sqlite:///results/tuning.db"
 DEFAULT_ENV_ID = "crowdloc/RoboCupCrowded-v0"
 SCENARIOS = ("soccer", "random_walk")
