@@ -1,5 +1,5 @@
-# crowdloc: every target creates or updates .venv first (re-installed when pyproject.toml or
-# constraints.txt change). torch is pinned to the CPU build by constraints.txt.
+# crowdloc: every target creates or updates .venv first (re-installed when pyproject.toml,
+# setup.py or constraints.txt change). torch is pinned to the CPU build by constraints.txt.
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 
 .PHONY: venv demo test lint test-slow bench clean
 
-$(STAMP): pyproject.toml constraints.txt
+$(STAMP): pyproject.toml setup.py constraints.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -c constraints.txt torch==2.13.0

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+import crowdloc_models
 import envs
 from agents.metrics import beam_breakdown
 from agents.policies import RandomWalk
@@ -197,7 +198,7 @@ def write_report(stats: list[RunStats], frames: dict[str, Path], out_dir: Path) 
 
 ACTIVE_LOCALIZERS = ("candidate_sets", "mcl_bearing")
 #: the shipped PPO policy for each localizer (trained by configs/experiments/ppo_<localizer>.yaml)
-SHIPPED_MODELS = {loc: Path(__file__).resolve().parent.parent / "models" / f"ppo_{loc}.zip" for loc in ACTIVE_LOCALIZERS}
+SHIPPED_MODELS = {loc: crowdloc_models.policy_path(loc) for loc in ACTIVE_LOCALIZERS}  # package data (models/)
 #: the training config whose conditions the demo evaluates in (every shipped config shares them)
 SHIPPED_CONFIG = "ppo_candidate_sets"
 ACTIVE_DENSITIES = (2, 6, 10)

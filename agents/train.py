@@ -32,12 +32,13 @@ import gymnasium as gym
 import numpy as np
 import torch
 
+import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
 from agents.rewards import ActiveLocalizationReward, RewardWeights
 from agents.util import jsonable, nest
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, parse_yaml, replace_checked
 
-EXPERIMENT_DIR = Path(__file__).resolve().parent.parent / "configs" / "experiments"
+EXPERIMENT_DIR = crowdloc_configs.path("experiments")  # package data (configs/ in the checkout)
 #: env seeds at or above this are evaluation seeds; training episodes never use them
 EVAL_SEED_BASE = 2**31
 

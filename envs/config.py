@@ -16,10 +16,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
+import crowdloc_configs
 from envs.sensors import SensorConfig
 from localizers.schema import ConfigError, check, from_mapping, load_yaml
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
+CONFIG_DIR = crowdloc_configs.path()  # package data (configs/ in the checkout)
 WORLD_DIR = CONFIG_DIR / "worlds"
 
 

@@ -13,10 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import crowdloc_configs
 from localizers.base import LandmarkMap, Localizer
 from localizers.schema import ConfigError, from_mapping, load_yaml, merge_nested
 
-LOCALIZER_CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "localizers"
+LOCALIZER_CONFIG_DIR = crowdloc_configs.path("localizers")  # package data (configs/ in the checkout)
 
 
 @dataclass(frozen=True)

@@ -18,11 +18,12 @@ from typing import Any
 
 import optuna
 
+import crowdloc_configs
 from agents.util import nest
 from localizers.registry import load_params, spec
 from localizers.schema import ConfigError, load_yaml
 
-TUNING_CONFIG_DIR = Path(__file__).resolve().parent.parent.parent / "configs" / "tuning"
+TUNING_CONFIG_DIR = crowdloc_configs.path("tuning")  # package data (configs/ in the checkout)
 _SPEC_KEYS = ("low", "high", "log", "step", "choices")
 
 
