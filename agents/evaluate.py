@@ -189,7 +189,7 @@ class EvalSpec:
             for policy in ppo:
                 check_observation_space(policy, _load_ppo(policy[len(PPO_PREFIX) :]).observation_space, env.observation_space)
             env.close()
-        limit = world.crowd.max_count
+        limit = world.crowd.max_count if world.crowd is not None else 0
         for size in self.crowd_sizes:
             check(isinstance(size, (int, np.integer)) and 0 <= size <= limit,
                   f"crowd size {size!r} out of range 0..{limit} for {self.env_id}")  # fmt: skip

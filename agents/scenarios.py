@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from envs.crowd import KEEPER
+from envs.crowds import SoccerCrowd
 from localizers.geometry import wrap_angle
 
 if TYPE_CHECKING:
@@ -265,15 +265,20 @@ def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
     return v / n if n > 1e-9 else np.zeros(2)
 
 
+def soccer_crowd(world: World) -> SoccerCrowd:
+    """The world's soccer crowd (the one with the ball, if several), or a ValueError."""
+    crowds = [c for c in world.crowds.values() if isinstance(c, SoccerCrowd)]
+    if not crowds:
+        raise ValueError(f"world {world.config.name!r} has no soccer crowd")
+    return next((c for c in crowds if c.has_ball), crowds[0])
+
+
 def set_ball(world: World, xy: Sequence[float], velocity: Sequence[float] = (0.0, 0.0)) -> None:
     """Put the ball at ``xy`` with ``velocity`` (scripted kicks, dribbling, a referee's restart)."""
-    ball = world.ball_body
-    if ball is None:
+    row = soccer_crowd(world).ball_row
+    if row < 0:
         raise ValueError("set_ball: this world has no ball")
-    ball.position = (float(xy[0]), float(xy[1]))
-    ball.velocity = (float(velocity[0]), float(velocity[1]))
-    world.space.reindex_shapes_for_body(ball)
-    world.read_state()
+    world.place_body(row, (float(xy[0]), float(xy[1])), (float(velocity[0]), float(velocity[1])))
 
 
 class SoccerDriver:
@@ -349,22 +354,20 @@ class SoccerDriver:
         return np.clip(xy, [margin, margin], [w - margin, h - margin])
 
     def _keeper_xy(self, env: LocalizationEnv) -> NDArray[np.float64] | None:
-        world = env.world
-        crowd = world.crowd
-        if crowd.count and int(crowd.roles[0]) == KEEPER:
-            return np.asarray(world.positions[1], dtype=np.float64)
-        return None
+        crowd = soccer_crowd(env.world)
+        keeper = crowd.keeper_index()
+        return None if keeper is None else np.asarray(env.world.positions[crowd.member_rows[keeper]], dtype=np.float64)
 
     def _goal_xy(self, env: LocalizationEnv) -> NDArray[np.float64]:
-        return np.asarray(getattr(env.world.crowd, "goal", (2.5, 5.0)), dtype=np.float64)
+        return np.asarray(soccer_crowd(env.world).goal, dtype=np.float64)
 
     def _ball_front_of_keeper(self, env: LocalizationEnv) -> NDArray[np.float64]:
         keeper = self._keeper_xy(env)
         goal = self._goal_xy(env)
-        sc = env.config.crowd.soccer
+        sc = soccer_crowd(env.world).soccer
         origin = keeper if keeper is not None else goal
         into_field = _unit(np.array([2.5, 2.5]) - goal)
-        return origin + into_field * (env.config.crowd.radius_m + sc.ball_radius_m + 0.03)
+        return origin + into_field * (sc.radius_m + sc.ball_radius_m + 0.03)
 
     # -------------------------------------------------------------------- phases
     def _enter(self, env: LocalizationEnv, phase: int) -> None:
@@ -385,7 +388,7 @@ class SoccerDriver:
         ball = np.asarray(world.positions[world.ball_row], dtype=np.float64)
         ball_v = np.asarray(world.velocities[world.ball_row], dtype=np.float64)
         robot_r = env.config.robot.radius_m
-        ball_r = env.config.crowd.soccer.ball_radius_m
+        ball_r = soccer_crowd(world).soccer.ball_radius_m
         elapsed = t - self._phase_start_s
         heading = np.array([math.cos(pose[2]), math.sin(pose[2])])
 
@@ -446,7 +449,7 @@ class SoccerDriver:
         """Dribbling: the ball sits just in front of the robot and moves with it this step."""
         pose = env.world.robot_pose
         heading = np.array([math.cos(pose[2]), math.sin(pose[2])])
-        gap = env.config.robot.radius_m + env.config.crowd.soccer.ball_radius_m + 0.01
+        gap = env.config.robot.radius_m + soccer_crowd(env.world).soccer.ball_radius_m + 0.01
         v = float(action[0]) * env.max_speed_mps
         set_ball(env.world, pose[:2] + heading * gap, v * heading)
 
@@ -527,17 +530,23 @@ class ShoveDriver:
         self.state = "parked"
         self.inner.reset(env)
 
+    def _shover(self, world: World) -> tuple[SoccerCrowd, int]:
+        """The soccer crowd and the index in it of the pushing member."""
+        crowd, index = world.crowd_of_member(self.member)
+        if not isinstance(crowd, SoccerCrowd):
+            raise ValueError(f"the shove needs a soccer crowd member; member {self.member} is in {crowd.name!r}")
+        return crowd, index
+
     def act(self, env: LocalizationEnv) -> Action:
         world = env.world
         t = world.time_s
         if self.state == "parked" and t >= self.push_time_s:
             pose = world.robot_pose
             left = np.array([-math.sin(pose[2]), math.cos(pose[2])])
-            gap = env.config.robot.radius_m + env.config.crowd.radius_m + self.start_gap_m
+            crowd, index = self._shover(world)
+            gap = env.config.robot.radius_m + crowd.config.radius_m + self.start_gap_m
             world.place_crowd_member(self.member, tuple(pose[:2] + left * gap), hold=False)
-            crowd = world.crowd
-            crowd.wander[self.member] = pose[:2] - left * self.overshoot_m  # type: ignore[attr-defined]
-            crowd.wander_until[self.member] = t + self.duration_s + 1.0  # type: ignore[attr-defined]
+            crowd.send(index, pose[:2] - left * self.overshoot_m, t + self.duration_s + 1.0)
             self.state = "pushing"
         elif self.state == "pushing":
             if t >= self.push_time_s + self.duration_s:
@@ -545,6 +554,7 @@ class ShoveDriver:
                 self.state = "done"
             else:  # keep pressing: aim through the robot's current position
                 robot = world.positions[0]
-                away = _unit(robot - world.positions[1 + self.member])
-                world.crowd.wander[self.member] = robot + away * self.overshoot_m  # type: ignore[attr-defined]
+                crowd, index = self._shover(world)
+                away = _unit(robot - world.positions[crowd.member_rows[index]])
+                crowd.send(index, robot + away * self.overshoot_m)
         return self.inner.act(env)

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Literal
 
 import crowdloc_configs
+from envs.crowds import CrowdConfig
 from envs.sensors import SensorConfig
 from localizers.schema import ConfigError, check, from_mapping, load_yaml
 
@@ -26,17 +27,25 @@ WORLD_DIR = CONFIG_DIR / "worlds"
 
 @dataclass(frozen=True)
 class LandmarkConfig:
-    """A pole-like landmark seen by the bearing camera."""
+    """A map feature a localizer knows: a pole seen by the bearing camera, or another kind.
+
+    ``kind`` says what it is (``"pole"``: a pole landmark; later papers add ceiling targets
+    and building edges); ``collides`` whether it is a physical obstacle (a pole is; a target
+    on the ceiling or an edge far away need not be).
+    """
 
     name: str
     x_m: float
     y_m: float
     radius_m: float = 0.05
     max_range_m: float = math.inf  # beyond this the camera cannot detect it (small poles)
+    kind: str = "pole"
+    collides: bool = True
 
     def __post_init__(self) -> None:
         check(self.radius_m > 0, f"landmark {self.name!r}: radius_m must be > 0, got {self.radius_m}")
         check(self.max_range_m > 0, f"landmark {self.name!r}: max_range_m must be > 0, got {self.max_range_m}")
+        check(bool(self.kind), f"landmark {self.name!r}: kind must not be empty")
 
 
 @dataclass(frozen=True)
@@ -67,89 +76,8 @@ class RobotConfig:
 
 
 @dataclass(frozen=True)
-class SoccerCrowdConfig:
-    """Other soccer robots and a ball (candidate-set paper, Exp 2)."""
-
-    ball: bool = True
-    ball_radius_m: float = 0.11
-    ball_mass_kg: float = 0.45
-    ball_decay_per_s: float = 0.6  # fraction of ball speed lost per second (rolling friction)
-    ball_occludes: bool = False  # the omni camera sits above ball height
-    goalkeeper: bool = True  # the first robot keeps the goal between keeper_posts
-    keeper_posts: tuple[tuple[float, float], tuple[float, float]] | None = None
-    keeper_offset_m: float = 0.4  # distance in front of the goal line
-    chaser_fraction: float = 0.5  # share of the remaining robots that go for the ball
-    kick_speed_mps: float = 3.0  # ball speed after a chaser kicks it
-    wander_dwell_s: float = 3.0  # wanderers pick a new target after at most this long
-
-    def __post_init__(self) -> None:
-        check(0 <= self.chaser_fraction <= 1, f"soccer.chaser_fraction must be in [0, 1], got {self.chaser_fraction}")
-        check(self.ball_radius_m > 0, f"soccer.ball_radius_m must be > 0, got {self.ball_radius_m}")
-        check(0 <= self.ball_decay_per_s < 1, f"soccer.ball_decay_per_s must be in [0, 1), got {self.ball_decay_per_s}")
-
-
-@dataclass(frozen=True)
-class QueueCrowdConfig:
-    """People queueing along two opposite walls (LIDAR paper's room)."""
-
-    left_x_m: float = 0.6  # x of the left queue's line
-    right_x_m: float = 6.4  # x of the right queue's line
-    head_y_m: float = 6.2  # y of the queue heads (queues extend toward smaller y)
-    spacing_m: float = 0.6  # distance between people in a queue
-    step_period_s: float = 5.0  # every person steps forward this often
-    walk_speed_mps: float = 1.0  # speed of a head walking over to the other queue
-
-    def __post_init__(self) -> None:
-        check(self.spacing_m > 0, f"queues.spacing_m must be > 0, got {self.spacing_m}")
-        check(self.step_period_s > 0, f"queues.step_period_s must be > 0, got {self.step_period_s}")
-        check(self.walk_speed_mps > 0, f"queues.walk_speed_mps must be > 0, got {self.walk_speed_mps}")
-
-
-@dataclass(frozen=True)
-class WalkerConfig:
-    """Free-walking pedestrians with social-force avoidance (Helbing and Molnar style)."""
-
-    count: int = 0
-    desired_speed_mps: float = 1.0
-    relaxation_s: float = 0.5  # time to reach the desired velocity
-    repulsion_strength_mps2: float = 2.0  # magnitude of the exponential repulsion
-    repulsion_range_m: float = 0.3  # length scale of the repulsion
-
-    def __post_init__(self) -> None:
-        check(self.count >= 0, f"walkers.count must be >= 0, got {self.count}")
-        check(self.desired_speed_mps > 0, f"walkers.desired_speed_mps must be > 0, got {self.desired_speed_mps}")
-        check(self.relaxation_s > 0, f"walkers.relaxation_s must be > 0, got {self.relaxation_s}")
-        check(self.repulsion_range_m > 0, f"walkers.repulsion_range_m must be > 0, got {self.repulsion_range_m}")
-
-
-@dataclass(frozen=True)
-class CrowdConfig:
-    """Moving obstacles. ``count`` is the crowd density: the number of robots or queueing people."""
-
-    kind: Literal["soccer", "queues"] = "soccer"
-    count: int = 0
-    max_count: int = 14
-    radius_m: float = 0.25
-    mass_kg: float = 30.0
-    speed_mps: float = 1.75
-    soccer: SoccerCrowdConfig = field(default_factory=SoccerCrowdConfig)
-    queues: QueueCrowdConfig = field(default_factory=QueueCrowdConfig)
-    walkers: WalkerConfig = field(default_factory=WalkerConfig)
-
-    def __post_init__(self) -> None:
-        check(self.max_count >= 0, f"crowd.max_count must be >= 0, got {self.max_count}")
-        check(
-            0 <= self.count <= self.max_count,
-            f"crowd.count must be in [0, {self.max_count}], got {self.count}",
-        )
-        check(self.radius_m > 0, f"crowd.radius_m must be > 0, got {self.radius_m}")
-        check(self.mass_kg > 0, f"crowd.mass_kg must be > 0, got {self.mass_kg}")
-        check(self.speed_mps > 0, f"crowd.speed_mps must be > 0, got {self.speed_mps}")
-
-
-@dataclass(frozen=True)
 class WorldConfig:
-    """One scenario: geometry, landmarks, crowd, robot and its sensors (in observation order)."""
+    """One scenario: geometry, landmarks, robot, its sensors (in observation order) and the crowds."""
 
     name: str
     description: str
@@ -161,7 +89,8 @@ class WorldConfig:
     boundary_margin_m: float = 0.0  # boundary walls this far outside the field
     landmarks: tuple[LandmarkConfig, ...] = ()
     sensors: Mapping[str, SensorConfig] = field(default_factory=dict)  # name -> config tagged by type
-    crowd: CrowdConfig = field(default_factory=CrowdConfig)
+    crowds: Mapping[str, CrowdConfig] = field(default_factory=dict)  # name -> config tagged by type; bodies in this order
+    floor: Literal["field", "room"] = "room"  # how the renderer draws the ground
 
     def __post_init__(self) -> None:
         w, h = self.size_m
@@ -183,6 +112,21 @@ class WorldConfig:
             keys[sensor.key] = name
             sensor.check_world(self, name)
         object.__setattr__(self, "sensors", dict(self.sensors))  # a copy: the caller's dict may change
+        for name, crowd in self.crowds.items():
+            check(isinstance(crowd, CrowdConfig), f"world {self.name!r}: crowd {name!r} is not a crowd config: {crowd!r}")
+        clash = sorted(set(self.crowds) & set(self.sensors))
+        check(not clash, f"world {self.name!r}: {clash} name both a sensor and a crowd (env kwargs address them by name)")
+        object.__setattr__(self, "crowds", dict(self.crowds))
+
+    @property
+    def crowd(self) -> CrowdConfig | None:
+        """The first crowd: the one whose ``count`` is the world's crowd size (density); None without crowds."""
+        return next(iter(self.crowds.values()), None)
+
+    @property
+    def crowd_count(self) -> int:
+        """Members over every crowd."""
+        return sum(c.count for c in self.crowds.values())
 
     def sensors_of_type(self, type_name: str) -> dict[str, SensorConfig]:
         """The sensors of one registered type (``"lidar"``), by name, in config order."""

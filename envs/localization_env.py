@@ -32,6 +32,7 @@ from localizers.schema import ConfigError, replace_checked
 
 #: keyword overrides of world sections accepted by the env (besides the sensors, by name or type)
 OVERRIDE_SECTIONS = ("robot", "crowd")
+_SECTION_FIELDS = {"robot": "robot", "crowd": "crowds"}  # keyword -> WorldConfig field
 
 Overlay = Callable[[Any], None]
 
@@ -43,7 +44,9 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         world: a shipped world name (``"robocup_crowded"``), a YAML path or a ``WorldConfig``.
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
         crowd_size: number of moving obstacles (robots or people), the crowd density.
-        robot, crowd: mappings overriding fields of that section of the world config.
+        robot: a mapping overriding fields of the world's robot.
+        crowd: a mapping from crowd name to overrides of that crowd's fields
+            (``crowd={"walkers": {"count": 6}}``).
         **overrides: a sensor's name (``camera={"noise_std_rad": 0.0}``) overrides fields of
             that sensor; a registered sensor type the world lacks is added under its type
             name with its defaults and the given fields (``sonar={}`` gives a robot a
@@ -239,19 +242,31 @@ def apply_overrides(config: WorldConfig, crowd_size: int | None = None, **overri
         if not isinstance(value, Mapping):
             raise ConfigError(f"env kwarg {section!r} must be a mapping of overrides, got {type(value).__name__} {value!r}")
         if section in OVERRIDE_SECTIONS:
-            changes[section] = dict(value)
+            changes[_SECTION_FIELDS[section]] = dict(value)
         elif section in config.sensors:
             sensors[section] = dict(value)
         else:  # a sensor type the world lacks: its defaults, then the overrides
             sensors[section] = {"type": section, **value}
     if sensors:
         changes["sensors"] = sensors
+    crowds = changes.get("crowds", {})
+    for name, value in crowds.items():
+        if name not in config.crowds:
+            raise ConfigError(
+                f"env kwarg crowd: world {config.name!r} has no crowd {name!r} (crowds: {', '.join(config.crowds) or 'none'})"
+            )
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"env kwarg crowd[{name!r}] must be a mapping of overrides, got {type(value).__name__} {value!r}")
     if crowd_size is not None:
-        crowd = dict(changes.get("crowd", {}))
-        if "count" in crowd:
-            raise ConfigError(f"give the crowd size once: crowd_size={crowd_size!r} and crowd={{'count': {crowd['count']!r}}}")
-        crowd["count"] = crowd_size
-        changes["crowd"] = crowd
+        if not config.crowds:
+            raise ConfigError(f"crowd_size={crowd_size!r}: world {config.name!r} has no crowd")
+        first = next(iter(config.crowds))
+        mine = dict(crowds.get(first, {}))
+        if "count" in mine:
+            raise ConfigError(
+                f"give the crowd size once: crowd_size={crowd_size!r} and crowd={{{first!r}: {{'count': {mine['count']!r}}}}}"
+            )
+        changes["crowds"] = {**crowds, first: {**mine, "count": crowd_size}}
     if not changes:
         return config
     return replace_checked(config, changes, where=f"env kwargs for world {config.name!r}")

@@ -71,9 +71,6 @@ LANDMARK_PALETTE: tuple[Color, ...] = (
     (255, 60, 60),
     (190, 255, 80),
 )
-CROWD_FILL: dict[str, Color] = {"soccer": (30, 30, 70), "queues": (200, 120, 60)}
-CROWD_OUTLINE: Color = (10, 10, 10)
-BALL: Color = (255, 120, 0)
 ROBOT_FILL: Color = (250, 250, 250)
 ROBOT_OUTLINE: Color = (220, 0, 0)
 
@@ -325,9 +322,8 @@ class Renderer:
         self.fps = fps
         self.scale, bounds, self.width, self.height, left, top = _layout(config)
         xmin, _, _, ymax = bounds
-        self.is_field = config.crowd.kind == "soccer"
+        self.is_field = config.floor == "field"
         self.floor = FIELD_FLOOR if self.is_field else ROOM_FLOOR
-        self.crowd_fill = CROWD_FILL.get(config.crowd.kind, (60, 60, 60))
         self.surface = pygame.Surface((self.width, self.height), 0, 32)
         self._canvas_args = ((left, top), (xmin, ymax), self.floor, config.robot.radius_m)
         self._font = _font(_FONT_PX)
@@ -366,12 +362,8 @@ class Renderer:
         for sensor in sensors:
             if sensor.draw_layer == "under":
                 sensor.draw(canvas, state, readings[sensor.key], info)
-        for xy, r in zip(state.positions[state.crowd_rows], state.radii_m[state.crowd_rows]):
-            canvas.circle(xy[0], xy[1], r, self.crowd_fill, 0)
-            canvas.circle(xy[0], xy[1], r, CROWD_OUTLINE, 1)
-        if state.ball_row >= 0:
-            bx, by = state.positions[state.ball_row]
-            canvas.circle(bx, by, state.radii_m[state.ball_row], BALL, 0)
+        for crowd in env.world.crowds.values():
+            crowd.draw(canvas, state)
         visible = np.asarray(info.get("visible_landmarks", ()), dtype=np.int64)
         self._draw_landmarks(canvas, state.landmark_xy, state.landmark_radius_m, visible)
         canvas.circle(pose[0], pose[1], state.radii_m[0], ROBOT_FILL, 0)
@@ -438,7 +430,7 @@ class Renderer:
     def _draw_caption(self, env: LocalizationEnv, extra: Sequence[tuple[str, Color]]) -> None:
         self.surface.fill(CAPTION_BACKGROUND, pygame.Rect(0, 0, self.width, CAPTION_PX))
         world = env.world
-        parts = [(f"{self.config.name}  t={world.time_s:.2f} s  crowd={world.crowd.count}", CAPTION_TEXT), *extra]
+        parts = [(f"{self.config.name}  t={world.time_s:.2f} s  crowd={self.config.crowd_count}", CAPTION_TEXT), *extra]
         x = 6
         for i, (text, color) in enumerate(parts):
             if x >= self.width:

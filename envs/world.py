@@ -1,4 +1,9 @@
-"""The physical world: a pymunk space with walls, landmark poles, our robot and the crowd.
+"""The physical world: a pymunk space with walls, landmark poles, our robot and the crowds.
+
+The crowds (:mod:`envs.crowds`) own their bodies and decide what they want every step from
+a frozen :class:`~envs.state.WorldState`; the world turns that into pymunk bodies, forces
+and contacts. Scripted drivers steer through the public control methods
+(:meth:`World.place_body`, :meth:`World.place_crowd_member`, :meth:`World.crowd_named`).
 
 Pymunk does the dynamics and contacts only. After every physics step the world exports
 its state as numpy arrays (``positions``, ``velocities``, occluder circles, wall segments),
@@ -19,7 +24,7 @@ import pymunk.batch as pbatch
 from numpy.typing import NDArray
 
 from envs.config import WorldConfig
-from envs.crowd import Crowd, make_crowd
+from envs.crowds import BodySpec, Crowd, build_crowd
 from envs.state import WorldState
 
 # collision types
@@ -86,20 +91,27 @@ class World:
         self.landmark_radius_m = np.asarray([lm.radius_m for lm in lms], dtype=np.float64)
         self.landmark_max_range_m = np.asarray([lm.max_range_m for lm in lms], dtype=np.float64)
 
-        self.crowd: Crowd = make_crowd(config)
-        has_ball = self.crowd.has_ball
-        # body rows: robot, crowd..., ball?, then pymunk's static body (batch iterates it too)
-        self.body_count = 1 + self.crowd.count + (1 if has_ball else 0)
-        self.crowd_rows = slice(1, 1 + self.crowd.count)
-        self.ball_row = 1 + self.crowd.count if has_ball else -1
-        radii = [config.robot.radius_m] + list(self.crowd.radii_m)
-        if has_ball:
-            radii.append(config.crowd.soccer.ball_radius_m)
-        self.radii_m = np.asarray(radii, dtype=np.float64)
-        # occluders are the rows right after the robot: the crowd, and the ball if it occludes
-        ball_occludes = has_ball and config.crowd.soccer.ball_occludes
-        self.occluder_rows = slice(1, 1 + self.crowd.count + (1 if ball_occludes else 0))
+        #: the crowds by name, in config order; their bodies follow the robot in that order
+        self.crowds: dict[str, Crowd] = {name: build_crowd(name, cc, config) for name, cc in config.crowds.items()}
+        self._specs: list[BodySpec] = []
+        self._owner: list[tuple[Crowd, int]] = []  # per body row after the robot: (crowd, index in it)
+        for crowd in self.crowds.values():
+            specs = crowd.bodies()
+            first = 1 + len(self._specs)
+            crowd.attach(np.arange(first, first + len(specs), dtype=np.int64))
+            self._specs += specs
+            self._owner += [(crowd, i) for i in range(len(specs))]
+        self.body_count = 1 + len(self._specs)
+        kinds = np.array(["robot"] + [b.kind for b in self._specs])
+        #: rows of the crowds' members (robots, people), and of the balls
+        self.member_rows = np.flatnonzero(kinds == "crowd")
+        self.crowd_rows = _as_slice(self.member_rows)
+        self.ball_rows = np.flatnonzero(kinds == "ball")
+        self.ball_row = int(self.ball_rows[0]) if self.ball_rows.size else -1
+        self.radii_m = np.asarray([config.robot.radius_m] + [b.radius_m for b in self._specs], dtype=np.float64)
+        self.occluder_rows = _as_slice(np.flatnonzero([False] + [b.occludes for b in self._specs]))
         self.occluder_radius_m = self.radii_m[self.occluder_rows].copy()
+        self._others = np.concatenate([[0], self.member_rows]).astype(np.int64)  # the robot and every member
         for static in (self.seg_a, self.seg_b, self.landmark_xy, self.landmark_radius_m, self.landmark_max_range_m, self.radii_m):
             static.setflags(write=False)  # shared by every snapshot
         self._state_buffer = pbatch.Buffer()
@@ -155,7 +167,9 @@ class World:
             shape.friction = 0.5
             shape.collision_type = WALL
             self.space.add(shape)
-        for (x, y), r in zip(self.landmark_xy, self.landmark_radius_m):
+        for lm, (x, y), r in zip(config.landmarks, self.landmark_xy, self.landmark_radius_m):
+            if not lm.collides:
+                continue
             shape = pymunk.Circle(self.space.static_body, float(r), (float(x), float(y)))
             shape.collision_type = LANDMARK
             self.space.add(shape)
@@ -166,25 +180,20 @@ class World:
         self.robot_shape.friction = rc.friction
         self.robot_shape.collision_type = ROBOT
         self.space.add(self.robot_body, self.robot_shape)
-        self.crowd_bodies: list[pymunk.Body] = []
-        for i in range(self.crowd.count):
-            radius = float(self.crowd.radii_m[i])
-            body = pymunk.Body(config.crowd.mass_kg, pymunk.moment_for_circle(config.crowd.mass_kg, 0, radius))
-            shape = pymunk.Circle(body, radius)
-            shape.friction = 0.5
-            shape.collision_type = CROWD
-            shape.crowd_index = i  # type: ignore[attr-defined]
+        self.bodies: list[pymunk.Body] = []  # per row after the robot
+        member = 0
+        for spec in self._specs:
+            body = pymunk.Body(spec.mass_kg, pymunk.moment_for_circle(spec.mass_kg, 0, spec.radius_m))
+            shape = pymunk.Circle(body, spec.radius_m)
+            shape.friction = spec.friction
+            if spec.elasticity:
+                shape.elasticity = spec.elasticity
+            shape.collision_type = CROWD if spec.kind == "crowd" else BALL
+            if spec.kind == "crowd":
+                shape.crowd_index = member  # type: ignore[attr-defined]
+                member += 1
             self.space.add(body, shape)
-            self.crowd_bodies.append(body)
-        self.ball_body: pymunk.Body | None = None
-        if self.crowd.has_ball:
-            sc = config.crowd.soccer
-            self.ball_body = pymunk.Body(sc.ball_mass_kg, pymunk.moment_for_circle(sc.ball_mass_kg, 0, sc.ball_radius_m))
-            ball_shape = pymunk.Circle(self.ball_body, sc.ball_radius_m)
-            ball_shape.elasticity = 0.7
-            ball_shape.friction = 0.3
-            ball_shape.collision_type = BALL
-            self.space.add(self.ball_body, ball_shape)
+            self.bodies.append(body)
         self.space.on_collision(ROBOT, None, begin=self._on_robot_contact)
         self._check_body_order()
         self.read_state()
@@ -193,10 +202,7 @@ class World:
         buf = pbatch.Buffer()
         pbatch.get_space_bodies(self.space, pbatch.BodyFields.BODY_ID, buf)
         ids = np.frombuffer(buf.int_buf(), dtype=np.uintp)
-        expected = [self.robot_body.id] + [b.id for b in self.crowd_bodies]
-        if self.ball_body is not None:
-            expected.append(self.ball_body.id)
-        expected.append(self.space.static_body.id)
+        expected = [self.robot_body.id] + [b.id for b in self.bodies] + [self.space.static_body.id]
         if ids.tolist() != expected:
             raise RuntimeError("pymunk iterated the bodies in an unexpected order; batch I/O would mix them up")
 
@@ -215,16 +221,15 @@ class World:
             x0, y0, x1, y1 = rc.start_region_m
             pose = (rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(-math.pi, math.pi))
         self.set_robot_pose(pose)
-        placed = self.crowd.reset(rng, robot_xy=np.asarray(pose[:2]), robot_radius_m=rc.radius_m)
-        for body, (x, y) in zip(self.crowd_bodies, placed.member_xy):
-            body.position = (float(x), float(y))
-            body.velocity = (0.0, 0.0)
-            body.angle = 0.0
-            body.angular_velocity = 0.0
-        if self.ball_body is not None:
-            assert placed.ball_xy is not None
-            self.ball_body.position = (float(placed.ball_xy[0]), float(placed.ball_xy[1]))
-            self.ball_body.velocity = (0.0, 0.0)
+        taken = [(float(pose[0]), float(pose[1]), rc.radius_m)]
+        for crowd in self.crowds.values():
+            placed = crowd.reset(rng, taken)
+            for row, (x, y) in zip(crowd.rows, placed):
+                body = self.bodies[row - 1]
+                body.position = (float(x), float(y))
+                body.velocity = (0.0, 0.0)
+                body.angle = 0.0
+                body.angular_velocity = 0.0
         for body in self.space.bodies:
             self.space.reindex_shapes_for_body(body)
         self.read_state()
@@ -238,16 +243,36 @@ class World:
         self.space.reindex_shapes_for_body(self.robot_body)
         self.read_state()
 
-    def place_crowd_member(self, index: int, xy: tuple[float, float], hold: bool = True) -> None:
-        """Teleport crowd member ``index`` (tests and scripted set-ups); ``hold`` freezes it there."""
-        if not 0 <= index < self.crowd.count:
-            raise IndexError(f"crowd member {index} does not exist (crowd has {self.crowd.count})")
-        body = self.crowd_bodies[index]
+    def place_body(self, row: int, xy: tuple[float, float], velocity: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Teleport the body in ``row`` (scripted set-ups: a referee's ball, a shove); odometry does not see it."""
+        if not 1 <= row < self.body_count:
+            raise IndexError(f"body row {row} does not exist (rows 1..{self.body_count - 1} are the crowds' bodies)")
+        body = self.bodies[row - 1]
         body.position = (float(xy[0]), float(xy[1]))
-        body.velocity = (0.0, 0.0)
+        body.velocity = (float(velocity[0]), float(velocity[1]))
         self.space.reindex_shapes_for_body(body)
-        self.crowd.hold(index, hold)
         self.read_state()
+
+    def place_crowd_member(self, index: int, xy: tuple[float, float], hold: bool = True) -> None:
+        """Teleport crowd member ``index`` (counted over every crowd's members, in order); ``hold`` freezes it there."""
+        if not 0 <= index < self.member_rows.size:
+            raise IndexError(f"crowd member {index} does not exist (crowd has {self.member_rows.size})")
+        row = int(self.member_rows[index])
+        crowd, i = self._owner[row - 1]
+        crowd.hold(i, hold)
+        self.place_body(row, xy)
+
+    def crowd_named(self, name: str) -> Crowd:
+        """The crowd called ``name`` in the world config (its public control methods)."""
+        if name not in self.crowds:
+            raise KeyError(f"world {self.config.name!r} has no crowd {name!r} (crowds: {', '.join(self.crowds) or 'none'})")
+        return self.crowds[name]
+
+    def crowd_of_member(self, index: int) -> tuple[Crowd, int]:
+        """``(crowd, index within it)`` of crowd member ``index`` (counted over every crowd)."""
+        if not 0 <= index < self.member_rows.size:
+            raise IndexError(f"crowd member {index} does not exist (crowd has {self.member_rows.size})")
+        return self._owner[int(self.member_rows[index]) - 1]
 
     @property
     def robot_pose(self) -> NDArray[np.float64]:
@@ -313,20 +338,24 @@ class World:
         # toward their desired velocity, which leaves their contacts to the solver.
         cmd[0, 0:2] = robot_velocity_xy
         cmd[0, 2] = robot_omega
-        if self.crowd.count or self.ball_body is not None:
-            member_v, ball_v = self.crowd.velocities(self, rng)
-            rows = self.crowd_rows
+        state = self.snapshot()
+        for crowd in self.crowds.values():
+            if not crowd.rows.size:
+                continue
+            wants = crowd.commands(state, self._others, rng)
+            rows = crowd.member_rows
             cmd[rows, 0:2] = self.velocities[rows]
             cmd[rows, 3:5] = _driving_forces(
-                self.velocities[rows], member_v, dt, _CROWD_MAX_ACCEL_MPS2, self.config.crowd.mass_kg
+                self.velocities[rows], wants.member_velocity, dt, _CROWD_MAX_ACCEL_MPS2, crowd.config.mass_kg
             )
-            if ball_v is not None:
-                cmd[self.ball_row, 0:2] = ball_v
-                restart = self.crowd.ball_restart(self.positions[self.ball_row])
-                if restart is not None and self.ball_body is not None:
-                    self.ball_body.position = (float(restart[0]), float(restart[1]))
-                    cmd[self.ball_row, 0:2] = 0.0
-                    self.space.reindex_shapes_for_body(self.ball_body)
+            if wants.ball_velocity is not None:
+                cmd[crowd.rows[crowd.count], 0:2] = wants.ball_velocity
+            for index, xy in wants.teleports:
+                row = int(crowd.rows[index])
+                body = self.bodies[row - 1]
+                body.position = (float(xy[0]), float(xy[1]))
+                cmd[row, 0:2] = 0.0
+                self.space.reindex_shapes_for_body(body)
         pbatch.set_space_bodies(self.space, _FIELDS_COMMAND, self._command_buffer)
         self.space.step(dt)
         self.time_s += dt
@@ -339,3 +368,12 @@ class World:
         index = int(getattr(other, "crowd_index", -1))
         point = arbiter.contact_point_set.points[0].point_a if arbiter.contact_point_set.points else self.robot_body.position
         self.contacts.append(ContactEvent(self.step_count + 1, kind, index, (float(point[0]), float(point[1]))))
+
+
+def _as_slice(rows: NDArray[np.int64]) -> slice | NDArray[np.int64]:
+    """Consecutive rows as a slice (views, no copies per step), else the index array."""
+    if rows.size == 0:
+        return slice(1, 1)
+    if np.array_equal(rows, np.arange(rows[0], rows[-1] + 1)):
+        return slice(int(rows[0]), int(rows[-1]) + 1)
+    return rows

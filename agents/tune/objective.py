@@ -129,14 +129,14 @@ class EpisodeSetup:
         world = apply_overrides(envs.load_world(envs.ENV_WORLDS[self.env_id]), self.crowd_size, **dict(self.env_overrides))
         if world.sensor_of_type("bearing_camera") is None:
             raise ConfigError(f"{self.env_id} has no bearing camera; crowdloc tune replays bearing recordings")
-        if self.scenario == "soccer" and not (world.crowd.kind == "soccer" and world.crowd.soccer.ball):
+        if self.scenario == "soccer" and not any(getattr(c, "ball", False) for c in world.crowds.values()):
             raise ConfigError(f"scenario 'soccer' needs a world with a ball; {self.env_id} has none (try --scenario random_walk)")
         return world
 
     def facts(self) -> WorldFacts:
         """The crowd size and time step of :meth:`world` (same checks)."""
         world = self.world()
-        return WorldFacts(int(world.crowd.count), float(world.dt_s))
+        return WorldFacts(int(world.crowd.count) if world.crowd is not None else 0, float(world.dt_s))
 
     def env_kwargs(self) -> dict[str, Any]:
         kwargs: dict[str, Any] = {**self.env_overrides, "max_episode_steps": self.episode_steps}

@@ -18,15 +18,14 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from envs.plugins import Entry, Registry
 from envs.state import WorldState
-from localizers.schema import ConfigError, from_mapping
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -48,14 +47,7 @@ class SensorConfig:
     @classmethod
     def __from_config__(cls, value: Any, where: str) -> SensorConfig:
         """Build the config of the type named by ``value["type"]`` (the strict loader's hook)."""
-        if isinstance(value, SensorConfig):
-            return value
-        if not isinstance(value, Mapping):
-            raise ConfigError(f"{where}: expected a mapping with a 'type' (one of {', '.join(sensor_types())}), got {value!r}")
-        if "type" not in value:
-            raise ConfigError(f"{where}: a sensor needs a 'type' (one of {', '.join(sensor_types())})")
-        entry = sensor_type(value["type"], where)
-        return from_mapping(entry.config_cls, {k: v for k, v in value.items() if k != "type"}, where)
+        return SENSORS.config_from(value, where)
 
     def check_world(self, world: WorldConfig, name: str) -> None:
         """Raise :class:`ConfigError` if this sensor cannot work in ``world`` (override as needed)."""
@@ -112,18 +104,10 @@ class SensorBase:
 
 #: builds a sensor from its name, its config, the world config and the world's first state
 SensorFactory = Callable[[str, Any, "WorldConfig", WorldState], Sensor]
+SensorType = Entry[SensorConfig, SensorFactory]
 
-
-@dataclass(frozen=True)
-class SensorType:
-    """A registered sensor type: its name, config class and factory."""
-
-    name: str
-    config_cls: type[SensorConfig]
-    build: SensorFactory
-
-
-_TYPES: dict[str, SensorType] = {}
+#: the registered sensor types
+SENSORS: Registry[SensorConfig, SensorFactory] = Registry("sensor", SensorConfig)
 
 
 def register_sensor(type_name: str, config_cls: type[ConfigT]) -> Callable[[type[SensorT]], type[SensorT]]:
@@ -133,33 +117,19 @@ def register_sensor(type_name: str, config_cls: type[ConfigT]) -> Callable[[type
         ValueError: if the name is taken by another class, or the config is not a
             :class:`SensorConfig` dataclass with a ``key`` field.
     """
-    if not (dataclasses.is_dataclass(config_cls) and issubclass(config_cls, SensorConfig)):
-        raise ValueError(f"sensor type {type_name!r}: {config_cls.__name__} must be a dataclass subclassing SensorConfig")
-    if "key" not in {f.name for f in dataclasses.fields(config_cls)}:
+    if dataclasses.is_dataclass(config_cls) and "key" not in {f.name for f in dataclasses.fields(config_cls)}:
         raise ValueError(f"sensor type {type_name!r}: {config_cls.__name__} needs a 'key' field (its observation key)")
-
-    def decorate(cls: type[SensorT]) -> type[SensorT]:
-        current = _TYPES.get(type_name)
-        if current is not None and (current.build is not cls or current.config_cls is not config_cls):
-            qual = f"{current.build.__module__}.{getattr(current.build, '__qualname__', current.build)}"
-            raise ValueError(f"sensor type {type_name!r} is already registered by {qual}")
-        config_cls.type_name = type_name
-        _TYPES[type_name] = SensorType(type_name, config_cls, cls)  # type: ignore[arg-type]
-        return cls
-
-    return decorate
+    return SENSORS.decorator(type_name, config_cls)
 
 
 def sensor_types() -> list[str]:
     """The registered sensor type names, sorted."""
-    return sorted(_TYPES)
+    return SENSORS.names()
 
 
 def sensor_type(name: Any, where: str = "sensor type") -> SensorType:
     """The registered type ``name``, or a :class:`ConfigError` listing the known ones."""
-    if not isinstance(name, str) or name not in _TYPES:
-        raise ConfigError(f"{where}: unknown sensor type {name!r} (registered: {', '.join(sensor_types())})")
-    return _TYPES[name]
+    return SENSORS.get(name, where)
 
 
 def build_sensor(name: str, config: SensorConfig, world: WorldConfig, state: WorldState) -> Sensor:

@@ -61,6 +61,13 @@ def edit_sensor(sensor: str, key: str, value: object) -> Callable[[dict], None]:
     return edit
 
 
+def edit_crowd(crowd: str, key: str, value: object) -> Callable[[dict], None]:
+    def edit(d: dict) -> None:
+        d["crowds"][crowd][key] = value
+
+    return edit
+
+
 def edit_landmark(key: str, value: object) -> Callable[[dict], None]:
     def edit(d: dict) -> None:
         d["landmarks"][1][key] = value
@@ -79,9 +86,12 @@ def edit_landmark(key: str, value: object) -> Callable[[dict], None]:
         ("crowded_room", edit_sensor("lidar", "beams", 10.5), ["10.5", "beams", "expected an integer"]),
         ("robocup_static", edit_sensor("camera", "noise_std_rad", True), ["True", "noise_std_rad"]),
         ("robocup_crowded", edit_top("size_m", [5.0]), ["size_m", "[5.0]", "expected 2 values"]),
-        ("robocup_crowded", edit_nested("crowd", "kind", "zombies"), ["'zombies'", "kind"]),
-        ("robocup_crowded", edit_nested("crowd", "count", 20), ["20", "crowd.count", "[0, 14]"]),
-        ("robocup_crowded", edit_nested("crowd", "count", -1), ["-1", "crowd.count"]),
+        ("robocup_crowded", edit_crowd("soccer", "type", "zombies"), ["'zombies'", "unknown crowd type", "soccer"]),
+        ("robocup_crowded", edit_crowd("soccer", "count", 20), ["20", "crowd.count", "[0, 14]"]),
+        ("robocup_crowded", edit_crowd("soccer", "count", -1), ["-1", "crowd.count"]),
+        ("robocup_crowded", edit_crowd("soccer", "kind", "soccer"), ["'kind'", "SoccerConfig", "crowds.soccer"]),
+        ("crowded_room", lambda d: d["crowds"].update(lidar={"type": "walkers"}), ["'lidar'", "both a sensor and a crowd"]),
+        ("robocup_static", lambda d: d["landmarks"][0].update(collides="no"), ["'no'", "collides"]),
         ("robocup_crowded", edit_top("dt_s", 0.0), ["dt_s must be > 0, got 0.0"]),
         ("robocup_static", edit_landmark("max_range_m", -4.6), ["-4.6", "max_range_m"]),
         ("robocup_static", edit_sensor("odometry", "alpha3", -0.1), ["-0.1", "odometry.alpha3"]),
@@ -194,6 +204,8 @@ def test_boundary_actions_are_accepted(corner: tuple[float, float]) -> None:
         ({"bogus": 1}, ["'bogus'", "1"]),
         ({"camera": {"nosie_std_rad": 0}}, ["'nosie_std_rad'", "camera"]),
         ({"crowd": {"soccer": {"bal": False}}}, ["'bal'", "soccer"]),
+        ({"crowd": {"robots": {"count": 2}}}, ["no crowd 'robots'", "crowds: soccer"]),
+        ({"crowd": {"count": 2}}, ["no crowd 'count'"]),
         ({"crowd_size": "many"}, ["'many'", "count", "expected an integer"]),
         ({"crowd_size": 20}, ["20", "crowd.count must be in [0, 14]"]),
         ({"crowd_size": -3}, ["-3"]),
@@ -233,8 +245,8 @@ def test_good_env_kwargs_reach_the_config() -> None:
         config.sensors["odometry"].alpha1 == 0.1
         and config.sensors["odometry"].alpha2 == load_world("robocup_crowded").sensors["odometry"].alpha2
     )
-    assert config.crowd.soccer.ball is False and config.crowd.soccer.goalkeeper is True
-    assert env.unwrapped.world.ball_body is None
+    assert config.crowds["soccer"].ball is False and config.crowds["soccer"].goalkeeper is True
+    assert env.unwrapped.world.ball_row == -1 and env.unwrapped.world.ball_rows.size == 0
     env.close()
 
 

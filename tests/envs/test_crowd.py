@@ -8,7 +8,8 @@ import pytest
 
 import envs
 from envs.config import load_world
-from envs.crowd import CHASER, KEEPER, QUEUER, WALKER, WANDERER, soccer_targets
+from envs.crowds import QueueCrowd, WalkerCrowd
+from envs.crowds.soccer import CHASER, KEEPER, WANDERER, soccer_targets
 
 ENV_IDS = sorted(envs.ENV_WORLDS)
 STILL = np.zeros(2, dtype=np.float32)
@@ -25,7 +26,7 @@ def run_keeper(crowd_size: int, seed: int, steps: int = 900) -> np.ndarray:
     env = gym.make("crowdloc/RoboCupCrowded-v0", crowd_size=crowd_size)
     env.reset(seed=seed, options={"robot_pose": [2.5, 0.6, 0.0]})
     world = env.unwrapped.world
-    assert world.crowd.roles[0] == KEEPER
+    assert world.crowds["soccer"].roles[0] == KEEPER
     # posts (1.5, 5) and (3.5, 5), keeper_offset_m 0.5: the keeper's line is y = 4.5, in the field
     np.testing.assert_allclose(world.positions[1], [2.5, 4.5], atol=1e-9)
     keeper = np.empty((steps, 2))
@@ -79,7 +80,7 @@ def test_goalkeeper_returns_to_its_line_in_a_full_crowd() -> None:
 def test_goalkeeper_target_is_the_ball_x_clipped_to_the_posts(ball_xy: tuple[float, float], expected: tuple) -> None:
     env = gym.make("crowdloc/RoboCupCrowded-v0", crowd_size=1)
     env.reset(seed=0)
-    crowd = env.unwrapped.world.crowd
+    crowd = env.unwrapped.world.crowds["soccer"]
     targets, *_ = soccer_targets(
         np.array([[2.5, 4.5]]),
         crowd.roles,
@@ -117,9 +118,9 @@ def test_every_crowd_size_builds_and_steps_on_the_crowded_field(crowd_size: int)
     env = gym.make("crowdloc/RoboCupCrowded-v0", crowd_size=crowd_size)
     obs, _ = env.reset(seed=crowd_size)
     world = env.unwrapped.world
-    assert world.crowd.count == crowd_size
+    assert world.crowds["soccer"].count == crowd_size
     assert world.body_count == 1 + crowd_size + 1  # robot, crowd, ball
-    roles = world.crowd.roles.tolist()
+    roles = world.crowds["soccer"].roles.tolist()
     if crowd_size:
         assert roles[0] == KEEPER
         chasers = int(round(0.5 * (crowd_size - 1)))
@@ -141,7 +142,7 @@ def test_every_crowd_size_builds_and_steps_on_the_crowded_field(crowd_size: int)
 def test_crowd_size_zero_works_for_every_world(env_id: str) -> None:
     env = gym.make(env_id, crowd_size=0)
     obs, info = env.reset(seed=0)
-    assert env.unwrapped.world.crowd.count == 0
+    assert env.unwrapped.world.member_rows.size == 0
     for a in persistent_random_actions(0, 60):
         obs, _, _, _, info = env.step(a)
         assert env.observation_space.contains(obs)
@@ -153,10 +154,10 @@ def test_queue_heads_walk_over_to_the_other_queue() -> None:
     env = gym.make("crowdloc/CrowdedRoom-v0")
     env.reset(seed=0)
     world = env.unwrapped.world
-    crowd = world.crowd
-    q = env.unwrapped.config.crowd.queues
+    crowd = world.crowds["queues"]
+    q = env.unwrapped.config.crowds["queues"]
     n = crowd.count
-    assert n == 16 and set(crowd.roles.tolist()) == {QUEUER}
+    assert n == 16 and isinstance(crowd, QueueCrowd) and crowd.rows.tolist() == list(range(1, 17))
     # members alternate between the queues; 0 and 1 are the heads
     assert crowd.queue_id.tolist() == [0, 1] * 8
     assert crowd.slot.tolist() == [i // 2 for i in range(n)]
@@ -183,8 +184,9 @@ def test_queue_heads_walk_over_to_the_other_queue() -> None:
 def test_walkers_are_added_after_the_queuers() -> None:
     env = gym.make("crowdloc/CrowdedRoom-v0", crowd_size=4, crowd={"walkers": {"count": 3}})
     env.reset(seed=1)
-    crowd = env.unwrapped.world.crowd
-    assert crowd.roles.tolist() == [QUEUER] * 4 + [WALKER] * 3
+    crowds = env.unwrapped.world.crowds
+    assert list(crowds) == ["queues", "walkers"] and isinstance(crowds["walkers"], WalkerCrowd)
+    assert crowds["queues"].rows.tolist() == [1, 2, 3, 4] and crowds["walkers"].rows.tolist() == [5, 6, 7]
     previous = env.unwrapped.world.positions[5:8].copy()
     path = np.zeros(3)
     for _ in range(80):  # 2 s

@@ -103,8 +103,7 @@ def test_a_push_moves_the_robot_without_odometry() -> None:
     world = env.world
     # a wanderer next to the robot, heading through it to a target on the far side
     world.place_crowd_member(0, (1.9, 5.0), hold=False)
-    world.crowd.wander[0] = (4.5, 5.0)
-    world.crowd.wander_until[0] = 1e9
+    world.crowds["soccer"].send(0, np.array([4.5, 5.0]), until_s=1e9)
     odometry = np.zeros(3)
     contacts = []
     for _ in range(45):  # 1.5 s

@@ -17,6 +17,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from agents.papers.bearing_candidates.jobs import BASELINES, EXP1_PAIR, STUDIES, Job, shipped
+from envs.crowds import SoccerConfig
+from envs.sensors import BearingCameraConfig, OdometryConfig
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -113,9 +115,17 @@ class Keeper:
     x_m: tuple[float, float]
 
 
+def soccer_config(world: WorldConfig) -> SoccerConfig:
+    """The world's soccer crowd config, or a ValueError."""
+    found = [c for c in world.crowds.values() if isinstance(c, SoccerConfig)]
+    if not found:
+        raise ValueError(f"world {world.name!r} has no soccer crowd")
+    return found[0]
+
+
 def keeper(world: WorldConfig) -> Keeper:
     """The keeper's line, in front of its posts by the world's keeper offset."""
-    soccer = world.crowd.soccer
+    soccer = soccer_config(world)
     if soccer.keeper_posts is None:
         raise ValueError(f"world {world.name!r} has no keeper posts")
     (x1, y1), (x2, y2) = soccer.keeper_posts
@@ -143,21 +153,22 @@ class WorldFacts:
 
 def world_facts(world: WorldConfig) -> WorldFacts:
     """The facts of ``world``."""
-    camera = world.camera
-    if camera is None:
-        raise ValueError(f"world {world.name!r} has no camera")
-    soccer = world.crowd.soccer
-    has_keeper = world.crowd.kind == "soccer" and soccer.goalkeeper and world.crowd.count > 0
+    camera = world.sensor_of_type("bearing_camera")
+    odometry = world.sensor_of_type("odometry")
+    if not isinstance(camera, BearingCameraConfig) or not isinstance(odometry, OdometryConfig):
+        raise ValueError(f"world {world.name!r} has no bearing camera or no odometry")
+    soccer = soccer_config(world)
+    has_keeper = soccer.goalkeeper and soccer.count > 0
     return WorldFacts(
         size_m=(float(world.size_m[0]), float(world.size_m[1])),
         landmarks=len(world.landmarks),
         landmark_names=tuple(lm.name for lm in world.landmarks),
-        odometry_alphas=world.odometry.alphas,
-        slip_probability=world.odometry.slip_probability,
+        odometry_alphas=odometry.alphas,
+        slip_probability=world.robot.slip_probability,
         camera_noise_deg=math.degrees(camera.noise_std_rad),
         dropout=camera.dropout_probability,
         false_rate=camera.false_detection_probability,
-        crowd=world.crowd.count,
+        crowd=soccer.count,
         max_speed_mps=world.robot.max_speed_mps,
         dt_s=world.dt_s,
         keeper=keeper(world) if has_keeper and soccer.keeper_posts is not None else None,

@@ -1,0 +1,43 @@
+"""Crowds as plug-ins: one module per behaviour, registered by type name.
+
+Built in: ``soccer`` (:mod:`.soccer`, owns the ball), ``queues`` (:mod:`.queues`) and
+``walkers`` (:mod:`.walkers`). See :mod:`.base` for the interface and
+``docs/architecture.md`` for adding one.
+"""
+
+from __future__ import annotations
+
+from envs.crowds.base import (
+    CROWDS,
+    BodySpec,
+    Commands,
+    Crowd,
+    CrowdConfig,
+    CrowdType,
+    Taken,
+    build_crowd,
+    crowd_types,
+    register_crowd,
+)
+from envs.crowds.queues import QueueCrowd, QueuesConfig
+from envs.crowds.soccer import SoccerConfig, SoccerCrowd
+from envs.crowds.walkers import WalkerCrowd, WalkersConfig
+
+__all__ = [
+    "CROWDS",
+    "BodySpec",
+    "Commands",
+    "Crowd",
+    "CrowdConfig",
+    "CrowdType",
+    "QueueCrowd",
+    "QueuesConfig",
+    "SoccerConfig",
+    "SoccerCrowd",
+    "Taken",
+    "WalkerCrowd",
+    "WalkersConfig",
+    "build_crowd",
+    "crowd_types",
+    "register_crowd",
+]

@@ -1,0 +1,214 @@
+"""The crowd plug-in interface: moving bodies with a behaviour, registered by type name.
+
+A world YAML names its crowds as a mapping from name to a config tagged by ``type``::
+
+    crowds:
+      robots: {type: soccer, count: 6, ball: true}
+
+Each crowd owns its bodies (members and, for the soccer crowd, the ball): it says what they
+are (:class:`BodySpec`), where they start, and every step what they want to do
+(:class:`Commands`), reading only a frozen :class:`~envs.state.WorldState`. The world turns
+that into pymunk bodies and forces; bodies follow the robot in crowd order. ``crowd_size``
+sets the count of the world's first crowd (its density). Built in: ``soccer``
+(:mod:`.soccer`), ``queues`` (:mod:`.queues`), ``walkers`` (:mod:`.walkers`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from envs.plugins import Entry, Registry
+from envs.state import WorldState
+from localizers.schema import check
+
+if TYPE_CHECKING:
+    from envs.config import WorldConfig
+
+ConfigT = TypeVar("ConfigT", bound="CrowdConfig")
+
+#: a member's body as the crowd sees it: (x, y, radius) already taken at placement time
+Taken = list[tuple[float, float, float]]
+
+
+@dataclass(frozen=True)
+class CrowdConfig:
+    """Base of every crowd config: ``count`` members of one size and weight.
+
+    Loaded from a mapping whose ``type`` names a registered crowd type; the other entries
+    are that type's fields, checked by the strict loader.
+    """
+
+    type_name: ClassVar[str] = ""
+    count: int = 0
+    max_count: int = 14
+    radius_m: float = 0.25
+    mass_kg: float = 30.0
+    speed_mps: float = 1.75
+
+    @classmethod
+    def __from_config__(cls, value: Any, where: str) -> CrowdConfig:
+        """Build the config of the type named by ``value["type"]`` (the strict loader's hook)."""
+        return CROWDS.config_from(value, where)
+
+    def __post_init__(self) -> None:
+        check(self.max_count >= 0, f"crowd.max_count must be >= 0, got {self.max_count}")
+        check(0 <= self.count <= self.max_count, f"crowd.count must be in [0, {self.max_count}], got {self.count}")
+        check(self.radius_m > 0, f"crowd.radius_m must be > 0, got {self.radius_m}")
+        check(self.mass_kg > 0, f"crowd.mass_kg must be > 0, got {self.mass_kg}")
+        check(self.speed_mps > 0, f"crowd.speed_mps must be > 0, got {self.speed_mps}")
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    """One body of a crowd.
+
+    Attributes:
+        kind: ``"crowd"`` (a member: robot, person; force-driven toward the velocity the crowd
+            wants) or ``"ball"`` (its velocity is set directly); also the contact kind.
+        radius_m, mass_kg: the footprint disc and its mass.
+        occludes: whether it blocks a camera's sight lines.
+        friction, elasticity: pymunk shape settings.
+    """
+
+    kind: str
+    radius_m: float
+    mass_kg: float
+    occludes: bool = True
+    friction: float = 0.5
+    elasticity: float = 0.0
+
+
+@dataclass
+class Commands:
+    """What a crowd wants this step.
+
+    Attributes:
+        member_velocity: ``(M, 2)`` desired velocities of its members (in body order).
+        ball_velocity: ``(2,)`` the ball's velocity to set, or None (no ball, or leave it).
+        teleports: ``(body index within the crowd, (x, y))`` to move before the step (a ball put back in play).
+    """
+
+    member_velocity: NDArray[np.float64]
+    ball_velocity: NDArray[np.float64] | None = None
+    teleports: list[tuple[int, NDArray[np.float64]]] = field(default_factory=list)
+
+
+class Crowd:
+    """Base crowd: ``count`` members of one size; subclasses add behaviour (and maybe a ball).
+
+    Attributes:
+        name: the crowd's name in the world config.
+        config: its config.
+        rows: the world's body rows of its bodies (set by the world), members first.
+        member_rows: the rows of its members only.
+        held: ``(M,)`` members frozen in place by a scripted driver.
+    """
+
+    fill: tuple[int, int, int] = (60, 60, 60)
+    outline: tuple[int, int, int] = (10, 10, 10)
+
+    def __init__(self, name: str, config: CrowdConfig, world: WorldConfig) -> None:
+        self.name = name
+        self.config = config
+        self.world_config = world
+        self.count = int(config.count)
+        self.radii_m = np.full(self.count, config.radius_m)
+        self.held = np.zeros(self.count, dtype=np.bool_)
+        self.max_speed = np.full(self.count, config.speed_mps)
+        self.rows = np.zeros(0, dtype=np.int64)
+        self.member_rows = np.zeros(0, dtype=np.int64)
+
+    def bodies(self) -> list[BodySpec]:
+        """The crowd's bodies, members first (override to add a ball or other bodies)."""
+        return [BodySpec("crowd", float(r), self.config.mass_kg) for r in self.radii_m]
+
+    def attach(self, rows: NDArray[np.int64]) -> None:
+        """Called by the world with the rows of :meth:`bodies`."""
+        self.rows = np.asarray(rows, dtype=np.int64)
+        self.member_rows = self.rows[: self.count]
+
+    def hold(self, index: int, flag: bool) -> None:
+        """Freeze member ``index`` in place (``flag``) or let it move again."""
+        if not 0 <= index < self.count:
+            raise IndexError(f"crowd {self.name!r}: member {index} does not exist (it has {self.count})")
+        self.held[index] = flag
+
+    def reset(self, rng: np.random.Generator, taken: Taken) -> NDArray[np.float64]:
+        """``(bodies, 2)`` start positions; append the members placed to ``taken`` (x, y, r)."""
+        self.held[:] = False
+        return np.zeros((len(self.bodies()), 2))
+
+    def commands(self, state: WorldState, others: NDArray[np.int64], rng: np.random.Generator) -> Commands:
+        """What the crowd wants this step; ``others``: the rows of every member of every crowd."""
+        return Commands(np.zeros((self.count, 2)))
+
+    def draw(self, canvas: Any, state: WorldState) -> None:
+        """Draw the crowd's bodies (members as filled, outlined discs)."""
+        for xy, r in zip(state.positions[self.member_rows], state.radii_m[self.member_rows]):
+            canvas.circle(xy[0], xy[1], r, self.fill, 0)
+            canvas.circle(xy[0], xy[1], r, self.outline, 1)
+
+    # ------------------------------------------------------------------ helpers
+    def field_box(self, margin: float) -> tuple[float, float, float, float]:
+        w, h = self.world_config.size_m
+        return (margin, margin, w - margin, h - margin)
+
+    def free_positions(self, rng: np.random.Generator, count: int, radius: float, taken: Taken) -> NDArray[np.float64]:
+        """``count`` random positions in the field that overlap nothing in ``taken`` (x, y, r), appended to it."""
+        x0, y0, x1, y1 = self.field_box(radius)
+        out = np.zeros((count, 2))
+        for i in range(count):
+            for _ in range(1000):
+                p = rng.uniform((x0, y0), (x1, y1))
+                if all((p[0] - x) ** 2 + (p[1] - y) ** 2 > (r + radius + 0.05) ** 2 for x, y, r in taken):
+                    break
+            else:
+                raise RuntimeError(
+                    f"world {self.world_config.name!r}: no free space for {count} members of crowd {self.name!r} "
+                    f"(radius {radius} m)"
+                )
+            out[i] = p
+            taken.append((float(p[0]), float(p[1]), radius))
+        return out
+
+
+#: builds a crowd from its name, its config and the world config
+CrowdFactory = Callable[[str, Any, "WorldConfig"], Crowd]
+CrowdType = Entry[CrowdConfig, CrowdFactory]
+
+#: the registered crowd types
+CROWDS: Registry[CrowdConfig, CrowdFactory] = Registry("crowd", CrowdConfig)
+
+
+def register_crowd(type_name: str, config_cls: type[ConfigT]) -> Callable[[type[Any]], type[Any]]:
+    """Class decorator: register a :class:`Crowd` subclass (``cls(name, config, world)``) under ``type_name``."""
+    return CROWDS.decorator(type_name, config_cls)
+
+
+def crowd_types() -> list[str]:
+    """The registered crowd type names, sorted."""
+    return CROWDS.names()
+
+
+def build_crowd(name: str, config: CrowdConfig, world: WorldConfig) -> Crowd:
+    """The crowd ``config`` describes, named ``name``."""
+    return CROWDS.get(config.type_name, f"crowd {name!r}").build(name, config, world)
+
+
+__all__ = [
+    "CROWDS",
+    "BodySpec",
+    "Commands",
+    "Crowd",
+    "CrowdConfig",
+    "CrowdType",
+    "Taken",
+    "build_crowd",
+    "crowd_types",
+    "register_crowd",
+]
