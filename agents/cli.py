@@ -142,7 +142,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     if argv[:1] == ["tune"]:  # import only when tuning (optuna, the replay machinery)
         importlib.import_module("agents.tune").add_arguments(tune)
 
-    from agents.reproduce import EXPERIMENTS
+    from agents.papers import EXPERIMENTS
 
     reproduce = sub.add_parser(
         "reproduce",
@@ -238,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {result.report} ({result.n_trials} trials in study {result.study_name!r})")
         return 0
     if args.command == "reproduce":
-        from agents.reproduce import EXPERIMENTS
+        from agents.papers import EXPERIMENTS
 
         report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
         print(f"wrote {report}")

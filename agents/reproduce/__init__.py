@@ -1,19 +1,7 @@
-"""Paper reproductions: ``crowdloc reproduce NAME`` runs one and writes ``results/NAME/report.md``.
-
-Each experiment module exposes ``add_arguments(parser)`` (its own options) and
-``run(args) -> pathlib.Path`` (the report it wrote).
-"""
+"""Paper reproductions (moved to :mod:`agents.papers`; ``EXPERIMENTS`` is re-exported from there)."""
 
 from __future__ import annotations
 
-#: experiment name -> (module implementing it, one-line summary for --help)
-EXPERIMENTS: dict[str, tuple[str, str]] = {
-    "bearing-candidates": (
-        "agents.reproduce.bearing_candidates",
-        "two-landmark candidate sets (Motomura et al.): Exp 1-3, Tables 1-3, beside the paper's numbers",
-    ),
-    "lidar-far-point": (
-        "agents.reproduce.lidar_far_point",
-        "LIDAR scan accumulation + far points (Fujii et al.): MCL with and without them vs sampling and hit (Figs 5, 7-11)",
-    ),
-}
+from agents.papers import EXPERIMENTS
+
+__all__ = ["EXPERIMENTS"]
