@@ -13,7 +13,7 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
         "two-landmark candidate sets (Motomura et al.): Exp 1-3, Tables 1-3, beside the paper's numbers",
     ),
     "lidar-far-point": (
-        "agents.reproduce.lidar_far_point",
+        "agents.papers.lidar_far_point",
         "LIDAR scan accumulation + far points (Fujii et al.): MCL with and without them vs sampling and hit (Figs 5, 7-11)",
     ),
 }

@@ -12,8 +12,9 @@ import pytest
 
 from agents import metrics
 from agents.cli import build_parser, main
+from agents.papers.lidar_far_point import analysis, jobs
+from agents.papers.lidar_far_point import experiment as ex
 from agents.replay import Recording, record, replay
-from agents.reproduce import lidar_far_point as lfp
 from agents.scenarios import square_driver, square_vertices
 from localizers.geometry import wrap_angle
 from tests.pinning import PINNED_DIR, assert_same_numbers
@@ -29,12 +30,12 @@ def square_lap(**kwargs: object) -> Recording:
     """One lap of the experiment's square in the empty room."""
 
     def make(env):  # noqa: ANN001, ANN202
-        return square_driver(env, center_xy=lfp.CENTER_XY, side_m=lfp.SIDE_M, laps=1, speed_mps=lfp.SPEED_MPS,
-                             turn_rate_rps=lfp.TURN_RATE_RPS)  # fmt: skip
+        return square_driver(env, center_xy=ex.CENTER_XY, side_m=ex.SIDE_M, laps=1, speed_mps=ex.SPEED_MPS,
+                             turn_rate_rps=ex.TURN_RATE_RPS)  # fmt: skip
 
-    steps = lfp._episode_steps(1)
-    return record(lfp.ENV_ID, make, seed=0, max_steps=steps + 10, env_kwargs={**lfp.env_kwargs(0, steps + 10), **kwargs},
-                  reset_options={"robot_pose": list(lfp.start_pose())})  # fmt: skip
+    steps = ex.episode_steps(1)
+    return record(ex.ENV_ID, make, seed=0, max_steps=steps + 10, env_kwargs={**ex.env_kwargs(0, steps + 10), **kwargs},
+                  reset_options={"robot_pose": list(ex.start_pose())})  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -44,10 +45,10 @@ def lap() -> Recording:
 
 def test_the_square_closes_its_loop_and_passes_its_corners(lap: Recording) -> None:
     truth = lap.true_pose
-    corners = square_vertices(lfp.CENTER_XY, lfp.SIDE_M)
+    corners = square_vertices(ex.CENTER_XY, ex.SIDE_M)
     for corner in corners:
         assert np.min(np.hypot(*(truth[:, :2] - corner).T)) < 0.005, corner
-    start = np.asarray(lfp.start_pose())
+    start = np.asarray(ex.start_pose())
     np.testing.assert_allclose(truth[0], start, atol=1e-9)
     assert np.hypot(*(truth[-1, :2] - start[:2])) < 0.005
     assert abs(float(wrap_angle(truth[-1, 2] - start[2]))) < math.radians(0.5)
@@ -69,11 +70,11 @@ def test_square_driver_rejects_bad_arguments() -> None:
 
 @pytest.mark.parametrize("name", ["mcl_lidar", "far_point_mcl"])
 def test_one_estimate_per_half_metre_of_travel(lap: Recording, name: str) -> None:
-    params = lfp.Config(False, lfp.REFERENCE_PARAMS).mcl_params()
+    params = ex.Config(False, ex.REFERENCE_PARAMS).mcl_params()
     out = replay(lap, name, rng_seed=0, params=params if name == "mcl_lidar" else {"mcl": params}, read="updates")
     assert out.updated is not None and out.updated[0]  # the first scan is weighed
     per_lap = int(out.updated[1:].sum())
-    assert abs(per_lap - 4 * lfp.SIDE_M / lfp.UPDATE_TRAVEL_M) <= 1
+    assert abs(per_lap - 4 * ex.SIDE_M / ex.UPDATE_TRAVEL_M) <= 1
     # no update while turning in place: each update is ~0.5 m of path after the previous one
     gaps = np.diff(metrics.travelled(lap.true_pose)[out.updated])
     assert np.all((gaps >= 0.5) & (gaps < 0.51))
@@ -87,24 +88,24 @@ def test_failure_count_on_hand_made_errors() -> None:
     assert metrics.failure_count(errors, threshold=3.0) == 1
     assert metrics.failure_count([]) == 0
 
-    def run(seed: int, errs: list[float]) -> lfp.Run:
+    def run(seed: int, errs: list[float]) -> jobs.Run:
         e = np.asarray(errs)
-        return lfp.Run("k", seed, 16, np.zeros((e.size, 3)), e, np.full(e.size, math.radians(90.0)))
+        return jobs.Run("k", seed, 16, np.zeros((e.size, 3)), e, np.full(e.size, math.radians(90.0)))
 
-    s = lfp.stats_of([run(0, [0.1, 0.3, 1.5, 4.0]), run(1, [0.1, 0.1, 0.1, 0.1]), run(2, [0.2, 1.0, 0.2, 0.2])])
+    s = analysis.stats_of([run(0, [0.1, 0.3, 1.5, 4.0]), run(1, [0.1, 0.1, 0.1, 0.1]), run(2, [0.2, 1.0, 0.2, 0.2])])
     assert (s.runs, s.estimates, s.failures_total, s.large_total, s.failed_runs) == (3, 4, 3, 1, 2)
     assert s.failures == pytest.approx(1.0) and s.failures_sd == pytest.approx(1.0)
     assert s.failure_rate == pytest.approx(3 / 12) and not s.works
     assert s.mean_m == pytest.approx(np.mean([0.1, 0.3, 1.5, 4.0, 0.1, 0.1, 0.1, 0.1, 0.2, 1.0, 0.2, 0.2]))
     assert s.failure_heading_deg == pytest.approx(90.0)
-    assert lfp.stats_of([run(0, [0.1] * 200)]).works
+    assert analysis.stats_of([run(0, [0.1] * 200)]).works
 
 
 def test_options_and_the_default_plan() -> None:
     args = parse("reproduce", "lidar-far-point")
     assert (args.seeds, args.quick, args.out) == (10, False, Path("results/lidar-far-point"))
     assert 1 <= args.workers <= 2
-    plan = lfp.make_plan(args)
+    plan = ex.make_plan(args)
     assert (plan.seeds, plan.laps, plan.densities) == (10, 3, (0, 8, 16, 24, 30))
     assert plan.samplings == pytest.approx([0.1 * k for k in range(1, 11)])
     assert plan.hits == pytest.approx([0.1 * k for k in range(1, 11)])
@@ -113,7 +114,7 @@ def test_options_and_the_default_plan() -> None:
     # 10 + 10 values with and without far points, (0.1, 0.2) shared, two AMCL rows, the density pair
     assert len(keys) == 2 * (10 + 10 - 1 + 2 + 1)
     assert all(c.mcl_params()["update_min_rotation_rad"] >= 2 * math.pi for c in plan.main_configs())
-    quick = lfp.make_plan(parse("reproduce", "lidar-far-point", "--quick"))
+    quick = ex.make_plan(parse("reproduce", "lidar-far-point", "--quick"))
     assert (quick.seeds, quick.laps, len(quick.samplings), len(quick.hits), len(quick.densities)) == (2, 1, 3, 3, 3)
     with pytest.raises(SystemExit):
         parse("reproduce", "lidar-far-point", "--seeds", "0")
@@ -122,28 +123,28 @@ def test_options_and_the_default_plan() -> None:
 @pytest.fixture
 def small_square(monkeypatch: pytest.MonkeyPatch) -> None:
     """A 1 m square: episodes of ~1000 steps (speed only; the experiment's geometry is tested above)."""
-    monkeypatch.setattr(lfp, "SIDE_M", 1.0)
-    monkeypatch.setattr(lfp, "SPEED_MPS", 0.3)
+    monkeypatch.setattr(ex, "SIDE_M", 1.0)
+    monkeypatch.setattr(ex, "SPEED_MPS", 0.3)
 
 
 def test_replaying_stored_update_scans_equals_the_registered_localizers(small_square: None) -> None:
-    ep = lfp.run_episode(lfp.EpisodeTask(seed=3, crowd_size=16, laps=1))
-    configs = (*lfp.both((("sampling", 0.7), ("hit_std_m", 0.8))), *lfp.both(lfp.REFERENCE_PARAMS))
-    runs = {r.key: r for r in lfp.run_chunk(lfp.ChunkTask(ep, configs))}
+    ep = jobs.run_episode(jobs.EpisodeTask(seed=3, crowd_size=16, laps=1))
+    configs = (*ex.both((("sampling", 0.7), ("hit_std_m", 0.8))), *ex.both(ex.REFERENCE_PARAMS))
+    runs = {r.key: r for r in jobs.run_chunk(jobs.ChunkTask(ep, configs))}
     # the same episode, recorded again with every LIDAR scan, replayed the ordinary way
-    steps = lfp._episode_steps(1)
-    full = record(lfp.ENV_ID, lfp._driver_factory(1), 3, max_steps=steps + 10, env_kwargs=lfp.env_kwargs(16, steps + 10),
-                  reset_options={"robot_pose": list(lfp.start_pose())})  # fmt: skip
+    steps = ex.episode_steps(1)
+    full = record(ex.ENV_ID, ex.driver_factory(1), 3, max_steps=steps + 10, env_kwargs=ex.env_kwargs(16, steps + 10),
+                  reset_options={"robot_pose": list(ex.start_pose())})  # fmt: skip
     np.testing.assert_array_equal(full.true_pose, ep.recording.true_pose)
     assert ep.update_steps.size >= 8
     for c in configs:
         name = "far_point_mcl" if c.far else "mcl_lidar"
         params = {"mcl": c.mcl_params()} if c.far else c.mcl_params()
-        out = replay(full, name, rng_seed=[3, 16, lfp.RNG_SALT], params=params, read="updates")
+        out = replay(full, name, rng_seed=[3, 16, ex.RNG_SALT], params=params, read="updates")
         assert out.updated is not None
         np.testing.assert_array_equal(np.flatnonzero(out.updated), ep.update_steps)
         np.testing.assert_array_equal(out.estimates[ep.update_steps], runs[c.key].estimates)
-    assert lfp.reference_identity([ep], list(runs.values())) == 0.0
+    assert jobs.reference_identity([ep], list(runs.values())) == 0.0
     # the processing changes what MCL sees: far-point scans differ from the raw ones
     assert not np.array_equal(ep.far_scans, ep.raw_scans.astype(np.float64))
 
@@ -172,6 +173,6 @@ def test_quick_run_writes_report_and_figures(tmp_path: Path, capsys: pytest.Capt
     pinned = json.loads((PINNED_DIR / "lidar_far_point_quick.json").read_text())
     assert_same_numbers(pinned, json.loads((out / "results.json").read_text()), "results", frozenset({"wall_s", "workers"}))
     count = int(re.search(r"\*\*(\d+)[/\d]* estimates per run\*\*", report).group(1))  # type: ignore[union-attr]
-    assert abs(count - 1 - 4 * lfp.SIDE_M / lfp.UPDATE_TRAVEL_M) <= 1  # one lap, plus the estimate at the start
+    assert abs(count - 1 - 4 * ex.SIDE_M / ex.UPDATE_TRAVEL_M) <= 1  # one lap, plus the estimate at the start
     row = next(line for line in report.splitlines() if line.startswith("| 0.1 |"))
     assert np.isfinite(float(row.split("|")[2].split("±")[0]))  # numbers, not n/a
