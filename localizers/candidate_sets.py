@@ -1,4 +1,4 @@
-"""The candidate-set localizer of the two-landmark bearings paper (PAPERS.md A, method (5)).
+"""The candidate-set localizer of the two-landmark bearings paper (docs/papers.md section A, method (5)).
 
 1. *Generation*: with exactly 2 landmark bearings seen, N poses on the inscribed-angle arc
    (:func:`localizers.resection.inscribed_arc_poses`), spread over the part of the arc

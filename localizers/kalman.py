@@ -1,4 +1,4 @@
-"""Baseline (3) of the two-landmark bearings paper (PAPERS.md section A, appendix A).
+"""Baseline (3) of the two-landmark bearings paper (docs/papers.md section A, appendix A).
 
 Dead reckoning (baseline (1)) and Cassini resection (baseline (2), here over every triple of
 the visible landmarks with the robust median-gated combination of
@@ -7,7 +7,7 @@ heading is an independent constant-acceleration state ``(p, p', p'')`` (eqs. A.1
 dead reckoning observes the velocity (eq. A.4), vision observes the position (eq. A.5);
 the two arrive asynchronously, so each is its own measurement update. (The OCR of eq. A.4
 reads ``C = (0 1 1)``, ``Y = (0 x' x'')``, which may mean odometry also observes the
-acceleration; we observe the velocity only, as PAPERS.md states: a finite difference of
+acceleration; we observe the velocity only, as docs/papers.md states: a finite difference of
 30 Hz increments is too noisy to be an acceleration measurement.)
 
 The linear filter itself is two pure functions in the style of filterpy, :func:`kf_predict`

@@ -1,7 +1,7 @@
 """Monte Carlo localization from landmark bearings: one particle core, two filters.
 
 - :class:`PaperBearingMCL` (``mcl_bearing_paper``) is baseline (4) of the two-landmark
-  bearings paper (PAPERS.md section A, sec. 5 (4) of the original): 1000 unweighted
+  bearings paper (docs/papers.md section A, sec. 5 (4) of the original): 1000 unweighted
   particles; at each observation the particles whose bearing to any observed landmark is
   off by more than pi/9 are deleted and as many are re-seeded from the observation.
 - :class:`BearingMCL` (``mcl_bearing``) is a modern reference: Gaussian bearing likelihood

@@ -1,6 +1,6 @@
 """Monte Carlo localization with a 2-D LIDAR against the static map (``mcl_lidar``).
 
-The MCL of the far-point paper (PAPERS.md section B, Fujii et al.): Probabilistic Robotics
+The MCL of the far-point paper (docs/papers.md section B, Fujii et al.): Probabilistic Robotics
 MCL (Table 8.2) with 1000 particles, the odometry motion model whose alpha1..alpha4 are
 scaled by one *sampling parameter*, and the beam range-finder model (Table 6.1). Options
 beyond the paper: the likelihood-field model (Table 6.3), KLD-sampling (Fox 2003; Table

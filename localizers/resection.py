@@ -1,6 +1,6 @@
 """Bearing-only resection: Cassini's three-point method, the two-landmark arc, and baseline (2).
 
-Candidate-set paper (PAPERS.md A): baseline (2) solves the pose by Cassini's method whenever
+Candidate-set paper (docs/papers.md section A): baseline (2) solves the pose by Cassini's method whenever
 >= 3 landmark bearings are seen and gives no output otherwise; the proposed method seeds its
 candidate sets from the inscribed-angle arc (2 landmarks) or from every Cassini triple
 (>= 3 landmarks). The pure functions here serve both and the other localizers.

@@ -1,4 +1,4 @@
-"""Scan accumulation and far-point extraction (PAPERS.md section B, Fujii et al.), and ``far_point_mcl``.
+"""Scan accumulation and far-point extraction (docs/papers.md section B, Fujii et al.), and ``far_point_mcl``.
 
 In a crowded room people stand *in front of* the walls as seen from the robot. The paper
 therefore (1) accumulates the LIDAR hit points of the last ``travel_m`` of travel in one

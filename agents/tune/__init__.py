@@ -1,6 +1,6 @@
 """``crowdloc tune``: learn a localizer's parameters with Optuna instead of setting them by hand.
 
-The candidate-set paper (PAPERS.md A) set its thresholds by hand; this module searches any
+The candidate-set paper (docs/papers.md section A) set its thresholds by hand; this module searches any
 bearing localizer's parameters for a given world, crowd density and motion scenario:
 
 * **Search space**: ``configs/tuning/<localizer>.yaml`` (:func:`load_search_space`), per

@@ -2,7 +2,7 @@
 
 Motomura, Matsuoka, Hasegawa, Kurazume, "Real-time self-localization method by using
 measurements of directions of two landmarks and dead reckoning", JRSJ; Tables 1-3 as restated
-in PAPERS.md section A.
+in docs/papers.md section A.
 """
 
 from __future__ import annotations

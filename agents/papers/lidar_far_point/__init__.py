@@ -1,4 +1,4 @@
-"""Re-run the MCL experiment of the far-point paper (Fujii et al., PAPERS.md section B).
+"""Re-run the MCL experiment of the far-point paper (Fujii et al., docs/papers.md section B).
 
 The room (``crowdloc/CrowdedRoom-v0``) with people queueing along the left and right walls;
 our robot drives an open-loop square in the middle of the room for three laps at 0.15 m/s

@@ -1,4 +1,4 @@
-"""The far-point paper's own numbers (Fujii, Ohya, Tsubouchi; PAPERS.md section B), in one place.
+"""The far-point paper's own numbers (Fujii, Ohya, Tsubouchi; docs/papers.md section B), in one place.
 
 Its Figs 7, 8, 10 and 11 are plots without printed values; these are the numbers its text
 states. Everything the reproduction chose itself lives in :mod:`.experiment`, and what the

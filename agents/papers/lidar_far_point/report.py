@@ -217,7 +217,7 @@ def header(c: Context) -> Lines:
         f"`crowdloc reproduce lidar-far-point{' --quick' if c.plan.quick else ''}` — {c.plan.seeds} seed(s) per point, "
         f"{len(c.episodes)} recorded episodes, {len(c.runs)} MCL runs; {c.wall_s:.0f} s wall with {w} worker(s), "
         f"{cpu:.0f} CPU seconds in the tasks (about {cpu / max(w, 1):.0f} s of wall time on {w} idle cores). "
-        "PAPERS.md section B; the paper's Figs 7, 8, 10 and 11 are plots without printed values, so its claims are "
+        "docs/papers.md section B; the paper's Figs 7, 8, 10 and 11 are plots without printed values, so its claims are "
         "checked qualitatively, with the few numbers its text gives.",
         "",
     ]
