@@ -65,12 +65,18 @@ class RunStats:
         return self.steps / self.seconds
 
 
+def _box(space: gym.Space[Any]) -> gym.spaces.Box:
+    """The env's action space, which crowdloc envs declare as a Box."""
+    assert isinstance(space, gym.spaces.Box), space
+    return space
+
+
 def run_world(env_id: str, crowd_size: int, steps: int, seed: int) -> RunStats:
     """Drive ``env_id`` with a random walk for ``steps`` steps and collect visibility figures."""
     env = gym.make(env_id, crowd_size=crowd_size)
     base = env.unwrapped
     assert isinstance(base, envs.LocalizationEnv)
-    policy = RandomWalk(env.action_space, seed=seed)
+    policy = RandomWalk(_box(env.action_space), seed=seed)
     obs, info = env.reset(seed=seed)
     landmarks = base.world.landmark_xy.shape[0]
     histogram = np.zeros(landmarks + 1)
@@ -139,12 +145,13 @@ def save_frame(env_id: str, path: Path, seed: int, steps: int = 150) -> None:
     import matplotlib.pyplot as plt
 
     env = gym.make(env_id, render_mode="rgb_array")
-    policy = RandomWalk(env.action_space, seed=seed)
+    policy = RandomWalk(_box(env.action_space), seed=seed)
     obs, _ = env.reset(seed=seed)
     for _ in range(steps):
         obs, *_ = env.step(policy.predict(obs)[0])
     frame = env.render()
     env.close()
+    assert isinstance(frame, np.ndarray)
     plt.imsave(path, frame)
 
 

@@ -187,7 +187,7 @@ def record(
     if not readable:
         raise ValueError(f"record: {env_id} has no sensor that a localizer reads (sensors: {', '.join(sensors)})")
     obs, info = env.reset(seed=seed, options=dict(reset_options) if reset_options else None)
-    drv: Driver = driver if hasattr(driver, "act") else driver(base)
+    drv: Driver = driver if hasattr(driver, "act") else driver(base)  # type: ignore[operator]  # a Driver or a factory of one
     drv.reset(base)
     # the driver may have moved the ball or the crowd: observations are unchanged (the ball
     # does not occlude; parked members sit outside the field), the truth is re-read below

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from envs.crowds import SoccerCrowd
 from localizers.geometry import wrap_angle
@@ -273,12 +273,13 @@ def soccer_crowd(world: World) -> SoccerCrowd:
     return next((c for c in crowds if c.has_ball), crowds[0])
 
 
-def set_ball(world: World, xy: Sequence[float], velocity: Sequence[float] = (0.0, 0.0)) -> None:
+def set_ball(world: World, xy: ArrayLike, velocity: ArrayLike = (0.0, 0.0)) -> None:
     """Put the ball at ``xy`` with ``velocity`` (scripted kicks, dribbling, a referee's restart)."""
     row = soccer_crowd(world).ball_row
     if row < 0:
         raise ValueError("set_ball: this world has no ball")
-    world.place_body(row, (float(xy[0]), float(xy[1])), (float(velocity[0]), float(velocity[1])))
+    p, v = np.asarray(xy, dtype=np.float64), np.asarray(velocity, dtype=np.float64)
+    world.place_body(row, (float(p[0]), float(p[1])), (float(v[0]), float(v[1])))
 
 
 class SoccerDriver:

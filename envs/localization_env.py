@@ -79,7 +79,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         state = self.world.snapshot()
         #: the sensors by name, in the config's order (which is also the order they draw randomness)
         self.sensors: dict[str, Sensor] = {name: build_sensor(name, sc, config, state) for name, sc in config.sensors.items()}
-        self.observation_space = spaces.Dict({s.key: s.space() for s in self.sensors.values()})
+        self.observation_space = spaces.Dict({s.key: s.space() for s in self.sensors.values()})  # type: ignore[assignment]  # gym.Env types it as a generic Space
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self._overlays: list[Overlay] = []
         self._renderer: Any = None

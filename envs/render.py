@@ -176,9 +176,10 @@ class Canvas:
     # ------------------------------------------------------------------ primitives
     def line(self, p: ArrayLike, q: ArrayLike, color: Color, width_px: int = 1) -> None:
         """Segment from world point ``p`` to ``q``."""
-        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(q))):
+        a, b = np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64)
+        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
             return
-        pygame.draw.line(self.surface, color, self._pt(p), self._pt(q), width_px)
+        pygame.draw.line(self.surface, color, self._pt(a), self._pt(b), width_px)
 
     def circle(self, x: float, y: float, radius_m: float, color: Color, width_px: int = 1) -> None:
         """Circle of ``radius_m`` (at least 1 px) around ``(x, y)``; ``width_px=0`` fills it."""

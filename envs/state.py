@@ -38,9 +38,9 @@ class WorldState:
     angles: NDArray[np.float64]
     velocities: NDArray[np.float64]
     radii_m: NDArray[np.float64]
-    crowd_rows: slice
+    crowd_rows: slice | NDArray[np.int64]
     ball_row: int
-    occluder_rows: slice
+    occluder_rows: slice | NDArray[np.int64]
     seg_a: NDArray[np.float64]
     seg_b: NDArray[np.float64]
     landmark_xy: NDArray[np.float64]

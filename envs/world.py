@@ -162,11 +162,11 @@ class World:
                 d = b - a
                 outward = np.array([d[1], -d[0]]) / np.hypot(*d) * radius
                 a, b = a + outward, b + outward
-            shape = pymunk.Segment(self.space.static_body, tuple(a), tuple(b), radius)
-            shape.elasticity = 0.5
-            shape.friction = 0.5
-            shape.collision_type = WALL
-            self.space.add(shape)
+            wall = pymunk.Segment(self.space.static_body, tuple(a), tuple(b), radius)
+            wall.elasticity = 0.5
+            wall.friction = 0.5
+            wall.collision_type = WALL
+            self.space.add(wall)
         for lm, (x, y), r in zip(config.landmarks, self.landmark_xy, self.landmark_radius_m):
             if not lm.collides:
                 continue

@@ -143,7 +143,7 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
     if isinstance(tp, type) and "__from_config__" in vars(tp):
         # a type that builds itself (its own hook, not a base class's), e.g. a base config
         # whose ``type`` entry names the registered subclass to build
-        return tp.__from_config__(value, where)
+        return typing.cast(Any, tp).__from_config__(value, where)
     if origin in (typing.Union, types.UnionType):
         if value is None and type(None) in args:
             return None
