@@ -95,7 +95,11 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         "summary.csv, summary.md (mean [95% bootstrap CI] per metric), plots, TUM trajectories and episode.gif under --out.",
     )
     ev.add_argument(
-        "--policies", nargs="+", metavar="POLICY", help="fixed policy names or ppo:PATH/model.zip (default: every fixed policy)"
+        "--policies",
+        nargs="+",
+        metavar="POLICY",
+        help="fixed policy names or ppo:PATH/model.zip (default: every fixed policy but patrol; landmark_seeking and "
+        "greedy_info_gain need a camera)",
     )
     ev.add_argument("--localizers", nargs="+", metavar="NAME", help="registered localizers (default: candidate_sets)")
     ev.add_argument(
@@ -110,8 +114,12 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         help="held-out seeds start at 2**31 + K (default 0: the test seeds of make demo; pick between "
         "trained policies on another range, e.g. 1000)",
     )
-    ev.add_argument("--episode-steps", type=positive_int, default=450, help="steps per episode (default 450 = 15 s)")
-    ev.add_argument("--env-id", help="a bearing env id (default: RoboCupCrowded-v0, or the --conditions one)")
+    ev.add_argument("--episode-steps", type=positive_int, default=450, help="steps per episode (default 450 = 15 s at 30 Hz)")
+    ev.add_argument(
+        "--env-id",
+        help="a registered crowdloc env id, e.g. crowdloc/CrowdedRoom-v0 with LIDAR localizers (default: RoboCupCrowded-v0, "
+        "or the --conditions one); --env-set world=PATH.yaml evaluates another world under it",
+    )
     ev.add_argument(
         "--conditions",
         metavar="EXPERIMENT",

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -48,6 +48,9 @@ class FixedPolicy:
         action_space: the env's ``Box(-1, 1, (2,))`` action space.
         seed: seed of the policy's own random stream (independent of the env's).
     """
+
+    #: the sensor type whose readings the policy reads besides the estimate (None: only odometry and the estimate)
+    needs_sensor: ClassVar[str | None] = None
 
     def __init__(self, action_space: spaces.Box, seed: int | None = None) -> None:
         if not isinstance(action_space, spaces.Box) or action_space.shape != (2,):
@@ -214,6 +217,8 @@ class StopAndGo(FixedPolicy):
 
 class _MapPolicy(FixedPolicy):
     """A policy that plans from the localizer's estimate on the known landmark map."""
+
+    needs_sensor = "bearing_camera"  # it reads which landmarks the camera sees now
 
     def __init__(
         self,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +12,11 @@ import pytest
 
 from agents.cli import build_parser, main
 from agents.evaluate import (
+    CORE_METRICS,
     Cell,
     EvalSpec,
+    Track,
+    bearing_metrics,
     bootstrap_ci,
     episode_metrics,
     evaluate,
@@ -75,7 +79,10 @@ def test_metrics_of_a_hand_made_episode() -> None:
     # landmarks 0 and 1 in view at step 0, 2 at step 3 (the third distinct one), 0 again at step 4
     visible = np.zeros((5, 4), bool)
     visible[0, [0, 1]] = visible[3, 2] = visible[4, 0] = True
-    m = episode_metrics(time_s, truth, est, valid, [0, 1, 0, 2, 0], [-1.0, -1.0, 0.5, -0.5], np.full(5, 0.25), visible=visible)
+    track = Track(time_s, truth, est, valid, [0, 1, 0, 2, 0], np.zeros((4, 3)), [-1.0, -1.0, 0.5, -0.5])
+    core = episode_metrics(track)
+    assert list(core) == [m.key for m in CORE_METRICS]
+    m = {**core, **bearing_metrics(track, visible, np.full(5, 0.25))}  # the bearings plug-in's on top
     rms_pos = math.sqrt((0.25 + 0.0 + 4.0) / 3)
     assert m["position_error_mean_m"] == pytest.approx(2.5 / 3)
     assert m["position_error_rms_m"] == pytest.approx(rms_pos)
@@ -97,8 +104,8 @@ def test_metrics_of_a_hand_made_episode() -> None:
 def test_an_episode_without_a_fix_has_nan_errors_and_first_fix() -> None:
     truth = np.zeros((4, 3))
     visible = np.ones((4, 8), bool)
-    m = episode_metrics(np.arange(4.0), truth, np.full((4, 3), np.nan), np.zeros(4, bool), [0] * 4, [-1.0] * 3, np.ones(4),
-                        visible=visible)  # fmt: skip
+    track = Track(np.arange(4.0), truth, np.full((4, 3), np.nan), np.zeros(4, bool), [0] * 4, np.zeros((3, 3)), [-1.0] * 3)
+    m = {**episode_metrics(track), **bearing_metrics(track, visible, np.ones(4))}
     assert m["third_landmark_s"] == 0.0
     assert m["fixed"] == 0.0 and m["availability"] == 0.0 and m["episode_return"] == -3.0
     for key in ("position_error_mean_m", "heading_error_rms_deg", "failure_rate", "first_fix_s", "first_fix_distance_m",
@@ -186,10 +193,31 @@ def test_evaluate_runs_only_the_groups_asked_for_on_all_seeds() -> None:
         ({"env_kwargs": {"camera": {"fov_rad": 9.0}}}, "camera.fov_rad must be in (0, 2 pi], got 9.0"),
         ({"env_kwargs": {"kamera": {}}}, "unknown env keyword 'kamera'"),
         ({"env_kwargs": "fov=1"}, "env_kwargs must be a mapping, got 'fov=1'"),
+        ({"env_id": "crowdloc/Nowhere-v0"}, "unknown env id 'crowdloc/Nowhere-v0'; known: crowdloc/CrowdedRoom-v0, "),
+        ({"env_kwargs": {"world": 3}}, "env_kwargs world must be a YAML path or a shipped world name, got 3"),
+        # a localizer whose world lacks the sensor its measurement kind reads
+        (
+            {"localizers": ("mcl_lidar",)},
+            "localizer 'mcl_lidar' in world 'robocup_crowded' (crowdloc/RoboCupCrowded-v0) "
+            "needs a lidar sensor (scan measurements); this world has odometry (odometry), camera (bearing_camera)",
+        ),
+        (
+            {"env_id": "crowdloc/CrowdedRoom-v0", "policies": ("spin",)},
+            "localizer 'candidate_sets' in world 'crowded_room' "
+            "(crowdloc/CrowdedRoom-v0) needs a bearing_camera sensor (bearings measurements); this world has odometry "
+            "(odometry), lidar (lidar)",
+        ),
+        # a policy that plans on the landmarks the camera sees, in a world without a camera
+        (
+            {"env_id": "crowdloc/CrowdedRoom-v0", "localizers": ("mcl_lidar",)},
+            "policy 'landmark_seeking' needs a "
+            "bearing_camera sensor and world 'crowded_room' (crowdloc/CrowdedRoom-v0) has none (its sensors: odometry, "
+            "lidar); fixed policies it can run: random_walk, spin, stop_and_go, patrol",
+        ),
     ],
 )
 def test_bad_specs_are_refused_with_the_value(kwargs: dict, message: str) -> None:
-    with pytest.raises(ConfigError, match=message.replace(".", r"\.").replace("(", r"\(")):
+    with pytest.raises(ConfigError, match=re.escape(message)):
         EvalSpec(**kwargs)
 
 

@@ -1,0 +1,58 @@
+"""``crowdloc eval`` from parsed options (the parser lives in :mod:`agents.cli`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from agents.evaluate.outputs import summary_markdown, write_outputs
+from agents.evaluate.spec import Cell, EvalSpec
+from agents.evaluate.stats import EvalResult, evaluate
+from localizers.schema import ConfigError, check
+
+
+def parse_gif_cell(text: str, spec: EvalSpec) -> Cell:
+    """``"policy,localizer,crowd_size"`` -> that cell on the first evaluation seed (must be in the grid)."""
+    parts = text.rsplit(",", 2)
+    if len(parts) != 3 or not parts[2].strip().lstrip("-").isdigit():
+        raise ConfigError(f"--gif-cell must be POLICY,LOCALIZER,CROWD_SIZE, got {text!r}")
+    cell = Cell(parts[0].strip(), parts[1].strip(), int(parts[2]), spec.eval_seeds[0])
+    check(cell in spec.cells(), f"--gif-cell {text!r} is not in the evaluated grid")
+    return cell
+
+
+def spec_from_args(args: Any) -> EvalSpec:
+    """The :class:`EvalSpec` of the parsed options (``--conditions`` first, ``--env-set`` on top).
+
+    Raises:
+        ConfigError: for a bad option value.
+    """
+    from agents.train import load_train_config, parse_overrides
+    from agents.util import nest
+    from localizers.schema import merge_nested
+
+    given = {"policies": args.policies, "localizers": args.localizers, "crowd_sizes": args.crowd_sizes}
+    conditions: dict[str, Any] = {"env_id": args.env_id}
+    if args.conditions:
+        trained = load_train_config(args.conditions)
+        check(args.env_id in (None, trained.env_id),
+              f"--env-id {args.env_id} differs from the env of --conditions {args.conditions} ({trained.env_id})")  # fmt: skip
+        conditions = {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward}
+    conditions["env_kwargs"] = merge_nested(conditions.get("env_kwargs", {}), nest(parse_overrides(args.env_set)))
+    return EvalSpec(**{k: v for k, v in {**given, **conditions}.items() if v is not None}, seeds=args.seeds,
+                    first_seed=args.first_seed, episode_steps=args.episode_steps)  # fmt: skip
+
+
+def run_cli(args: Any) -> EvalResult:
+    """``crowdloc eval``: build the spec from parsed options, run, write, print the summary.
+
+    Raises:
+        ConfigError: for a bad option value, before any episode runs.
+    """
+    spec = spec_from_args(args)
+    gif_cell = parse_gif_cell(args.gif_cell, spec) if args.gif_cell else None
+    result = evaluate(spec, workers=args.workers, ray_address=args.ray_address, progress=not args.no_progress)
+    written = write_outputs(result, args.out, gif_cell=gif_cell, gif=not args.no_gif)
+    print(summary_markdown(result))
+    names = ", ".join(p.name for p in written.values())
+    print(f"\n{len(result.episodes)} episodes in {result.wall_s:.0f} s; wrote {args.out}/ ({names})")
+    return result

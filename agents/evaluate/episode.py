@@ -1,0 +1,218 @@
+"""One evaluated episode: the rollout, the core pose metrics and the plug-ins' metrics.
+
+The env is built like the training env (localizer wrapper, active-localization reward, the
+episode length) and reset with the cell's evaluation seed; a fixed policy gets its own seed
+derived from it, a PPO policy acts deterministically.
+
+The core metrics of every episode (``t0`` = the first step with a valid estimate, the first fix):
+
+- ``position_error_mean_m`` / ``_rms_m``, ``heading_error_mean_deg`` / ``_rms_deg``: over the
+  valid steps from ``t0`` on;
+- ``failure_rate``: share of those steps with a position error >= 1 m;
+- ``availability``: share of all steps with a valid estimate;
+- ``fixed``: 1 if the localizer ever had a pose, else 0;
+- ``first_fix_s`` / ``first_fix_distance_m``: time since reset and distance travelled until
+  ``t0``. **Never fixed**: these and the error metrics are NaN;
+- ``collisions``: contact events of our robot that began during the episode;
+- ``episode_return``: sum of the active-localization rewards.
+
+The metric plug-ins of the localizer's measurement kind (:mod:`agents.evaluate.plugins`; for
+bearings :mod:`agents.evaluate.bearings`) add theirs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+from agents import metrics
+from agents.evaluate.plugins import EpisodeContext, MetricPlugin, Track, localizer_kind, metric_plugins
+from agents.evaluate.spec import PPO_PREFIX, Cell, EvalSpec, load_ppo, policy_seed
+from agents.rewards import ActiveLocalizationReward
+
+
+@dataclass(frozen=True)
+class Episode(Track):
+    """One evaluated episode: the core arrays (:class:`Track`), its cell, metrics and plug-in arrays.
+
+    Attributes:
+        cell: which grid cell.
+        metrics: the per-episode metrics: the core ones and those of its kind's plug-ins.
+        series: the plug-ins' per-step arrays by name (bearings: ``visible`` ``(T, L)``,
+            ``bound_rmse_m`` ``(T,)``); each also reads as an attribute (``episode.visible``).
+    """
+
+    cell: Cell = field(kw_only=True)
+    metrics: Mapping[str, float] = field(kw_only=True)
+    series: Mapping[str, NDArray[Any]] = field(default_factory=dict, kw_only=True)
+
+    def __getattr__(self, name: str) -> NDArray[Any]:  # only called for names that are not attributes
+        series = self.__dict__.get("series", {})  # not self.series: unpickling asks before the fields exist
+        if name.startswith("__") or name not in series:
+            raise AttributeError(f"{type(self).__name__} has no attribute or series {name!r} (series: {sorted(series)})")
+        return series[name]  # type: ignore[no-any-return]
+
+
+@dataclass(frozen=True)
+class Rollout:
+    """What one played episode gave, before any metric."""
+
+    track: Track
+    collected: Mapping[str, NDArray[Any]]  # the plug-ins' per-step values, stacked
+    context: EpisodeContext
+    frames: list[NDArray[np.uint8]]
+
+
+class _PPOPolicy:
+    """A loaded stable-baselines3 model acting deterministically."""
+
+    def __init__(self, path: str) -> None:
+        self.model = load_ppo(path)
+
+    def predict(self, observation: Any) -> NDArray[np.float32]:
+        action, _ = self.model.predict(observation, deterministic=True)
+        return np.asarray(action, dtype=np.float32)
+
+
+def _make_env(spec: EvalSpec, cell: Cell, render_mode: str | None = None) -> gym.Env[Any, Any]:
+    env = gym.make(
+        spec.env_id,
+        crowd_size=cell.crowd_size,
+        localizer=cell.localizer,
+        max_episode_steps=spec.episode_steps,
+        render_mode=render_mode,
+        **dict(spec.env_kwargs),
+    )
+    return ActiveLocalizationReward(env, spec.reward)
+
+
+def _make_policy(cell: Cell, env: gym.Env[Any, Any]) -> Callable[[Any], NDArray[np.float32]]:
+    if cell.policy.startswith(PPO_PREFIX):
+        return _PPOPolicy(cell.policy[len(PPO_PREFIX) :]).predict
+    from agents.policies import make_policy
+
+    fixed = make_policy(cell.policy, env, seed=policy_seed(cell.seed))
+    return lambda obs: fixed.predict(obs, deterministic=True)[0]
+
+
+def _odometry_key(sensors: Mapping[str, Mapping[str, Any]]) -> str:
+    keys = [str(meta["key"]) for meta in sensors.values() if meta.get("type") == "odometry"]
+    if len(keys) != 1:
+        raise ValueError(f"an evaluated world needs exactly one odometry sensor, found {len(keys)}")
+    return keys[0]
+
+
+class _Recorder:
+    """The rows of one rollout: the core ones and what each plug-in collects."""
+
+    def __init__(self, plugins: tuple[MetricPlugin, ...], context: EpisodeContext) -> None:
+        self.plugins, self.context = plugins, context
+        self.rows: dict[str, list[Any]] = {k: [] for k in ("time_s", "true_pose", "estimates", "valid", "contacts")}
+        self.collected: dict[str, list[Any]] = {}
+        self.odometry: list[NDArray[np.float64]] = []
+        self.rewards: list[float] = []
+
+    def keep(self, info: Mapping[str, Any]) -> None:
+        est = info["estimate"]
+        self.rows["time_s"].append(float(info["time_s"]))
+        self.rows["true_pose"].append(np.asarray(info["true_pose"], dtype=np.float64).copy())
+        self.rows["estimates"].append((est.x_m, est.y_m, est.theta_rad) if est.valid else (np.nan, np.nan, np.nan))
+        self.rows["valid"].append(bool(est.valid))
+        self.rows["contacts"].append(len(info["contacts"]))
+        for plugin in self.plugins:
+            for name, value in plugin.collect(info, self.context).items():
+                self.collected.setdefault(name, []).append(np.asarray(value))
+
+    def track(self) -> Track:
+        r = self.rows
+        return Track(
+            time_s=np.array(r["time_s"]),
+            true_pose=np.stack(r["true_pose"]),
+            estimates=np.array(r["estimates"], dtype=np.float64),
+            valid=np.array(r["valid"], dtype=bool),
+            contacts=np.array(r["contacts"], dtype=np.int64),
+            odometry=np.array(self.odometry, dtype=np.float64).reshape(-1, 3),
+            rewards=np.array(self.rewards, dtype=np.float64),
+        )
+
+
+def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
+    """Play one episode of ``cell``; with ``frame_every > 0`` also render every that many steps."""
+    env = _make_env(spec, cell, "rgb_array" if frame_every else None)
+    act = _make_policy(cell, env)
+    obs, info = env.reset(seed=cell.seed)
+    base = env.unwrapped
+    sensors = base.sensor_metadata  # type: ignore[attr-defined]
+    context = EpisodeContext(sensors, base.landmark_map, float(base.config.dt_s), spec.known_start(cell.localizer))  # type: ignore[attr-defined]
+    odometry_key = _odometry_key(sensors)
+    recorder = _Recorder(metric_plugins(localizer_kind(cell.localizer)), context)
+    frames: list[NDArray[np.uint8]] = []
+
+    def keep(step: int, info: Mapping[str, Any]) -> None:
+        recorder.keep(info)
+        if frame_every and step % frame_every == 0:
+            frames.append(env.render())  # type: ignore[arg-type]
+
+    keep(0, info)
+    step, done = 0, False
+    while not done:
+        obs, reward, terminated, truncated, info = env.step(act(obs))
+        step += 1
+        recorder.odometry.append(np.asarray(obs[odometry_key], dtype=np.float64))
+        recorder.rewards.append(float(reward))
+        keep(step, info)
+        done = bool(terminated or truncated)
+    env.close()
+    collected = {name: np.stack(values) for name, values in recorder.collected.items()}
+    return Rollout(recorder.track(), collected, context, frames)
+
+
+def episode_metrics(track: Track) -> dict[str, float]:
+    """The core metrics of one episode (see the module docstring), keyed by ``CORE_METRICS``."""
+    t0, pos, head = track.fix_index, track.position_errors, track.heading_errors_deg
+    return {
+        "position_error_mean_m": metrics.mean_sd(pos, t0)[0],
+        "position_error_rms_m": metrics.rms(pos, t0),
+        "heading_error_mean_deg": metrics.mean_sd(head, t0)[0],
+        "heading_error_rms_deg": metrics.rms(head, t0),
+        "failure_rate": metrics.failure_rate(pos, t0, threshold=1.0),
+        "availability": metrics.availability(track.valid),
+        "fixed": float(t0 is not None),
+        "first_fix_s": track.first_fix_s,
+        "first_fix_distance_m": float(metrics.travelled(track.true_pose)[t0]) if t0 is not None else float("nan"),
+        "collisions": float(np.sum(track.contacts)),
+        "episode_return": float(np.sum(track.rewards)),
+    }
+
+
+def run_episode(spec: EvalSpec, cell: Cell) -> Episode:
+    """Play one cell of the grid and compute its metrics: the core ones and its kind's plug-ins'."""
+    played = rollout(spec, cell)
+    track = played.track
+    values = episode_metrics(track)
+    series: dict[str, NDArray[Any]] = dict(played.collected)
+    for plugin in metric_plugins(localizer_kind(cell.localizer)):
+        got, arrays = plugin.compute(track, played.collected, played.context)
+        if set(got) != set(plugin.keys):
+            raise ValueError(f"metric plug-in {plugin.name!r} returned {sorted(got)}, not its metrics {sorted(plugin.keys)}")
+        clash = set(arrays) & set(series)
+        if clash:
+            raise ValueError(f"metric plug-in {plugin.name!r}: per-step arrays {sorted(clash)} are another's too")
+        values.update(got)
+        series.update(arrays)
+    core = {f.name: getattr(track, f.name) for f in dataclasses.fields(Track)}
+    return Episode(**core, cell=cell, metrics=values, series=series)
+
+
+def run_task(task: tuple[EvalSpec, Cell]) -> Episode:
+    """:func:`run_episode` in a worker process (one torch thread)."""
+    import torch
+
+    torch.set_num_threads(1)  # one episode per core; no thread pools fighting each other
+    return run_episode(*task)

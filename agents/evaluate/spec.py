@@ -1,0 +1,235 @@
+"""The evaluation grid: :class:`EvalSpec` (what to evaluate, checked up front) and its :class:`Cell`\\ s."""
+
+from __future__ import annotations
+
+import functools
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+import envs  # noqa: F401  (registers the crowdloc ids)
+from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
+from agents.policies import FIXED_POLICIES
+from agents.rewards import RewardWeights
+from agents.train import EVAL_SEED_BASE
+from localizers.measurements import find_sensor
+from localizers.schema import ConfigError, check
+
+if TYPE_CHECKING:
+    from envs.config import WorldConfig
+
+PPO_PREFIX = "ppo:"
+_POLICY_SALT = 0x9011C7  # the policy's seed differs from the env's for the same evaluation seed
+#: env_kwargs the grid sets itself
+_GRID_KEYS = ("crowd_size", "max_episode_steps", "localizer", "localizer_params", "render_mode")
+
+
+@dataclass(frozen=True)
+class EvalSpec:
+    """What to evaluate: the grid and the episode.
+
+    Args:
+        policies: fixed policy names (:data:`agents.policies.FIXED_POLICIES`) or
+            ``"ppo:PATH/model.zip"`` (a stable-baselines3 PPO model).
+        localizers: registered localizer names; the world must have the sensor each one's
+            measurement kind reads.
+        crowd_sizes: crowd sizes (densities) of the world.
+        seeds: number of held-out seeds per cell (``EVAL_SEED_BASE + first_seed + 0 .. seeds - 1``).
+        first_seed: offset of the first held-out seed. The default 0 gives the test seeds that
+            ``make demo`` reports on; choosing between trained policies (validation) uses
+            another range, e.g. ``first_seed=1000``, so the test seeds play no part in the choice.
+        episode_steps: steps per episode (450 = 15 s at the RoboCup worlds' 30 Hz).
+        env_id: a registered crowdloc id.
+        env_kwargs: the conditions: ``world`` (a YAML path or shipped world name, replacing the
+            id's world), world section overrides for ``gym.make`` (e.g.
+            ``{"camera": {"fov_rad": 1.5708}}``) and ``prior`` (``"start"``: localizers get the
+            true start pose; ``"none"``: they start lost; default: each localizer's own) and
+            ``belief_spread`` (see ``localizers.wrappers``).
+        reward: the reward weights reported as the episode return.
+        bootstrap_resamples: bootstrap resamples per confidence interval.
+        bootstrap_seed: seeds the bootstrap's generator.
+
+    Raises:
+        ConfigError: naming the bad value (unknown policy or localizer, missing PPO file, a
+            localizer or policy whose sensor the world lacks, crowd size out of the world's
+            range, fewer than one seed, ...).
+    """
+
+    policies: tuple[str, ...] = ("random_walk", "spin", "stop_and_go", "landmark_seeking", "greedy_info_gain")
+    localizers: tuple[str, ...] = ("candidate_sets",)
+    crowd_sizes: tuple[int, ...] = (2, 6, 10)
+    seeds: int = 10
+    first_seed: int = 0
+    episode_steps: int = 450
+    env_id: str = "crowdloc/RoboCupCrowded-v0"
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    reward: RewardWeights = field(default_factory=RewardWeights)
+    bootstrap_resamples: int = 2000
+    bootstrap_seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("policies", "localizers", "crowd_sizes"):  # lists from Python callers become tuples
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        self._check_grid()
+        world = self.world()
+        given = self.env_kwargs.get("world")
+        where = f"world {world.name!r} ({self.env_id}" + (f" with world={str(given)!r})" if given else ")")
+        self._check_sensors(world, where)
+        ppo = [policy for policy in self.policies if policy.startswith(PPO_PREFIX)]
+        if ppo:
+            env = gym.make(self.env_id, localizer=self.localizers[0], **dict(self.env_kwargs))
+            for policy in ppo:
+                check_observation_space(policy, load_ppo(policy[len(PPO_PREFIX) :]).observation_space, env.observation_space)
+            env.close()
+        limit = world.crowd.max_count if world.crowd is not None else 0
+        for size in self.crowd_sizes:
+            check(isinstance(size, (int, np.integer)) and 0 <= size <= limit,
+                  f"crowd size {size!r} out of range 0..{limit} for {where}")  # fmt: skip
+
+    def _check_grid(self) -> None:
+        """The counts, the axes of the grid, the env id and the conditions' own values."""
+        check(isinstance(self.seeds, int) and self.seeds >= 1, f"seeds must be an integer >= 1, got {self.seeds!r}")
+        check(isinstance(self.first_seed, int) and 0 <= self.first_seed <= 2**30,
+              f"first_seed must be an integer from 0 to {2**30}, got {self.first_seed!r}")  # fmt: skip
+        check(isinstance(self.episode_steps, int) and self.episode_steps >= 1,
+              f"episode_steps must be an integer >= 1, got {self.episode_steps!r}")  # fmt: skip
+        check(self.bootstrap_resamples >= 1, f"bootstrap_resamples must be >= 1, got {self.bootstrap_resamples}")
+        for name in ("policies", "localizers", "crowd_sizes"):
+            values = getattr(self, name)
+            check(len(values) >= 1, f"{name} needs at least one value")
+            check(len(set(values)) == len(values), f"{name} repeat: {list(values)}")
+        known = crowdloc_ids()
+        if self.env_id not in known:
+            raise ConfigError(f"unknown env id {self.env_id!r}; known: {', '.join(known)}")
+        check(isinstance(self.env_kwargs, Mapping), f"env_kwargs must be a mapping, got {self.env_kwargs!r}")
+        prior = self.env_kwargs.get("prior")
+        check(prior in (None, "start", "none"), f"env_kwargs prior must be 'start' or 'none', got {prior!r}")
+        belief = self.env_kwargs.get("belief_spread", False)
+        check(isinstance(belief, bool), f"env_kwargs belief_spread must be true or false, got {belief!r}")
+        world = self.env_kwargs.get("world")
+        check(world is None or isinstance(world, (str, Path)),
+              f"env_kwargs world must be a YAML path or a shipped world name, got {world!r}")  # fmt: skip
+        for key in _GRID_KEYS:
+            check(key not in self.env_kwargs, f"env_kwargs may not set {key!r}: the evaluation grid sets it")
+
+    def _check_sensors(self, world: WorldConfig, where: str) -> None:
+        """Each localizer's world has the sensor its measurement kind reads; each fixed policy the one it reads."""
+        have = {name: {"type": s.type_name} for name, s in world.sensors.items()}
+        for name in self.localizers:
+            find_sensor(localizer_kind(name), have, f"localizer {name!r} in {where}")  # raises, naming what is missing
+        for policy in self.policies:
+            check_policy(policy)
+            needs = None if policy.startswith(PPO_PREFIX) else FIXED_POLICIES[policy].needs_sensor
+            if needs is not None and world.sensor_of_type(needs) is None:
+                usable = [
+                    p for p, cls in FIXED_POLICIES.items() if cls.needs_sensor is None or world.sensor_of_type(cls.needs_sensor)
+                ]
+                raise ConfigError(f"policy {policy!r} needs a {needs} sensor and {where} has none "
+                                  f"(its sensors: {', '.join(world.sensors)}); fixed policies it can run: {', '.join(usable)}")  # fmt: skip
+
+    def world(self) -> WorldConfig:
+        """The world evaluated: the id's (or ``env_kwargs["world"]``) with the conditions applied."""
+        from envs import load_world
+        from envs.localization_env import apply_overrides
+
+        conditions = {k: v for k, v in self.env_kwargs.items() if k not in ("prior", "belief_spread", "world")}
+        name = self.env_kwargs.get("world") or gym.spec(self.env_id).kwargs["world"]
+        return apply_overrides(load_world(name), **conditions)
+
+    @property
+    def metrics(self) -> tuple[MetricInfo, ...]:
+        """The metric rows of this grid: the core ones and those of its localizers' kinds."""
+        return localizer_metrics(self.localizers)
+
+    @property
+    def eval_seeds(self) -> tuple[int, ...]:
+        """The held-out env seeds, ``EVAL_SEED_BASE + first_seed + i``."""
+        return tuple(EVAL_SEED_BASE + self.first_seed + i for i in range(self.seeds))
+
+    def known_start(self, localizer: str) -> bool:
+        """Whether ``localizer`` gets the true start pose under these conditions."""
+        from localizers.registry import spec as localizer_spec
+
+        prior = self.env_kwargs.get("prior")
+        return localizer_spec(localizer).needs_prior if prior is None else prior == "start"
+
+    def cells(self) -> list[Cell]:
+        """Every (policy, localizer, crowd size, seed), grouped by the first three."""
+        return [
+            Cell(p, loc, c, s)
+            for p in self.policies
+            for loc in self.localizers
+            for c in self.crowd_sizes
+            for s in self.eval_seeds
+        ]
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One episode of the grid."""
+
+    policy: str
+    localizer: str
+    crowd_size: int
+    seed: int
+
+    @property
+    def group(self) -> tuple[str, str, int]:
+        return self.policy, self.localizer, self.crowd_size
+
+    @property
+    def stem(self) -> str:
+        """A file-name stem naming this episode."""
+        return f"{slug(self.policy)}__{self.localizer}__crowd{self.crowd_size}__seed{self.seed}"
+
+
+def crowdloc_ids() -> list[str]:
+    """The registered env ids of the ``crowdloc`` namespace, sorted."""
+    return sorted(env_id for env_id in gym.registry if env_id.startswith("crowdloc/"))
+
+
+def check_observation_space(policy: str, expected: spaces.Space[Any], given: spaces.Space[Any]) -> None:
+    """Raise a ConfigError unless the env's observation space is the one ``policy`` was trained on."""
+    if expected == given:
+        return
+    want = {k: v.shape for k, v in expected.spaces.items()} if isinstance(expected, spaces.Dict) else {"": expected.shape}
+    have = {k: v.shape for k, v in given.spaces.items()} if isinstance(given, spaces.Dict) else {"": given.shape}
+    diffs = [f"{k}: policy {want.get(k, 'absent')}, env {have.get(k, 'absent')}" for k in sorted(set(want) | set(have))
+             if want.get(k) != have.get(k)] or ["same keys and shapes, different bounds"]  # fmt: skip
+    raise ConfigError(
+        f"policy {policy!r} was trained on other observations than these conditions give ({'; '.join(diffs)}): "
+        "evaluate it in its training conditions (crowdloc eval --conditions <its training config>)"
+    )
+
+
+def check_policy(policy: str) -> None:
+    """Raise a ConfigError unless ``policy`` is a fixed policy name or ``ppo:`` an existing file."""
+    if policy.startswith(PPO_PREFIX):
+        path = Path(policy[len(PPO_PREFIX) :])
+        check(path.is_file(), f"PPO model file {str(path)!r} does not exist (policy {policy!r})")
+    elif policy not in FIXED_POLICIES:
+        raise ConfigError(f"unknown policy {policy!r}; use one of {', '.join(FIXED_POLICIES)} or ppo:PATH/model.zip")
+
+
+@functools.lru_cache(maxsize=4)
+def load_ppo(path: str) -> Any:
+    """The stable-baselines3 PPO model at ``path`` (on the CPU; the last few are cached)."""
+    from stable_baselines3 import PPO
+
+    return PPO.load(path, device="cpu")
+
+
+def slug(text: str) -> str:
+    """``text`` with every run of characters other than letters, digits, ``-`` and ``.`` turned into ``_``."""
+    return re.sub(r"[^A-Za-z0-9.-]+", "_", text).strip("_")
+
+
+def policy_seed(env_seed: int) -> int:
+    """The fixed policy's own seed, derived from the episode's env seed."""
+    return int(np.random.SeedSequence([env_seed, _POLICY_SALT]).generate_state(1)[0])

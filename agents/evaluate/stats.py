@@ -1,0 +1,138 @@
+"""Running the grid and aggregating it: per (policy, localizer, crowd size) the mean over seeds
+and a 95% percentile bootstrap interval of that mean (:func:`bootstrap_ci`)."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from agents.evaluate.episode import Episode, run_task
+from agents.evaluate.plugins import MetricInfo, localizer_metrics
+from agents.evaluate.spec import EvalSpec
+from localizers.schema import check
+
+
+def bootstrap_ci(values: ArrayLike, n: int = 2000, *, rng: np.random.Generator, level: float = 0.95) -> tuple[float, float]:
+    """Percentile-bootstrap confidence interval of the mean of the finite ``values``.
+
+    Draws ``n`` resamples (with replacement, of the same size) and returns the
+    ``(1 - level) / 2`` and ``(1 + level) / 2`` quantiles of their means. One value, or all
+    equal, gives a zero-width interval; no finite value gives ``(nan, nan)``.
+    """
+    if n < 1 or not 0 < level < 1:
+        raise ValueError(f"bootstrap_ci needs n >= 1 and 0 < level < 1, got n={n}, level={level}")
+    v = np.asarray(values, dtype=np.float64).reshape(-1)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return math.nan, math.nan
+    means = v[rng.integers(0, v.size, size=(n, v.size))].mean(axis=1)
+    lo, hi = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])
+    return float(lo), float(hi)
+
+
+@dataclass(frozen=True)
+class Stat:
+    """Mean over the episodes with a finite value, its bootstrap CI, and how many there were."""
+
+    mean: float
+    low: float
+    high: float
+    n: int
+
+
+@dataclass(frozen=True)
+class SummaryRow:
+    """The aggregate of one (policy, localizer, crowd size)."""
+
+    policy: str
+    localizer: str
+    crowd_size: int
+    episodes: int
+    stats: Mapping[str, Stat]
+
+
+@dataclass(frozen=True)
+class EvalResult:
+    """Everything :func:`evaluate` measured."""
+
+    spec: EvalSpec
+    episodes: tuple[Episode, ...]
+    summary: tuple[SummaryRow, ...]
+    wall_s: float
+
+    @property
+    def metrics(self) -> tuple[MetricInfo, ...]:
+        """The metric rows of the tables: the core ones and the plug-ins' of the grid's kinds."""
+        return self.spec.metrics
+
+
+def summarize(
+    episodes: Sequence[Any], resamples: int = 2000, seed: int = 0, metrics: Sequence[MetricInfo] | None = None
+) -> tuple[SummaryRow, ...]:
+    """Mean and bootstrap CI of every metric per (policy, localizer, crowd size), in grid order.
+
+    Args:
+        episodes: :class:`Episode`\\ s (anything with a ``cell`` and ``metrics``).
+        resamples, seed: of the bootstrap; metric ``m`` of group ``g`` draws from ``[seed, g, m]``.
+        metrics: the rows to aggregate (default: those of the episodes' localizers); a metric
+            an episode has not got (another kind's) counts as no value.
+    """
+    rows_of = localizer_metrics(dict.fromkeys(ep.cell.localizer for ep in episodes)) if metrics is None else metrics
+    keys = [m.key for m in rows_of]
+    groups: dict[tuple[str, str, int], list[Any]] = {}
+    for ep in episodes:
+        groups.setdefault(ep.cell.group, []).append(ep)
+    rows = []
+    for g, (key, eps) in enumerate(groups.items()):
+        stats = {}
+        for m, name in enumerate(keys):
+            v = np.array([ep.metrics.get(name, math.nan) for ep in eps], dtype=np.float64)
+            finite = v[np.isfinite(v)]
+            lo, hi = bootstrap_ci(finite, resamples, rng=np.random.default_rng([seed, g, m]))
+            stats[name] = Stat(float(finite.mean()) if finite.size else math.nan, lo, hi, int(finite.size))
+        rows.append(SummaryRow(*key, episodes=len(eps), stats=stats))
+    return tuple(rows)
+
+
+def evaluate(
+    spec: EvalSpec,
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    progress: bool = True,
+    groups: Collection[tuple[str, str, int]] | None = None,
+) -> EvalResult:
+    """Run every cell of ``spec``'s grid (in parallel) and aggregate.
+
+    Args:
+        spec: the grid.
+        workers: local processes (default: the core count; 1 runs in this process).
+        ray_address: run the episodes on this Ray cluster instead.
+        progress: show a progress bar.
+        groups: run only these ``(policy, localizer, crowd size)`` groups of the grid, on all of
+            its seeds (default: the whole grid).
+
+    Raises:
+        ConfigError: a group that is not in the grid, or no group.
+    """
+    from agents.sweep import run_tasks
+
+    start = time.perf_counter()
+    cells = spec.cells()
+    if groups is not None:
+        grid = {c.group for c in cells}
+        wanted = set(groups)
+        check(len(wanted) >= 1, "groups needs at least one (policy, localizer, crowd size)")
+        stray = sorted(wanted - grid, key=str)
+        check(not stray, f"groups {stray} are not in the grid of policies x localizers x crowd sizes")
+        cells = [c for c in cells if c.group in wanted]
+    episodes = run_tasks(run_task, [(spec, c) for c in cells], workers=workers, ray_address=ray_address,
+                         desc="eval", progress=progress)  # fmt: skip
+    summary = summarize(episodes, spec.bootstrap_resamples, spec.bootstrap_seed, spec.metrics)
+    return EvalResult(spec, tuple(episodes), summary, time.perf_counter() - start)
