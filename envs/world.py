@@ -73,10 +73,12 @@ class World:
         config: the validated scenario.
         seg_a, seg_b: ``(S, 2)`` wall segments (static; occlude and collide).
         landmark_xy: ``(L, 2)``, ``landmark_radius_m``: ``(L,)``, ``landmark_max_range_m``: ``(L,)``.
-        positions: ``(B, 2)`` body positions after the last step; row 0 is our robot,
-            rows ``1..1+N`` the crowd, then the ball if any.
+        crowds: the crowd plug-ins by name, in config order.
+        positions: ``(B, 2)`` body positions after the last step; row 0 is our robot, then
+            each crowd's bodies in config order (its members, then e.g. its ball).
         angles: ``(B,)``; ``velocities``: ``(B, 2)``.
-        occluder_rows: rows of ``positions`` whose circles block sight (``occluder_radius_m``).
+        member_rows, ball_rows: rows of every crowd member (robots, people) and of the balls.
+        occluder_rows: rows of ``positions`` whose circles block sight.
     """
 
     def __init__(self, config: WorldConfig) -> None:
@@ -110,7 +112,6 @@ class World:
         self.ball_row = int(self.ball_rows[0]) if self.ball_rows.size else -1
         self.radii_m = np.asarray([config.robot.radius_m] + [b.radius_m for b in self._specs], dtype=np.float64)
         self.occluder_rows = _as_slice(np.flatnonzero([False] + [b.occludes for b in self._specs]))
-        self.occluder_radius_m = self.radii_m[self.occluder_rows].copy()
         self._others = np.concatenate([[0], self.member_rows]).astype(np.int64)  # the robot and every member
         for static in (self.seg_a, self.seg_b, self.landmark_xy, self.landmark_radius_m, self.landmark_max_range_m, self.radii_m):
             static.setflags(write=False)  # shared by every snapshot
@@ -276,14 +277,8 @@ class World:
 
     @property
     def robot_pose(self) -> NDArray[np.float64]:
-        """``(3,)`` true pose of our robot, heading wrapped to ``[-pi, pi)``."""
-        x, y = self.positions[0]
-        theta = (self.angles[0] + math.pi) % (2 * math.pi) - math.pi
-        return np.array([x, y, theta])
-
-    @property
-    def occluder_xy(self) -> NDArray[np.float64]:
-        return self.positions[self.occluder_rows]
+        """``(3,)`` true pose of our robot, heading wrapped to ``[-pi, pi)`` (:attr:`WorldState.robot_pose`)."""
+        return self.snapshot().robot_pose
 
     def read_state(self) -> None:
         """Copy body state out of pymunk into ``positions``, ``angles`` and ``velocities``."""

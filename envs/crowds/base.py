@@ -198,17 +198,3 @@ def crowd_types() -> list[str]:
 def build_crowd(name: str, config: CrowdConfig, world: WorldConfig) -> Crowd:
     """The crowd ``config`` describes, named ``name``."""
     return CROWDS.get(config.type_name, f"crowd {name!r}").build(name, config, world)
-
-
-__all__ = [
-    "CROWDS",
-    "BodySpec",
-    "Commands",
-    "Crowd",
-    "CrowdConfig",
-    "CrowdType",
-    "Taken",
-    "build_crowd",
-    "crowd_types",
-    "register_crowd",
-]
