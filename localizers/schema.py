@@ -69,6 +69,10 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
 def from_mapping(cls: type[T], data: Any, where: str) -> T:
     """Build dataclass ``cls`` from ``data``, checking every key and type recursively.
 
+    A class that defines a ``__from_config__(value, where)`` classmethod itself (not through a
+    base class) builds itself from the value: a base config whose ``type`` entry names the
+    registered subclass to load (a world's sensors and crowds).
+
     Args:
         cls: a dataclass type whose fields have concrete annotations.
         data: a mapping of field names to values.
@@ -96,9 +100,6 @@ def replace_checked(obj: T, overrides: Mapping[str, Any], where: str) -> T:
     a mapping field (``env_kwargs``) is merged key by key (:func:`merge_nested`), so that an
     override of one key keeps the others; a dataclass inside a mapping field (a world's
     sensors) is again merged field by field.
-
-    A class with a ``__from_config__(value, where)`` classmethod builds itself from a value
-    (a config tagged by a registered type name does).
     """
     if not dataclasses.is_dataclass(obj) or isinstance(obj, type):
         raise TypeError(f"replace_checked needs a dataclass instance, got {type(obj).__name__}")

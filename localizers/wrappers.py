@@ -41,6 +41,8 @@ from localizers.measurements import bearing_measurement, find_sensor, measuremen
 from localizers.registry import make_localizer, spec
 from localizers.schema import ConfigError
 
+__all__ = ["LocalizationObservation", "bearing_measurement", "decode_estimate", "encode_estimate", "hypothesis_spread"]
+
 ESTIMATE_COLOR = (220, 30, 200)
 _SEED_SALT = 0x10CA112E  # separates the localizer's stream from the env's for the same seed
 
@@ -92,14 +94,11 @@ def _first_kind(sensors: Mapping[str, Mapping[str, Any]], name: str) -> str:
     )
 
 
-__all__ = ["LocalizationObservation", "bearing_measurement", "decode_estimate", "encode_estimate", "hypothesis_spread"]
-
-
 class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     """Adds a localizer's pose estimate to a crowdloc env's observation.
 
     Args:
-        env: a crowdloc env (its ``unwrapped`` has ``landmark_map`` and ``config.dt_s``).
+        env: a crowdloc env (its ``unwrapped`` has ``landmark_map``, ``sensor_metadata`` and ``config.dt_s``).
         localizer: a registered name (``"candidate_sets"``) or a ready :class:`Localizer`.
         localizer_params: overrides of the localizer's YAML parameters (names only).
         prior: ``"start"`` to give the localizer the true start pose (what the paper's dead
