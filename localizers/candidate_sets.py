@@ -24,7 +24,8 @@ Implementation notes (ours):
   the running product of all odometry increments (the SE(2) product of
   ``geometry.compose``), a candidate is stored as ``X = P (+) O(t_gen)^-1`` and its pose
   is ``X (+) O(t)``; by associativity of SE(2) this equals composing every increment in
-  the candidate's own frame, and ``predict`` is O(1).
+  the candidate's own frame, and ``predict`` is O(1). The kernels are in
+  :mod:`localizers.candidate_kernels`.
   ``cos``/``sin`` of each ``X``'s heading are stored once, so an update needs one
   ``arctan2`` per candidate and landmark and no other transcendental function.
 * Evaluation runs in float32 (bearing precision ~1e-7 rad; ``arctan2`` is a branch-free
@@ -45,7 +46,6 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -60,9 +60,24 @@ from localizers.base import (
     checked_odometry,
     require_reset,
 )
+from localizers.candidate_kernels import (
+    ROW_ERR,
+    ROW_TH,
+    ROW_X,
+    ROWS,
+    accumulate,
+    append_candidates,
+    compose_pose,
+    evaluate,
+    fuse,
+    fused_output,
+    inside,
+    prune_abort_determine,
+    spread_sums,
+    triple_seeds,
+)
 from localizers.geometry import between, circular_std, compose
-from localizers.motion import wrap_scalar
-from localizers.resection import inscribed_arc_poses, solve_triples, triple_indices
+from localizers.resection import inscribed_arc_poses, triple_indices
 from localizers.schema import check
 
 
@@ -130,379 +145,6 @@ class CandidateSetParams:
 _ARC_OVERSAMPLING = 8
 """Arc points computed per kept candidate before clipping to the bounds (ours)."""
 
-# Rows of the candidate store (see CandidateSetLocalizer): base pose X, cos/sin of its heading, Error.
-_X, _Y, _TH, _COS, _SIN, _ERR = range(6)
-_ROWS = 6
-
-_PI32 = np.float32(np.pi)
-_HALF_PI32 = np.float32(0.5 * np.pi)
-_QUARTER_PI32 = np.float32(0.25 * np.pi)
-_TWO_PI32 = np.float32(2.0 * np.pi)
-_INV_TWO_PI32 = np.float32(1.0 / (2.0 * np.pi))
-_TAN_PI_8_32 = np.float32(math.tan(math.pi / 8.0))
-# Cephes' atanf polynomial on [-tan(pi/8), tan(pi/8)] (relative error ~2e-7).
-_ATAN_C = tuple(np.float32(c) for c in (8.05374449538e-2, -1.38776856032e-1, 1.99777106478e-1, -3.33329491539e-1))
-_ONE32 = np.float32(1.0)
-_ZERO32 = np.float32(0.0)
-
-
-# ----------------------------------------------------------------------------- kernels
-
-
-@numba.njit(cache=True, inline="always")
-def _se2(x: float, y: float, th: float, c: float, s: float, dx: float, dy: float, dth: float) -> tuple[float, float, float]:
-    """``(x, y, th) (+) (dx, dy, dth)`` with ``c, s = cos th, sin th`` (:func:`geometry.compose` of one pose)."""
-    return x + c * dx - s * dy, y + s * dx + c * dy, wrap_scalar(th + dth)
-
-
-@numba.njit(cache=True)
-def _compose_pose(pose: NDArray[np.float64], dx: float, dy: float, dth: float) -> tuple[float, float, float]:
-    """``pose (+) d`` for one ``(3,)`` pose."""
-    return _se2(pose[0], pose[1], pose[2], math.cos(pose[2]), math.sin(pose[2]), dx, dy, dth)
-
-
-@numba.njit(cache=True)
-def _accumulate(odo: NDArray[np.float64], dx: float, dy: float, dth: float) -> None:
-    """``O <- O (+) d`` in place."""
-    odo[0], odo[1], odo[2] = _compose_pose(odo, dx, dy, dth)
-
-
-@numba.njit(cache=True, inline="always", error_model="numpy")
-def _atan2_f32(y: np.float32, x: np.float32) -> np.float32:
-    """float32 ``atan2`` (within ~3 ulp, like numpy's SIMD one), branch-free so that loops over it vectorize."""
-    ax = abs(x)
-    ay = abs(y)
-    hi = max(ax, ay)
-    lo = min(ax, ay)
-    a = lo / hi if hi > _ZERO32 else _ZERO32  # in [0, 1]
-    big = a > _TAN_PI_8_32
-    t = (a - _ONE32) / (a + _ONE32) if big else a  # atan(a) = pi/4 + atan(t)
-    z = t * t
-    r = (((_ATAN_C[0] * z + _ATAN_C[1]) * z + _ATAN_C[2]) * z + _ATAN_C[3]) * z * t + t
-    if big:
-        r = r + _QUARTER_PI32
-    if ay > ax:
-        r = _HALF_PI32 - r
-    if x < _ZERO32:
-        r = _PI32 - r
-    return np.float32(math.copysign(r, y))  # a no-op in numba (float32 in, float32 out); a float in Python
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _evaluate(
-    store: NDArray[np.float64], m: int, ox: float, oy: float, ot: float,
-    lx32: NDArray[np.float32], ly32: NDArray[np.float32], ids: NDArray[np.int64], bearings: NDArray[np.float64],
-) -> None:  # fmt: skip
-    """Add eq. (1) to the Error of the first ``m`` candidates (eq. (2)).
-
-    The current pose of a candidate is ``X (+) O``. Residuals ``e_k`` (predicted minus
-    measured bearing, wrapped) are computed in float32, landmark by landmark over all
-    candidates (loops that vectorize); the terms are ``|e_k|`` and, per pair,
-    ``|wrap(e_j - e_k)| = pi - |pi - |e_j - e_k||`` (valid for ``|e_j - e_k| <= 2 pi``).
-    """
-    n = ids.size
-    px = np.empty(m, dtype=np.float32)
-    py = np.empty(m, dtype=np.float32)
-    pt = np.empty(m, dtype=np.float32)
-    bx, by, bt, bc, bs, err = store[_X], store[_Y], store[_TH], store[_COS], store[_SIN], store[_ERR]
-    for i in range(m):
-        px[i] = np.float32(bx[i] + (ox * bc[i] - oy * bs[i]))
-        py[i] = np.float32(by[i] + (oy * bc[i] + ox * bs[i]))
-        pt[i] = np.float32(bt[i] + ot)
-    e = np.empty((n, m), dtype=np.float32)
-    for k in range(n):
-        lxk = lx32[ids[k]]
-        lyk = ly32[ids[k]]
-        bk = np.float32(bearings[k])
-        ek = e[k]
-        for i in range(m):
-            r = _atan2_f32(lyk - py[i], lxk - px[i]) - (pt[i] + bk)
-            r = r - np.rint(r * _INV_TWO_PI32) * _TWO_PI32
-            ek[i] = r
-            err[i] += abs(r)
-    for j in range(n):
-        ej = e[j]
-        for k in range(j + 1, n):
-            ek = e[k]
-            for i in range(m):
-                err[i] += _PI32 - abs(_PI32 - abs(ej[i] - ek[i]))
-
-
-@numba.njit(cache=True)
-def _best_of_set(err: NDArray[np.float64], lo: int, hi: int) -> int:
-    """Index of the least Error in ``lo:hi`` (the first one on ties)."""
-    best = lo
-    for i in range(lo + 1, hi):
-        if err[i] < err[best]:
-            best = i
-    return best
-
-
-@numba.njit(cache=True)
-def _current_pose(store: NDArray[np.float64], i: int, ox: float, oy: float, ot: float, out: NDArray[np.float64]) -> None:
-    """``X_i (+) O`` into ``out[:3]``."""
-    out[0], out[1], out[2] = _se2(store[_X, i], store[_Y, i], store[_TH, i], store[_COS, i], store[_SIN, i], ox, oy, ot)
-
-
-@numba.njit(cache=True)
-def _fuse(poses: NDArray[np.float64], median_threshold_m: float) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """:func:`fuse_poses` on validated ``(K, 3)`` poses, K >= 1."""
-    k = poses.shape[0]
-    pose = np.empty(3)
-    kept = np.ones(k, dtype=np.bool_)
-    if k == 1:
-        pose[0] = poses[0, 0]
-        pose[1] = poses[0, 1]
-        pose[2] = wrap_scalar(poses[0, 2])
-        return pose, kept
-    median = np.empty(k)
-    others = np.empty(k - 1)
-    for a in range(k):
-        c = 0
-        for b in range(k):
-            if b != a:
-                others[c] = math.hypot(poses[a, 0] - poses[b, 0], poses[a, 1] - poses[b, 1])
-                c += 1
-        others.sort()
-        median[a] = 0.5 * (others[(k - 2) // 2] + others[(k - 1) // 2])  # of the K - 1 distances
-    n_kept = 0
-    for a in range(k):
-        kept[a] = median[a] < median_threshold_m
-        if kept[a]:
-            n_kept += 1
-    if n_kept == 0:
-        kept[np.argmin(median)] = True
-        n_kept = 1
-    sx = sy = ss = sc = 0.0
-    for a in range(k):
-        if kept[a]:
-            sx += poses[a, 0]
-            sy += poses[a, 1]
-            ss += math.sin(poses[a, 2])
-            sc += math.cos(poses[a, 2])
-    pose[0] = sx / n_kept
-    pose[1] = sy / n_kept
-    pose[2] = wrap_scalar(math.atan2(ss, sc))  # circular mean of the kept headings
-    return pose, kept
-
-
-@numba.njit(cache=True)
-def _add_deviation(
-    cov: NDArray[np.float64], dev: NDArray[np.float64], pose: NDArray[np.float64], centre: NDArray[np.float64]
-) -> None:
-    """Add the outer product of ``pose - centre`` (heading wrapped) to ``cov``; ``dev`` is scratch."""
-    dev[0] = pose[0] - centre[0]
-    dev[1] = pose[1] - centre[1]
-    dev[2] = wrap_scalar(pose[2] - centre[2])
-    for a in range(3):
-        for b in range(3):
-            cov[a, b] += dev[a] * dev[b]
-
-
-@numba.njit(cache=True)
-def _fused_output(
-    store: NDArray[np.float64], counts: NDArray[np.int64], n_sets: int, determined: NDArray[np.bool_],
-    ox: float, oy: float, ot: float, median_threshold_m: float, floors: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:  # fmt: skip
-    """Fuse the determined sets' poses now: ``(pose (3,), covariance (3, 3), whether any set is determined)``."""
-    err = store[_ERR]
-    n_det = 0
-    for s in range(n_sets):
-        if determined[s]:
-            n_det += 1
-    if n_det == 0:
-        return np.full(3, np.nan), np.full((3, 3), np.nan), False
-    best = np.empty((n_det, 3))
-    spans = np.empty((n_det, 2), dtype=np.int64)
-    lo = 0
-    d = 0
-    for s in range(n_sets):
-        hi = lo + counts[s]
-        if determined[s]:
-            _current_pose(store, _best_of_set(err, lo, hi), ox, oy, ot, best[d])
-            spans[d, 0] = lo
-            spans[d, 1] = hi
-            d += 1
-        lo = hi
-    pose, kept = _fuse(best, median_threshold_m)
-    cov = np.zeros((3, 3))
-    dev = np.empty(3)
-    n_kept = 0
-    for a in range(n_det):
-        if kept[a]:
-            n_kept += 1
-    if n_kept >= 2:  # sample covariance of the kept poses
-        for a in range(n_det):
-            if kept[a]:
-                _add_deviation(cov, dev, best[a], pose)
-        samples = n_kept
-    else:  # that of the candidates of the one kept set
-        a = int(np.argmax(kept))
-        p = np.empty(3)
-        for i in range(spans[a, 0], spans[a, 1]):
-            _current_pose(store, i, ox, oy, ot, p)
-            _add_deviation(cov, dev, p, pose)
-        samples = spans[a, 1] - spans[a, 0]
-    if samples >= 2:
-        for a in range(3):
-            for b in range(3):
-                cov[a, b] /= samples - 1
-    else:
-        cov[:, :] = 0.0
-    for a in range(3):
-        if cov[a, a] < floors[a]:  # (NaN stays NaN, like np.maximum)
-            cov[a, a] = floors[a]
-    return pose, cov, True
-
-
-@numba.njit(cache=True)
-def _prune_abort_determine(
-    store: NDArray[np.float64], m: int, counts: NDArray[np.int64], n_sets: int, determined: NDArray[np.bool_],
-    prune_error: float, abort_error: float, determine_below: int,
-    ox: float, oy: float, ot: float, median_threshold_m: float, floors: NDArray[np.float64],
-    snapshot: NDArray[np.float64],
-) -> tuple[int, int, int, int, bool]:  # fmt: skip
-    """After an evaluation: delete candidates over the prune threshold and sets over the
-    abort threshold (or that lost all their candidates), then determine the small sets.
-
-    When the last determined sets are discarded, the fused output computed just before
-    goes to ``snapshot`` (rows: pose, then the covariance) for coasting.
-
-    Returns:
-        ``(m, n_sets, sets discarded, sets newly determined, snapshot taken)``.
-    """
-    err = store[_ERR]
-    dead = np.zeros(n_sets, dtype=np.bool_)
-    n_dead = 0
-    any_pruned = False
-    live_determined = False
-    any_determined = False
-    lo = 0
-    for s in range(n_sets):
-        hi = lo + counts[s]
-        least = err[lo]
-        for i in range(lo + 1, hi):
-            v = err[i]
-            if v < least or v != v:  # NaN-propagating minimum, like np.minimum
-                least = v
-        dead[s] = least > abort_error or least > prune_error
-        if determined[s]:
-            any_determined = True
-            if not dead[s]:
-                live_determined = True
-        if dead[s]:
-            n_dead += 1
-            any_pruned = True
-        else:
-            for i in range(lo, hi):
-                if not err[i] <= prune_error:
-                    any_pruned = True
-                    break
-        lo = hi
-    snapped = False
-    if n_dead and any_determined and not live_determined:
-        pose, cov, _ = _fused_output(store, counts, n_sets, determined, ox, oy, ot, median_threshold_m, floors)
-        snapshot[0] = pose
-        snapshot[1:] = cov
-        snapped = True
-    if any_pruned:
-        w = 0
-        lo = 0
-        live = 0
-        for s in range(n_sets):
-            hi = lo + counts[s]
-            if not dead[s]:
-                kept = 0
-                for i in range(lo, hi):
-                    if err[i] <= prune_error:
-                        if w != i:
-                            for r in range(_ROWS):
-                                store[r, w] = store[r, i]
-                        w += 1
-                        kept += 1
-                counts[live] = kept  # >= 1: the least Error is within both thresholds
-                determined[live] = determined[s]
-                live += 1
-            lo = hi
-        m = w
-        n_sets = live
-    n_new = 0
-    for s in range(n_sets):
-        if not determined[s] and counts[s] < determine_below:
-            determined[s] = True
-            n_new += 1
-    return m, n_sets, n_dead, n_new, snapped
-
-
-@numba.njit(cache=True)
-def _append(store: NDArray[np.float64], m: int, poses: NDArray[np.float64], ox: float, oy: float, ot: float) -> None:
-    """Store ``(k, 3)`` current poses P as candidates ``m:m + k`` with base ``X = P (+) O^-1`` and Error 0."""
-    c = math.cos(ot)  # O^-1 = between(O, 0) (geometry.between)
-    s = math.sin(ot)
-    dx = -ox
-    dy = -oy
-    ix = c * dx + s * dy
-    iy = -s * dx + c * dy
-    it = wrap_scalar(0.0 - ot)
-    for j in range(poses.shape[0]):
-        i = m + j
-        px, py, pt = poses[j, 0], poses[j, 1], poses[j, 2]
-        x, y, th = _se2(px, py, pt, math.cos(pt), math.sin(pt), ix, iy, it)
-        store[_X, i] = x
-        store[_Y, i] = y
-        store[_TH, i] = th
-        store[_COS, i] = math.cos(th)
-        store[_SIN, i] = math.sin(th)
-        store[_ERR, i] = 0.0
-
-
-@numba.njit(cache=True)
-def _inside(poses: NDArray[np.float64], xmin: float, ymin: float, xmax: float, ymax: float) -> NDArray[np.bool_]:
-    """``(m,)`` finite poses within ``[xmin, xmax] x [ymin, ymax]`` (the bounds grown by the margin)."""
-    out = np.empty(poses.shape[0], dtype=np.bool_)
-    for i in range(poses.shape[0]):
-        x, y, th = poses[i, 0], poses[i, 1], poses[i, 2]
-        out[i] = (
-            math.isfinite(x) and math.isfinite(y) and math.isfinite(th)
-            and x >= xmin and x <= xmax and y >= ymin and y <= ymax
-        )  # fmt: skip
-    return out
-
-
-@numba.njit(cache=True)
-def _triple_seeds(
-    observed_xy: NDArray[np.float64], bearings: NDArray[np.float64], triples: NDArray[np.int64],
-    min_conditioning: float, xmin: float, ymin: float, xmax: float, ymax: float,
-) -> NDArray[np.float64]:  # fmt: skip
-    """The ok Cassini solutions of every triple that lie inside the (grown) bounds, in triple order."""
-    poses, ok, _, _ = solve_triples(observed_xy, bearings, triples, min_conditioning)
-    keep = ok & _inside(poses, xmin, ymin, xmax, ymax)
-    return poses[keep]
-
-
-@numba.njit(cache=True)
-def _spread_sums(store: NDArray[np.float64], weights: NDArray[np.float64], ox: float, oy: float) -> tuple[float, float]:
-    """``(weighted position variance, R)`` of the live candidates under their overlay ``weights``
-    (NaNs without any weight): what ``wrappers.hypothesis_spread`` computes from
-    :meth:`CandidateSetLocalizer.overlay`, without building the poses or any trig (the heading's
-    resultant length ``R`` is the same for ``X`` and ``X (+) O``)."""
-    sw = sx = sy = sxx = sc = ss = 0.0
-    for i in range(weights.shape[0]):
-        w = weights[i]
-        c, s = store[_COS, i], store[_SIN, i]
-        x = store[_X, i] + c * ox - s * oy
-        y = store[_Y, i] + s * ox + c * oy
-        sw += w
-        sx += w * x
-        sy += w * y
-        sxx += w * (x * x + y * y)
-        sc += w * c
-        ss += w * s
-    if not sw > 0.0:
-        return math.nan, math.nan
-    mx, my = sx / sw, sy / sw
-    return max(sxx / sw - mx * mx - my * my, 0.0), math.hypot(sc, ss) / sw
-
 
 # ----------------------------------------------------------------------------- public helpers
 
@@ -545,7 +187,7 @@ def generate_candidates(
     xmin, ymin, xmax, ymax = landmarks.bounds_m
     box = (xmin - bounds_margin_m, ymin - bounds_margin_m, xmax + bounds_margin_m, ymax + bounds_margin_m)
     if idx.size >= 3:
-        poses = _triple_seeds(pos[idx], b, triple_indices(idx.size), float(min_conditioning), *box)  # (indexing checks the ids)
+        poses = triple_seeds(pos[idx], b, triple_indices(idx.size), float(min_conditioning), *box)  # (indexing checks the ids)
         if poses.shape[0]:
             return poses
     i, j = np.triu_indices(idx.size, 1)
@@ -554,7 +196,7 @@ def generate_candidates(
     # N candidates over the part of the arc inside the bounds (ours): oversample the arc,
     # keep the feasible positions and take N of them evenly by index.
     fine = inscribed_arc_poses(pos[idx[k]], pos[idx[m]], b[k], b[m], _ARC_OVERSAMPLING * candidates_per_arc)
-    fine = fine[_inside(fine, *box)]
+    fine = fine[inside(fine, *box)]
     if fine.shape[0] <= candidates_per_arc:
         return fine
     pick = np.round(np.linspace(0.0, fine.shape[0] - 1, candidates_per_arc)).astype(np.intp)
@@ -579,7 +221,7 @@ def fuse_poses(poses: ArrayLike, median_threshold_m: float) -> tuple[NDArray[np.
     p = np.asarray(poses, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] < 1:
         raise ValueError(f"fuse_poses: poses must have shape (K, 3) with K >= 1, got {p.shape}")
-    return _fuse(np.ascontiguousarray(p), float(median_threshold_m))
+    return fuse(np.ascontiguousarray(p), float(median_threshold_m))
 
 
 class CandidateSetLocalizer:
@@ -602,9 +244,9 @@ class CandidateSetLocalizer:
         self._ly32 = landmarks.positions_xy_m[:, 1].astype(np.float32)
         self._floors = np.array([params.position_floor_m**2] * 2 + [params.heading_floor_rad**2])
         # Candidates, grouped by set in creation order: column i holds candidate i's base pose
-        # X (rows _X, _Y, _TH), cos/sin of its heading and its accumulated Error (row _ERR).
+        # X (rows ROW_X, ROW_Y, ROW_TH), cos/sin of its heading and its accumulated Error (row ROW_ERR).
         # Only the first ``_m`` columns are live; the store grows up to max_live_candidates.
-        self._store = np.zeros((_ROWS, 0))
+        self._store = np.zeros((ROWS, 0))
         # Per live set (the first ``_n_sets`` entries), in creation order.
         self._counts = np.zeros(params.max_sets, dtype=np.int64)
         self._determined = np.zeros(params.max_sets, dtype=np.bool_)
@@ -641,7 +283,7 @@ class CandidateSetLocalizer:
         cap = self._store.shape[1]
         if m <= cap:
             return
-        grown = np.zeros((_ROWS, min(max(m, 2 * cap), self._params.max_live_candidates)))
+        grown = np.zeros((ROWS, min(max(m, 2 * cap), self._params.max_live_candidates)))
         grown[:, : self._m] = self._store[:, : self._m]
         self._store = grown
 
@@ -651,7 +293,7 @@ class CandidateSetLocalizer:
         """Propagate every candidate by the increment (lazily: one SE(2) product)."""
         self._require_reset()
         dx, dy, dth = checked_odometry(self.name, odometry).tolist()
-        _accumulate(self._odo, dx, dy, dth)
+        accumulate(self._odo, dx, dy, dth)
         self._path_m += math.hypot(dx, dy)
         self._turn_rad += abs(dth)
         self._cached = None
@@ -670,8 +312,8 @@ class CandidateSetLocalizer:
         p = self._params
         if self._m:
             ox, oy, ot = self._odo.tolist()
-            _evaluate(self._store, self._m, ox, oy, ot, self._lx32, self._ly32, ids, bearings)
-            self._m, self._n_sets, n_dead, n_new, snapped = _prune_abort_determine(
+            evaluate(self._store, self._m, ox, oy, ot, self._lx32, self._ly32, ids, bearings)
+            self._m, self._n_sets, n_dead, n_new, snapped = prune_abort_determine(
                 self._store, self._m, self._counts, self._n_sets, self._determined,
                 p.prune_error_rad, p.abort_error_rad, p.determine_below,
                 ox, oy, ot, p.fusion_median_m, self._floors, self._snapshot,
@@ -698,7 +340,7 @@ class CandidateSetLocalizer:
             return
         self._ensure_capacity(self._m + m)
         ox, oy, ot = self._odo.tolist()
-        _append(self._store, self._m, poses, ox, oy, ot)
+        append_candidates(self._store, self._m, poses, ox, oy, ot)
         self._m += m
         self._counts[self._n_sets] = m
         self._determined[self._n_sets] = False
@@ -709,7 +351,7 @@ class CandidateSetLocalizer:
 
     def _candidate_poses(self) -> NDArray[np.float64]:
         """``(m, 3)`` current poses of the live candidates."""
-        return compose(self._store[_X : _TH + 1, : self._m].T, self._odo)
+        return compose(self._store[ROW_X : ROW_TH + 1, : self._m].T, self._odo)
 
     @property
     def estimate(self) -> PoseEstimate:
@@ -721,7 +363,7 @@ class CandidateSetLocalizer:
 
     def _compute_estimate(self) -> PoseEstimate:
         ox, oy, ot = self._odo.tolist()
-        pose, cov, determined = _fused_output(
+        pose, cov, determined = fused_output(
             self._store, self._counts, self._n_sets, self._determined, ox, oy, ot, self._params.fusion_median_m, self._floors
         )
         if determined:
@@ -737,7 +379,7 @@ class CandidateSetLocalizer:
         cov[0, 0] = (math.sqrt(cov[0, 0]) + pos_sd) ** 2
         cov[1, 1] = (math.sqrt(cov[1, 1]) + pos_sd) ** 2
         cov[2, 2] = (math.sqrt(cov[2, 2]) + head_sd) ** 2
-        x, y, th = _compose_pose(base, *self._odo.tolist())
+        x, y, th = compose_pose(base, *self._odo.tolist())
         return PoseEstimate(x, y, th, cov, True)
 
     def overlay(self) -> Overlay:
@@ -749,12 +391,12 @@ class CandidateSetLocalizer:
 
     def _candidate_weights(self) -> NDArray[np.float64]:
         """``(m,)`` overlay weights of the live candidates, ``clip(1 - Error / prune_error_rad, 0, 1)``."""
-        return np.clip(1.0 - self._store[_ERR, : self._m] / self._params.prune_error_rad, 0.0, 1.0)
+        return np.clip(1.0 - self._store[ROW_ERR, : self._m] / self._params.prune_error_rad, 0.0, 1.0)
 
     def hypothesis_spread(self) -> tuple[float, float]:
         """``wrappers.hypothesis_spread(self.overlay())``, computed in one pass over the store."""
         ox, oy, _ = self._odo.tolist()
-        variance, r = _spread_sums(self._store, self._candidate_weights(), ox, oy)
+        variance, r = spread_sums(self._store, self._candidate_weights(), ox, oy)
         if not math.isfinite(variance):
             return math.nan, math.nan
         return math.sqrt(variance), circular_std(r)
@@ -772,4 +414,4 @@ class CandidateSetLocalizer:
     @property
     def candidate_errors(self) -> NDArray[np.float64]:
         """``(M,)`` accumulated Error of the live candidates, in the order of :meth:`overlay`."""
-        return self._store[_ERR, : self._m].copy()
+        return self._store[ROW_ERR, : self._m].copy()

@@ -1,0 +1,187 @@
+"""The ray-cast range table of a map's walls, its disk cache, and the wall-distance field.
+
+What the LIDAR MCL (:mod:`localizers.mcl_lidar`) precomputes once per map:
+
+- beam model: a *ray-cast table* of the expected range ``z*`` for every cell of a grid over
+  the map bounds and every one of ``table_directions`` world directions, computed with
+  :func:`localizers.raycast.cast_rays` and cached on disk (:func:`build_range_table`);
+- likelihood field: the distance from each cell centre to the nearest wall
+  (:func:`wall_distance_field`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from localizers.base import LandmarkMap
+from localizers.raycast import cast_rays
+
+Array = NDArray[np.float64]
+_log = logging.getLogger(__name__)
+
+CACHE_ENV = "CROWDLOC_CACHE"
+_TABLE_FORMAT = b"crowdloc-range-table-v1"
+
+
+def cache_dir() -> Path:
+    """Where precomputed tables live: ``$CROWDLOC_CACHE``, default ``~/.cache/crowdloc``."""
+    return Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "crowdloc")
+
+
+def range_table_key(
+    walls_m: ArrayLike, bounds_m: tuple[float, float, float, float], resolution_m: float, directions: int, max_range_m: float
+) -> str:
+    """sha256 (hex) of everything a ray-cast table depends on."""
+    h = hashlib.sha256(_TABLE_FORMAT)
+    h.update(np.ascontiguousarray(np.asarray(walls_m, dtype=np.float64).reshape(-1, 4)).tobytes())
+    h.update(np.asarray([*bounds_m, resolution_m, float(directions), max_range_m], dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+@dataclass(frozen=True)
+class RangeTable:
+    """Expected ranges of the static map on a grid of cells x directions.
+
+    Attributes:
+        ranges_m: ``(nx, ny, D)`` float32: the range from the centre of cell ``(i, j)``,
+            ``(x0 + (i + 1/2) res, y0 + (j + 1/2) res)``, in world direction ``2 pi k / D``
+            (``max_range_m`` where no wall is hit).
+        origin_xy_m: ``(x0, y0)``, the grid's lower-left corner (the map bounds' minimum).
+        resolution_m: cell size.
+        max_range_m: the range given to rays that hit nothing.
+        key: the cache key (:func:`range_table_key`).
+        loaded: whether the table came from the disk cache.
+    """
+
+    ranges_m: NDArray[np.float32]
+    origin_xy_m: tuple[float, float]
+    resolution_m: float
+    max_range_m: float
+    key: str
+    loaded: bool
+
+    @property
+    def directions(self) -> int:
+        return int(self.ranges_m.shape[2])
+
+    def cell_index(self, x_m: ArrayLike, y_m: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
+        """Indices ``(i, j)`` of the cells containing the points, and whether they are inside the grid."""
+        nx, ny, _ = self.ranges_m.shape
+        fx = (np.asarray(x_m, dtype=np.float64) - self.origin_xy_m[0]) / self.resolution_m
+        fy = (np.asarray(y_m, dtype=np.float64) - self.origin_xy_m[1]) / self.resolution_m
+        inside = (fx >= 0) & (fx < nx) & (fy >= 0) & (fy < ny)
+        i = np.clip(np.floor(fx), 0, nx - 1).astype(np.int64)
+        j = np.clip(np.floor(fy), 0, ny - 1).astype(np.int64)
+        return i, j, inside
+
+    def lookup(self, x_m: ArrayLike, y_m: ArrayLike, world_angles_rad: ArrayLike) -> Array:
+        """Expected ranges (nearest cell, nearest direction), ``nan`` outside the grid.
+
+        Args:
+            x_m, y_m: positions, broadcast against ``world_angles_rad``.
+            world_angles_rad: world-frame directions.
+
+        Returns:
+            The broadcast shape of ranges (float64).
+        """
+        x, y, a = np.broadcast_arrays(
+            np.asarray(x_m, dtype=np.float64), np.asarray(y_m, dtype=np.float64), np.asarray(world_angles_rad, dtype=np.float64)
+        )
+        i, j, inside = self.cell_index(x, y)
+        d = self.directions
+        k = np.floor(a * (d / (2.0 * math.pi)) + 0.5).astype(np.int64) % d
+        return np.where(inside, self.ranges_m[i, j, k].astype(np.float64), np.nan)
+
+
+@numba.njit(parallel=True, cache=True)
+def _fill_range_table(
+    x0: float, y0: float, res: float, nx: int, ny: int, directions: int, max_range: float, seg_a: Array, seg_b: Array
+) -> NDArray[np.float32]:
+    """``(nx, ny, D)`` ranges by :func:`cast_rays` from every cell centre."""
+    out = np.empty((nx, ny, directions), dtype=np.float32)
+    angles = 2.0 * math.pi * np.arange(directions) / directions
+    no_centres = np.zeros((0, 2))
+    no_radii = np.zeros(0)
+    for c in numba.prange(nx * ny):
+        i = c // ny
+        j = c - i * ny
+        origin = np.array([x0 + (i + 0.5) * res, y0 + (j + 0.5) * res])
+        out[i, j, :] = cast_rays(origin, angles, max_range, seg_a, seg_b, no_centres, no_radii)
+    return out
+
+
+def build_range_table(
+    landmarks: LandmarkMap, *, resolution_m: float, directions: int, max_range_m: float, cache: Path | None = None
+) -> RangeTable:
+    """The ray-cast table of a map's walls, loaded from the disk cache when present.
+
+    The grid covers the map bounds (``ceil(extent / resolution)`` cells a side). The table is
+    stored as ``<cache>/range_table_<sha256>.npy``, written atomically, and loaded
+    memory-mapped (read-only); a cache that cannot be read or written is logged and skipped.
+
+    Args:
+        landmarks: the map (its ``walls_m`` and ``bounds_m``).
+        resolution_m: cell size in metres.
+        directions: world directions per cell, evenly spaced from 0.
+        max_range_m: the sensor's maximum range.
+        cache: cache directory (default: :func:`cache_dir`).
+    """
+    xmin, ymin, xmax, ymax = landmarks.bounds_m
+    nx = max(1, math.ceil((xmax - xmin) / resolution_m - 1e-9))
+    ny = max(1, math.ceil((ymax - ymin) / resolution_m - 1e-9))
+    key = range_table_key(landmarks.walls_m, landmarks.bounds_m, resolution_m, directions, max_range_m)
+    path = (cache or cache_dir()) / f"range_table_{key}.npy"
+    shape = (nx, ny, directions)
+    meta = ((xmin, ymin), float(resolution_m), float(max_range_m), key)
+    if path.is_file():
+        try:
+            # memory-mapped, read-only: envs in several processes share one copy of the table
+            ranges = np.asarray(np.load(path, mmap_mode="r", allow_pickle=False))
+        except (OSError, ValueError) as exc:
+            _log.warning("ignoring unreadable range table %s: %s", path, exc)
+        else:
+            if ranges.shape == shape and ranges.dtype == np.float32 and ranges.flags.c_contiguous:
+                return RangeTable(ranges, *meta, loaded=True)
+            _log.warning("ignoring range table %s of shape %s, dtype %s", path, ranges.shape, ranges.dtype)
+    walls = landmarks.walls_m
+    ranges = _fill_range_table(
+        float(xmin), float(ymin), float(resolution_m), nx, ny, int(directions), float(max_range_m),
+        np.ascontiguousarray(walls[:, :2]), np.ascontiguousarray(walls[:, 2:]),
+    )  # fmt: skip
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.stem}.{os.getpid()}.{time.monotonic_ns()}.tmp.npy")
+        np.save(tmp, ranges)
+        os.replace(tmp, path)
+    except OSError as exc:
+        _log.warning("could not cache the range table in %s: %s", path.parent, exc)
+    ranges.setflags(write=False)
+    return RangeTable(ranges, *meta, loaded=False)
+
+
+def wall_distance_field(
+    walls_m: ArrayLike, origin_xy_m: tuple[float, float], resolution_m: float, shape: tuple[int, int]
+) -> Array:
+    """``(nx, ny)`` distance from each cell centre to the nearest wall segment (inf without walls)."""
+    walls = np.asarray(walls_m, dtype=np.float64).reshape(-1, 4)
+    nx, ny = shape
+    cx = origin_xy_m[0] + (np.arange(nx) + 0.5) * resolution_m
+    cy = origin_xy_m[1] + (np.arange(ny) + 0.5) * resolution_m
+    px, py = np.meshgrid(cx, cy, indexing="ij")
+    best = np.full(shape, np.inf)
+    for x1, y1, x2, y2 in walls:
+        ex, ey = x2 - x1, y2 - y1
+        length2 = ex * ex + ey * ey
+        t = np.zeros(shape) if length2 == 0.0 else np.clip(((px - x1) * ex + (py - y1) * ey) / length2, 0.0, 1.0)
+        np.minimum(best, np.hypot(px - (x1 + t * ex), py - (y1 + t * ey)), out=best)
+    return best
