@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from agents.util import positive_int
@@ -16,14 +16,7 @@ from agents.util import positive_int
 DEFAULT_RESULTS = Path("results")
 
 
-def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
-    """The full parser; an experiment's own options are added only for the one named in ``argv``."""
-    parser = argparse.ArgumentParser(
-        prog="crowdloc",
-        description="crowdloc: robot self-localization among crowds (worlds, localizers, agents).",
-    )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
+def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     demo = sub.add_parser(
         "demo",
         help="run every world with a scripted policy and write results/demo/report.md",
@@ -54,8 +47,12 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     )
     demo.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: the core count)")
 
+
+def _add_worlds(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     sub.add_parser("worlds", help="list the registered env ids and their worlds")
 
+
+def _add_train(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     train = sub.add_parser(
         "train",
         help="train a PPO active-localization policy from configs/experiments/NAME.yaml",
@@ -88,6 +85,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     train.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "train", help="output folder (default results/train)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
 
+
+def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ev = sub.add_parser(
         "eval",
         help="evaluate policies x localizers x crowd sizes on held-out seeds; bootstrap CIs, plots, TUM files, a GIF",
@@ -140,6 +139,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     ev.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "eval", help="output folder (default results/eval)")
     ev.add_argument("--no-progress", action="store_true", help="no progress bar")
 
+
+def _add_tune(sub: argparse._SubParsersAction[argparse.ArgumentParser], argv: Sequence[str]) -> None:
     tune = sub.add_parser(
         "tune",
         help="tune a localizer's parameters with Optuna on recorded episodes; compare with the defaults on held-out seeds",
@@ -150,6 +151,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     if argv[:1] == ["tune"]:  # import only when tuning (optuna, the replay machinery)
         importlib.import_module("agents.tune").add_arguments(tune)
 
+
+def _add_reproduce(sub: argparse._SubParsersAction[argparse.ArgumentParser], argv: Sequence[str]) -> None:
     from agents.papers import EXPERIMENTS
 
     reproduce = sub.add_parser(
@@ -164,101 +167,141 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         exp.add_argument("--out", type=Path, default=DEFAULT_RESULTS / name, help=f"output folder (default results/{name})")
         if name == chosen:  # import only the experiment being run (they pull in plotting and more)
             importlib.import_module(module).add_arguments(exp)
+
+
+def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
+    """The full parser; an experiment's own options are added only for the one named in ``argv``."""
+    parser = argparse.ArgumentParser(
+        prog="crowdloc",
+        description="crowdloc: robot self-localization among crowds (worlds, localizers, agents).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_demo(sub)
+    _add_worlds(sub)
+    _add_train(sub)
+    _add_eval(sub)
+    _add_tune(sub, argv)
+    _add_reproduce(sub, argv)
     return parser
+
+
+def _run_demo(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from agents.demo import ACTIVE_LOCALIZERS, VERDICT_SEEDS, run_demo
+
+    if args.active_seeds < 0:
+        parser.error(f"--active-seeds must be >= 0, got {args.active_seeds}")
+    if args.verdict_seeds is not None and args.verdict_seeds < 0:
+        parser.error(f"--verdict-seeds must be >= 0, got {args.verdict_seeds}")
+    if args.model is not None and not args.model.is_file():
+        parser.error(f"--model {args.model}: no such file")
+    run_demo(
+        args.out,
+        steps=args.steps,
+        seed=args.seed,
+        active_seeds=args.active_seeds,
+        verdict_seeds=VERDICT_SEEDS if args.verdict_seeds is None else args.verdict_seeds,
+        models=None if args.model is None else dict.fromkeys(ACTIVE_LOCALIZERS, args.model),
+        workers=args.workers,
+    )
+    return 0
+
+
+def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from agents.train import latest_checkpoint, load_train_config, parse_overrides, train
+    from localizers.schema import ConfigError
+
+    if args.seeds and args.resume:
+        parser.error("--resume continues one run; give --seed, not --seeds")
+    if (args.workers or args.ray_address) and not args.seeds:
+        parser.error("--workers and --ray-address spread several runs: give --seeds")
+    try:
+        overrides = parse_overrides(args.overrides)
+        for key, value in (("total_timesteps", args.total_timesteps), ("seed", args.seed), ("n_envs", args.n_envs)):
+            if value is not None:
+                overrides[key] = value
+        config = load_train_config(args.config, overrides)
+        resume = None
+        if args.resume == "latest":
+            resume = latest_checkpoint(config, args.out)
+            if resume is None:
+                raise ConfigError(f"--resume latest: no checkpoint under {args.out / config.name}")
+        elif args.resume:
+            resume = Path(args.resume)
+    except ConfigError as exc:
+        parser.error(str(exc))
+    if args.seeds:
+        from agents.train import train_seeds
+
+        try:
+            models = train_seeds(config, args.out, args.seeds, workers=args.workers, ray_address=args.ray_address,
+                                 progress=not args.no_progress)  # fmt: skip
+        except ConfigError as exc:
+            parser.error(str(exc))
+        print("\n".join(f"wrote {m}" for m in models))
+        return 0
+    model = train(config, args.out, resume=resume, progress_bar=not args.no_progress)
+    print(f"wrote {model}")
+    return 0
+
+
+def _run_eval(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from agents.evaluate import run_cli as run_eval
+    from localizers.schema import ConfigError
+
+    try:
+        run_eval(args)
+    except ConfigError as exc:
+        parser.error(str(exc))
+    return 0
+
+
+def _run_tune(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from agents.tune import run_cli
+    from localizers.schema import ConfigError
+
+    try:
+        result = run_cli(args)
+    except ConfigError as exc:
+        parser.error(str(exc))
+    print(f"wrote {result.report} ({result.n_trials} trials in study {result.study_name!r})")
+    return 0
+
+
+def _run_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from agents.papers import EXPERIMENTS
+
+    report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
+    print(f"wrote {report}")
+    return 0
+
+
+def _run_worlds(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    import envs
+
+    for env_id, world in envs.ENV_WORLDS.items():
+        print(f"{env_id:32s} {world:18s} {envs.load_world(world).description}")
+    return 0
+
+
+_RUNNERS: dict[str, Callable[[argparse.Namespace, argparse.ArgumentParser], int]] = {
+    "demo": _run_demo,
+    "train": _run_train,
+    "eval": _run_eval,
+    "tune": _run_tune,
+    "reproduce": _run_reproduce,
+    "worlds": _run_worlds,
+}
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(argv)
     args = parser.parse_args(argv)
-    if args.command == "demo":
-        from agents.demo import ACTIVE_LOCALIZERS, VERDICT_SEEDS, run_demo
-
-        if args.active_seeds < 0:
-            parser.error(f"--active-seeds must be >= 0, got {args.active_seeds}")
-        if args.verdict_seeds is not None and args.verdict_seeds < 0:
-            parser.error(f"--verdict-seeds must be >= 0, got {args.verdict_seeds}")
-        if args.model is not None and not args.model.is_file():
-            parser.error(f"--model {args.model}: no such file")
-        run_demo(
-            args.out,
-            steps=args.steps,
-            seed=args.seed,
-            active_seeds=args.active_seeds,
-            verdict_seeds=VERDICT_SEEDS if args.verdict_seeds is None else args.verdict_seeds,
-            models=None if args.model is None else dict.fromkeys(ACTIVE_LOCALIZERS, args.model),
-            workers=args.workers,
-        )
-        return 0
-    if args.command == "train":
-        from agents.train import latest_checkpoint, load_train_config, parse_overrides, train
-        from localizers.schema import ConfigError
-
-        if args.seeds and args.resume:
-            parser.error("--resume continues one run; give --seed, not --seeds")
-        if (args.workers or args.ray_address) and not args.seeds:
-            parser.error("--workers and --ray-address spread several runs: give --seeds")
-        try:
-            overrides = parse_overrides(args.overrides)
-            for key, value in (("total_timesteps", args.total_timesteps), ("seed", args.seed), ("n_envs", args.n_envs)):
-                if value is not None:
-                    overrides[key] = value
-            config = load_train_config(args.config, overrides)
-            resume = None
-            if args.resume == "latest":
-                resume = latest_checkpoint(config, args.out)
-                if resume is None:
-                    raise ConfigError(f"--resume latest: no checkpoint under {args.out / config.name}")
-            elif args.resume:
-                resume = Path(args.resume)
-        except ConfigError as exc:
-            parser.error(str(exc))
-        if args.seeds:
-            from agents.train import train_seeds
-
-            try:
-                models = train_seeds(config, args.out, args.seeds, workers=args.workers, ray_address=args.ray_address,
-                                     progress=not args.no_progress)  # fmt: skip
-            except ConfigError as exc:
-                parser.error(str(exc))
-            print("\n".join(f"wrote {m}" for m in models))
-            return 0
-        model = train(config, args.out, resume=resume, progress_bar=not args.no_progress)
-        print(f"wrote {model}")
-        return 0
-    if args.command == "eval":
-        from agents.evaluate import run_cli as run_eval
-        from localizers.schema import ConfigError
-
-        try:
-            run_eval(args)
-        except ConfigError as exc:
-            parser.error(str(exc))
-        return 0
-    if args.command == "tune":
-        from agents.tune import run_cli
-        from localizers.schema import ConfigError
-
-        try:
-            result = run_cli(args)
-        except ConfigError as exc:
-            parser.error(str(exc))
-        print(f"wrote {result.report} ({result.n_trials} trials in study {result.study_name!r})")
-        return 0
-    if args.command == "reproduce":
-        from agents.papers import EXPERIMENTS
-
-        report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
-        print(f"wrote {report}")
-        return 0
-    if args.command == "worlds":
-        import envs
-
-        for env_id, world in envs.ENV_WORLDS.items():
-            print(f"{env_id:32s} {world:18s} {envs.load_world(world).description}")
-        return 0
-    parser.error(f"unknown command {args.command!r}")
-    return 2
+    runner = _RUNNERS.get(args.command)
+    if runner is None:
+        parser.error(f"unknown command {args.command!r}")
+        return 2
+    return runner(args, parser)
 
 
 if __name__ == "__main__":

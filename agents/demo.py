@@ -262,13 +262,30 @@ def run_active(
     fixed policies of the table on ``verdict_seeds`` fresh ones after them (0: it judges on the
     table's seeds).
     """
-    from agents.evaluate import Cell, EvalSpec, evaluate, summary_markdown, write_outputs, write_tables
-    from agents.policies import FIXED_POLICIES
-    from agents.train import EVAL_SEED_BASE, load_train_config
-
     models = dict(SHIPPED_MODELS if models is None else models)
-    policies = list(FIXED_POLICIES)
     ppo_for = {loc: f"ppo:{path}" for loc, path in models.items() if loc in ACTIVE_LOCALIZERS and Path(path).is_file()}
+    result, lines = _active_table(out_dir, seeds, ppo_for, workers, episode_steps)
+    missing = [f"`{models[loc]}`" for loc in ACTIVE_LOCALIZERS if loc in models and loc not in ppo_for]
+    if missing:
+        lines += [f"No trained policy at {', '.join(missing)}: run `make demo` from a checkout that ships it.", ""]
+    judged_seeds = verdict_seeds or seeds
+    if ppo_for and min(seeds, judged_seeds) < MIN_VERDICT_SEEDS:
+        lines.append(f"With {min(seeds, judged_seeds)} seed(s) per cell the intervals mean nothing: no verdict "
+                     f"(use >= {MIN_VERDICT_SEEDS} for the table and the verdict).")  # fmt: skip
+    elif ppo_for:
+        lines += _active_verdict(result, ppo_for, out_dir, workers, verdict_seeds)
+    return "\n".join(lines) + "\n"
+
+
+def _active_table(
+    out_dir: Path, seeds: int, ppo_for: Mapping[str, str], workers: int | None, episode_steps: int
+) -> tuple[EvalResult, list[str]]:
+    """Evaluate the fixed and the trained policies on ``seeds`` test seeds; write the outputs; the table's lines."""
+    from agents.evaluate import Cell, EvalSpec, evaluate, summary_markdown, write_outputs
+    from agents.policies import FIXED_POLICIES
+    from agents.train import load_train_config
+
+    policies = list(FIXED_POLICIES)
     policies += list(dict.fromkeys(ppo_for.values()))
     ppo = ppo_for.get(ACTIVE_LOCALIZERS[0]) or next(iter(ppo_for.values()), None)
     trained = load_train_config(SHIPPED_CONFIG)
@@ -303,47 +320,47 @@ def run_active(
         f"![one episode: {gif_cell.policy}, {gif_cell.localizer}, crowd {gif_cell.crowd_size}](active/episode.gif)",
         "",
     ]
-    missing = [f"`{models[loc]}`" for loc in ACTIVE_LOCALIZERS if loc in models and loc not in ppo_for]
-    if missing:
-        lines += [f"No trained policy at {', '.join(missing)}: run `make demo` from a checkout that ships it.", ""]
-    judged_seeds = verdict_seeds or seeds
-    if ppo_for and min(seeds, judged_seeds) < MIN_VERDICT_SEEDS:
-        lines.append(f"With {min(seeds, judged_seeds)} seed(s) per cell the intervals mean nothing: no verdict "
-                     f"(use >= {MIN_VERDICT_SEEDS} for the table and the verdict).")  # fmt: skip
-    elif ppo_for:
-        judged = result
-        if verdict_seeds:
-            judged = evaluate(replace(spec, crowd_sizes=ACTIVE_DENSITIES[1:], seeds=verdict_seeds, first_seed=seeds),
-                              workers=workers, groups=verdict_groups(result, ppo_for))  # fmt: skip
-            write_tables(judged, out_dir / "verdict")
-        first, last = judged.spec.first_seed, judged.spec.first_seed + judged.spec.seeds - 1
-        lines += [
-            "### Trained policy against the best fixed policy",
-            "",
-            "The best fixed policy of each metric is the one with the best mean in the table above. "
-            + (f"The verdict evaluates it and the trained policy again on {verdict_seeds} fresh test seeds "
-               f"({EVAL_SEED_BASE} + {first}..{last}, after the table's), so the luck that made a fixed policy look "
-               f"best there does not carry into the judgement; evaluated in {judged.wall_s:.0f} s, episodes in "
-               "`active/verdict/`." if verdict_seeds else "The verdict judges on the table's seeds."),
-            "",
-            *verdict(result, ppo_for, judged),
-            "",
-            *caveats(judged),
-        ]  # fmt: skip
-        lines += [
-            "",
-            "### Where the time to first fix goes",
-            "",
-            "Bearings of two landmarks leave a whole arc of poses; a fix needs a third landmark (or motion). "
-            "The first fix splits into the search, until three distinct landmarks have been in view (the forward "
-            "camera sees them one after another), which is the policy's part, and the time the localizer then "
-            "needs to settle on one pose (the candidate sets prune an arc of candidates by their accumulated "
-            "bearing errors; the MCL waits for its particles to gather). The trained policy and the best fixed "
-            "policy on first fix, mean [95 % bootstrap CI], on the verdict's seeds:",
-            "",
-            *first_fix_split(result, ppo_for, judged),
-        ]
-    return "\n".join(lines) + "\n"
+    return result, lines
+
+
+def _active_verdict(
+    result: EvalResult, ppo_for: Mapping[str, str], out_dir: Path, workers: int | None, verdict_seeds: int
+) -> list[str]:
+    """The trained policies against the best fixed ones of ``result`` (on ``verdict_seeds`` fresh seeds; 0: the table's)."""
+    from agents.evaluate import evaluate, write_tables
+    from agents.train import EVAL_SEED_BASE
+
+    spec, seeds = result.spec, result.spec.seeds
+    judged = result
+    if verdict_seeds:
+        judged = evaluate(replace(spec, crowd_sizes=ACTIVE_DENSITIES[1:], seeds=verdict_seeds, first_seed=seeds),
+                          workers=workers, groups=verdict_groups(result, ppo_for))  # fmt: skip
+        write_tables(judged, out_dir / "verdict")
+    first, last = judged.spec.first_seed, judged.spec.first_seed + judged.spec.seeds - 1
+    return [
+        "### Trained policy against the best fixed policy",
+        "",
+        "The best fixed policy of each metric is the one with the best mean in the table above. "
+        + (f"The verdict evaluates it and the trained policy again on {verdict_seeds} fresh test seeds "
+           f"({EVAL_SEED_BASE} + {first}..{last}, after the table's), so the luck that made a fixed policy look "
+           f"best there does not carry into the judgement; evaluated in {judged.wall_s:.0f} s, episodes in "
+           "`active/verdict/`." if verdict_seeds else "The verdict judges on the table's seeds."),
+        "",
+        *verdict(result, ppo_for, judged),
+        "",
+        *caveats(judged),
+        "",
+        "### Where the time to first fix goes",
+        "",
+        "Bearings of two landmarks leave a whole arc of poses; a fix needs a third landmark (or motion). "
+        "The first fix splits into the search, until three distinct landmarks have been in view (the forward "
+        "camera sees them one after another), which is the policy's part, and the time the localizer then "
+        "needs to settle on one pose (the candidate sets prune an arc of candidates by their accumulated "
+        "bearing errors; the MCL waits for its particles to gather). The trained policy and the best fixed "
+        "policy on first fix, mean [95 % bootstrap CI], on the verdict's seeds:",
+        "",
+        *first_fix_split(result, ppo_for, judged),
+    ]  # fmt: skip
 
 
 def _describe(env_kwargs: Mapping[str, Any]) -> str:

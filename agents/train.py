@@ -205,50 +205,82 @@ def train(
 
     ``extra_callbacks`` are stable-baselines3 callbacks run beside the checkpointing (timing, logging).
     """
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.utils import set_random_seed
-
     # A 64x64 MLP is fastest on one thread; the parallelism is in the env processes. More
     # threads only fight the env workers for the cores (measured: 1.8 ms per layer on 2 busy cores).
     torch.set_num_threads(1)
     directory = run_dir(config, out)
     (directory / "checkpoints").mkdir(parents=True, exist_ok=True)
     _write_run_json(config, directory)
-    every_rollouts = max(1, round(config.checkpoint_every / config.rollout_steps))
-
     if resume is not None:
-        state = _load_state(resume)
-        done_steps = int(state["num_timesteps"])
-        if done_steps % config.rollout_steps:
-            raise ConfigError(f"checkpoint {resume} is not at a rollout boundary ({done_steps} steps)")
-        episodes = done_steps // config.rollout_steps  # one episode per env per rollout
-        venv = make_vec_env(config, first_episode=episodes)
-        model = PPO.load(resume, env=venv, device="cpu")
-        _set_random_states(state["random"])
+        model, venv = _resumed_model(config, resume)
     else:
-        set_random_seed(config.seed)
-        venv = make_vec_env(config)
-        p = config.ppo
-        model = PPO(
-            "MultiInputPolicy",
-            venv,
-            learning_rate=p.learning_rate,
-            n_steps=p.n_steps,
-            batch_size=p.batch_size,
-            n_epochs=p.n_epochs,
-            gamma=p.gamma,
-            gae_lambda=p.gae_lambda,
-            clip_range=p.clip_range,
-            ent_coef=p.ent_coef,
-            vf_coef=p.vf_coef,
-            max_grad_norm=p.max_grad_norm,
-            policy_kwargs={"net_arch": list(p.net_arch)},
-            tensorboard_log=str(directory / "tb"),
-            seed=config.seed,
-            device="cpu",
-            verbose=verbose,
+        model, venv = _new_model(config, directory, verbose)
+    remaining = config.total_timesteps - model.num_timesteps
+    if remaining > 0:
+        model.learn(
+            total_timesteps=remaining,
+            callback=[_checkpoints(model, config, directory), *extra_callbacks],
+            reset_num_timesteps=resume is None,
+            progress_bar=progress_bar,
+            tb_log_name="ppo",
         )
+    final = directory / "model.zip"
+    model.save(final)
+    save_checkpoint(model, directory / "checkpoints" / f"step_{model.num_timesteps}")
+    venv.close()
+    return final
+
+
+def _resumed_model(config: TrainConfig, resume: Path) -> tuple[Any, Any]:
+    """The PPO model and its vec env from checkpoint ``resume``, random states included."""
+    from stable_baselines3 import PPO
+
+    state = _load_state(resume)
+    done_steps = int(state["num_timesteps"])
+    if done_steps % config.rollout_steps:
+        raise ConfigError(f"checkpoint {resume} is not at a rollout boundary ({done_steps} steps)")
+    episodes = done_steps // config.rollout_steps  # one episode per env per rollout
+    venv = make_vec_env(config, first_episode=episodes)
+    model = PPO.load(resume, env=venv, device="cpu")
+    _set_random_states(state["random"])
+    return model, venv
+
+
+def _new_model(config: TrainConfig, directory: Path, verbose: int) -> tuple[Any, Any]:
+    """A fresh PPO model seeded with ``config.seed``, and its vec env."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.utils import set_random_seed
+
+    set_random_seed(config.seed)
+    venv = make_vec_env(config)
+    p = config.ppo
+    model = PPO(
+        "MultiInputPolicy",
+        venv,
+        learning_rate=p.learning_rate,
+        n_steps=p.n_steps,
+        batch_size=p.batch_size,
+        n_epochs=p.n_epochs,
+        gamma=p.gamma,
+        gae_lambda=p.gae_lambda,
+        clip_range=p.clip_range,
+        ent_coef=p.ent_coef,
+        vf_coef=p.vf_coef,
+        max_grad_norm=p.max_grad_norm,
+        policy_kwargs={"net_arch": list(p.net_arch)},
+        tensorboard_log=str(directory / "tb"),
+        seed=config.seed,
+        device="cpu",
+        verbose=verbose,
+    )
+    return model, venv
+
+
+def _checkpoints(model: Any, config: TrainConfig, directory: Path) -> Any:
+    """A callback that saves ``model`` every ``config.checkpoint_every`` steps, at rollout boundaries."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    every_rollouts = max(1, round(config.checkpoint_every / config.rollout_steps))
 
     class Checkpoints(BaseCallback):
         def __init__(self) -> None:
@@ -266,20 +298,7 @@ def train(
             if model.num_timesteps and model.num_timesteps // config.rollout_steps % every_rollouts == 0:
                 save_checkpoint(model, directory / "checkpoints" / f"step_{model.num_timesteps}")
 
-    remaining = config.total_timesteps - model.num_timesteps
-    if remaining > 0:
-        model.learn(
-            total_timesteps=remaining,
-            callback=[Checkpoints(), *extra_callbacks],
-            reset_num_timesteps=resume is None,
-            progress_bar=progress_bar,
-            tb_log_name="ppo",
-        )
-    final = directory / "model.zip"
-    model.save(final)
-    save_checkpoint(model, directory / "checkpoints" / f"step_{model.num_timesteps}")
-    venv.close()
-    return final
+    return Checkpoints()
 
 
 def train_seeds(
