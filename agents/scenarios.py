@@ -357,7 +357,7 @@ class SoccerDriver:
     def _keeper_xy(self, env: LocalizationEnv) -> NDArray[np.float64] | None:
         crowd = soccer_crowd(env.world)
         keeper = crowd.keeper_index()
-        return None if keeper is None else np.asarray(env.world.positions[crowd.member_rows[keeper]], dtype=np.float64)
+        return None if keeper is None else np.asarray(env.world.positions[crowd.rows[keeper]], dtype=np.float64)
 
     def _goal_xy(self, env: LocalizationEnv) -> NDArray[np.float64]:
         return np.asarray(soccer_crowd(env.world).goal, dtype=np.float64)
@@ -556,6 +556,6 @@ class ShoveDriver:
             else:  # keep pressing: aim through the robot's current position
                 robot = world.positions[0]
                 crowd, index = self._shover(world)
-                away = _unit(robot - world.positions[crowd.member_rows[index]])
+                away = _unit(robot - world.positions[crowd.rows[index]])
                 crowd.send(index, robot + away * self.overshoot_m)
         return self.inner.act(env)

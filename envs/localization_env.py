@@ -24,7 +24,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from envs.config import WorldConfig, load_world
-from envs.sensors import Sensor, build_sensor, sensor_types
+from envs.sensors import Sensor, SensorBase, build_sensor, sensor_types
 from envs.state import WorldState
 from envs.world import World
 from localizers.base import LandmarkMap
@@ -79,6 +79,10 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         state = self.world.snapshot()
         #: the sensors by name, in the config's order (which is also the order they draw randomness)
         self.sensors: dict[str, Sensor] = {name: build_sensor(name, sc, config, state) for name, sc in config.sensors.items()}
+        # the sensors that see the commanded motion (odometry), in config order
+        self._commanded = [
+            s for s in self.sensors.values() if getattr(type(s), "command", SensorBase.command) is not SensorBase.command
+        ]
         self.observation_space = spaces.Dict({s.key: s.space() for s in self.sensors.values()})  # type: ignore[assignment]  # gym.Env types it as a generic Space
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self._overlays: list[Overlay] = []
@@ -121,7 +125,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         # the commanded motion: turn by omega dt while driving the chord of that arc
         half = 0.5 * omega * dt
         commanded = np.array([v * dt * math.cos(half), v * dt * math.sin(half), omega * dt])
-        for sensor in self.sensors.values():
+        for sensor in self._commanded:
             sensor.command(commanded, self._sensor_rng)
         slip = 1.0
         rc = self.config.robot

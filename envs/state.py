@@ -9,15 +9,24 @@ own step. Nothing here touches pymunk.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
+#: body rows: a slice where they are consecutive (views), else an index array
+Rows = slice | NDArray[np.int64]
 
-@dataclass(frozen=True)
-class WorldState:
-    """The world at one step.
+
+def robot_pose(positions: NDArray[np.float64], angles: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``(3,)`` our robot's pose (row 0) from body positions ``(B, 2)`` and angles ``(B,)``, heading wrapped to ``[-pi, pi)``."""
+    x, y = positions[0]
+    theta = (angles[0] + math.pi) % (2 * math.pi) - math.pi
+    return np.array([x, y, theta])
+
+
+class WorldState(NamedTuple):
+    """The world at one step (immutable; a named tuple, so that making one per step is cheap).
 
     Attributes:
         time_s: simulated time; ``step``: steps since the reset.
@@ -38,9 +47,9 @@ class WorldState:
     angles: NDArray[np.float64]
     velocities: NDArray[np.float64]
     radii_m: NDArray[np.float64]
-    crowd_rows: slice | NDArray[np.int64]
+    crowd_rows: Rows
     ball_row: int
-    occluder_rows: slice | NDArray[np.int64]
+    occluder_rows: Rows
     seg_a: NDArray[np.float64]
     seg_b: NDArray[np.float64]
     landmark_xy: NDArray[np.float64]
@@ -65,9 +74,7 @@ class WorldState:
     @property
     def robot_pose(self) -> NDArray[np.float64]:
         """``(3,)`` true pose of our robot, heading wrapped to ``[-pi, pi)``."""
-        x, y = self.positions[0]
-        theta = (self.angles[0] + math.pi) % (2 * math.pi) - math.pi
-        return np.array([x, y, theta])
+        return robot_pose(self.positions, self.angles)
 
     @property
     def robot_radius_m(self) -> float:

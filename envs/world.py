@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from envs.config import WorldConfig
 from envs.crowds import BodySpec, Crowd, build_crowd
-from envs.state import WorldState
+from envs.state import Rows, WorldState, robot_pose
 
 # collision types
 ROBOT, CROWD, BALL, WALL, LANDMARK = 1, 2, 3, 4, 5
@@ -112,7 +112,7 @@ class World:
         self.ball_row = int(self.ball_rows[0]) if self.ball_rows.size else -1
         self.radii_m = np.asarray([config.robot.radius_m] + [b.radius_m for b in self._specs], dtype=np.float64)
         self.occluder_rows = _as_slice(np.flatnonzero([False] + [b.occludes for b in self._specs]))
-        self._others = np.concatenate([[0], self.member_rows]).astype(np.int64)  # the robot and every member
+        self._others = _as_slice(np.concatenate([[0], self.member_rows]).astype(np.int64))  # the robot and every member
         for static in (self.seg_a, self.seg_b, self.landmark_xy, self.landmark_radius_m, self.landmark_max_range_m, self.radii_m):
             static.setflags(write=False)  # shared by every snapshot
         self._state_buffer = pbatch.Buffer()
@@ -278,7 +278,7 @@ class World:
     @property
     def robot_pose(self) -> NDArray[np.float64]:
         """``(3,)`` true pose of our robot, heading wrapped to ``[-pi, pi)`` (:attr:`WorldState.robot_pose`)."""
-        return self.snapshot().robot_pose
+        return robot_pose(self.positions, self.angles)
 
     def read_state(self) -> None:
         """Copy body state out of pymunk into ``positions``, ``angles`` and ``velocities``."""
@@ -365,7 +365,7 @@ class World:
         self.contacts.append(ContactEvent(self.step_count + 1, kind, index, (float(point[0]), float(point[1]))))
 
 
-def _as_slice(rows: NDArray[np.int64]) -> slice | NDArray[np.int64]:
+def _as_slice(rows: NDArray[np.int64]) -> Rows:
     """Consecutive rows as a slice (views, no copies per step), else the index array."""
     if rows.size == 0:
         return slice(1, 1)

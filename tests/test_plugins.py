@@ -27,7 +27,7 @@ from agents.scenarios import square_driver
 from envs.config import load_world, world_path
 from envs.crowds import Commands, Crowd, CrowdConfig, Taken, register_crowd
 from envs.sensors import SensorBase, SensorConfig, register_sensor
-from envs.state import WorldState
+from envs.state import Rows, WorldState
 from localizers.base import PoseEstimate, ScanMeasurement
 from localizers.mcl_lidar import CACHE_ENV
 from localizers.measurements import MeasurementKind, register_measurement
@@ -114,7 +114,7 @@ class Circlers(Crowd):
         taken += [(float(x), float(y), self.config.radius_m) for x, y in out]
         return out
 
-    def commands(self, state: WorldState, others: NDArray[np.int64], rng: np.random.Generator) -> Commands:
+    def commands(self, state: WorldState, others: Rows, rng: np.random.Generator) -> Commands:
         rel = state.positions[self.member_rows] - np.asarray(self.c.center_xy_m)
         tangent = np.stack([-rel[:, 1], rel[:, 0]], axis=1) / np.linalg.norm(rel, axis=1, keepdims=True)
         return Commands(tangent * self.config.speed_mps)

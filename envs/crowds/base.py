@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envs.plugins import Entry, Registry
-from envs.state import WorldState
+from envs.state import Rows, WorldState
 from localizers.schema import check
 
 if TYPE_CHECKING:
@@ -105,7 +105,7 @@ class Crowd:
         name: the crowd's name in the world config.
         config: its config.
         rows: the world's body rows of its bodies (set by the world), members first.
-        member_rows: the rows of its members only.
+        member_rows: the rows of its members only (a slice: they are consecutive).
         held: ``(M,)`` members frozen in place by a scripted driver.
     """
 
@@ -121,7 +121,7 @@ class Crowd:
         self.held = np.zeros(self.count, dtype=np.bool_)
         self.max_speed = np.full(self.count, config.speed_mps)
         self.rows = np.zeros(0, dtype=np.int64)
-        self.member_rows = np.zeros(0, dtype=np.int64)
+        self.member_rows = slice(0, 0)
 
     def bodies(self) -> list[BodySpec]:
         """The crowd's bodies, members first (override to add a ball or other bodies)."""
@@ -130,7 +130,8 @@ class Crowd:
     def attach(self, rows: NDArray[np.int64]) -> None:
         """Called by the world with the rows of :meth:`bodies`."""
         self.rows = np.asarray(rows, dtype=np.int64)
-        self.member_rows = self.rows[: self.count]
+        first = int(self.rows[0]) if self.rows.size else 0
+        self.member_rows = slice(first, first + self.count)  # a slice: views, no copies per step
 
     def hold(self, index: int, flag: bool) -> None:
         """Freeze member ``index`` in place (``flag``) or let it move again."""
@@ -143,7 +144,7 @@ class Crowd:
         self.held[:] = False
         return np.zeros((len(self.bodies()), 2))
 
-    def commands(self, state: WorldState, others: NDArray[np.int64], rng: np.random.Generator) -> Commands:
+    def commands(self, state: WorldState, others: Rows, rng: np.random.Generator) -> Commands:
         """What the crowd wants this step; ``others``: the rows of every member of every crowd."""
         return Commands(np.zeros((self.count, 2)))
 

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from envs.crowds.base import Commands, Crowd, CrowdConfig, Taken, register_crowd
 from envs.crowds.steering import seek
-from envs.state import WorldState
+from envs.state import Rows, WorldState
 from localizers.schema import check
 
 if TYPE_CHECKING:
@@ -82,7 +82,7 @@ class QueueCrowd(Crowd):
             order = members[np.argsort(self.slot[members], kind="stable")]
             self.slot[order] = np.arange(order.size)
 
-    def commands(self, state: WorldState, others: NDArray[np.int64], rng: np.random.Generator) -> Commands:
+    def commands(self, state: WorldState, others: Rows, rng: np.random.Generator) -> Commands:
         while state.time_s >= self.next_shift_s:
             self._shift_queues()
             self.next_shift_s += self.q.step_period_s

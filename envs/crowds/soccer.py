@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from envs.crowds.base import BodySpec, Commands, Crowd, CrowdConfig, Taken, register_crowd
 from envs.crowds.steering import ARRIVE_RADIUS_M, seek
-from envs.state import WorldState
+from envs.state import Rows, WorldState
 from localizers.schema import check
 
 if TYPE_CHECKING:
@@ -167,6 +167,7 @@ class SoccerCrowd(Crowd):
         self.reach_m = config.radius_m + sc.ball_radius_m + 0.05
         self.ball_keep = 1.0 - sc.ball_decay_per_s
         self.dt_s = world.dt_s
+        self.ball_row = -1  # set by attach()
 
     def bodies(self) -> list[BodySpec]:
         members = super().bodies()
@@ -175,10 +176,10 @@ class SoccerCrowd(Crowd):
         sc = self.soccer
         return [*members, BodySpec("ball", sc.ball_radius_m, sc.ball_mass_kg, sc.ball_occludes, 0.3, 0.7)]
 
-    @property
-    def ball_row(self) -> int:
-        """The ball's body row in the world, -1 without a ball."""
-        return int(self.rows[self.count]) if self.has_ball and len(self.rows) > self.count else -1
+    def attach(self, rows: NDArray[np.int64]) -> None:
+        super().attach(rows)
+        #: the ball's body row in the world, -1 without a ball
+        self.ball_row = int(self.rows[self.count]) if self.has_ball else -1
 
     def keeper_index(self) -> int | None:
         """The goalkeeper's member index, or None."""
@@ -228,7 +229,7 @@ class SoccerCrowd(Crowd):
         x0, y0, x1, y1 = self.field_box(self.config.radius_m)
         return rng.uniform((x0, y0), (x1, y1), size=(count, 2))
 
-    def commands(self, state: WorldState, others: NDArray[np.int64], rng: np.random.Generator) -> Commands:
+    def commands(self, state: WorldState, others: Rows, rng: np.random.Generator) -> Commands:
         pos = state.positions[self.member_rows]
         draws = rng.random(2)  # kick decision and direction
         ball_row = self.ball_row

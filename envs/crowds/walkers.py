@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from envs.crowds.base import Commands, Crowd, CrowdConfig, Taken, register_crowd
 from envs.crowds.queues import PEOPLE_FILL
-from envs.state import WorldState
+from envs.state import Rows, WorldState
 from localizers.schema import check
 
 if TYPE_CHECKING:
@@ -131,7 +131,7 @@ class WalkerCrowd(Crowd):
         self.goals = self._free_goals(rng, self.count)
         return members
 
-    def commands(self, state: WorldState, others: NDArray[np.int64], rng: np.random.Generator) -> Commands:
+    def commands(self, state: WorldState, others: Rows, rng: np.random.Generator) -> Commands:
         w = self.w
         pos = state.positions[self.member_rows]
         arrived = np.sum((pos - self.goals) ** 2, axis=1) < 0.25
