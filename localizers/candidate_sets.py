@@ -57,7 +57,7 @@ from localizers.base import (
     PoseEstimate,
     checked_bearings,
     checked_dt,
-    checked_odometry,
+    checked_increment,
     require_reset,
 )
 from localizers.candidate_kernels import (
@@ -292,7 +292,7 @@ class CandidateSetLocalizer:
     def predict(self, odometry: OdometryDelta) -> None:
         """Propagate every candidate by the increment (lazily: one SE(2) product)."""
         self._require_reset()
-        dx, dy, dth = checked_odometry(self.name, odometry).tolist()
+        dx, dy, dth = checked_increment(self.name, odometry)
         accumulate(self._odo, dx, dy, dth)
         self._path_m += math.hypot(dx, dy)
         self._turn_rad += abs(dth)
