@@ -35,7 +35,7 @@ class WorldState(NamedTuple):
         radii_m: ``(B,)`` body footprint radii.
         crowd_rows: rows of the crowd's members (robots, people).
         ball_row: the ball's row, or -1 without a ball.
-        occluder_rows: rows whose discs block a camera's sight lines.
+        occluder_rows: rows whose discs block a camera's sight lines; ``occluder_radius_m`` their radii.
         seg_a, seg_b: ``(S, 2)`` wall segments (static; they occlude and collide).
         landmark_xy: ``(L, 2)``, ``landmark_radius_m`` and ``landmark_max_range_m``: ``(L,)``;
             ``landmark_names``: ``L`` names.
@@ -50,6 +50,7 @@ class WorldState(NamedTuple):
     crowd_rows: Rows
     ball_row: int
     occluder_rows: Rows
+    occluder_radius_m: NDArray[np.float64]
     seg_a: NDArray[np.float64]
     seg_b: NDArray[np.float64]
     landmark_xy: NDArray[np.float64]
@@ -83,7 +84,3 @@ class WorldState(NamedTuple):
     @property
     def occluder_xy(self) -> NDArray[np.float64]:
         return self.positions[self.occluder_rows]
-
-    @property
-    def occluder_radius_m(self) -> NDArray[np.float64]:
-        return self.radii_m[self.occluder_rows]

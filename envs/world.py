@@ -112,8 +112,10 @@ class World:
         self.ball_row = int(self.ball_rows[0]) if self.ball_rows.size else -1
         self.radii_m = np.asarray([config.robot.radius_m] + [b.radius_m for b in self._specs], dtype=np.float64)
         self.occluder_rows = _as_slice(np.flatnonzero([False] + [b.occludes for b in self._specs]))
+        self._occluder_radius_m = self.radii_m[self.occluder_rows].copy()
         self._others = _as_slice(np.concatenate([[0], self.member_rows]).astype(np.int64))  # the robot and every member
-        for static in (self.seg_a, self.seg_b, self.landmark_xy, self.landmark_radius_m, self.landmark_max_range_m, self.radii_m):
+        statics = (self.seg_a, self.seg_b, self.landmark_xy, self.landmark_radius_m, self.landmark_max_range_m, self.radii_m)
+        for static in (*statics, self._occluder_radius_m):
             static.setflags(write=False)  # shared by every snapshot
         self._state_buffer = pbatch.Buffer()
         # per body (vx, vy, omega, fx, fy), the layout pymunk.batch expects for _FIELDS_COMMAND
@@ -308,6 +310,7 @@ class World:
                 crowd_rows=self.crowd_rows,
                 ball_row=self.ball_row,
                 occluder_rows=self.occluder_rows,
+                occluder_radius_m=self._occluder_radius_m,
                 seg_a=self.seg_a,
                 seg_b=self.seg_b,
                 landmark_xy=self.landmark_xy,

@@ -16,8 +16,8 @@ sets the count of the world's first crowd (its density). Built in: ``soccer``
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -83,9 +83,8 @@ class BodySpec:
     elasticity: float = 0.0
 
 
-@dataclass
-class Commands:
-    """What a crowd wants this step.
+class Commands(NamedTuple):
+    """What a crowd wants this step (a named tuple: one is made per crowd and step).
 
     Attributes:
         member_velocity: ``(M, 2)`` desired velocities of its members (in body order).
@@ -95,7 +94,7 @@ class Commands:
 
     member_velocity: NDArray[np.float64]
     ball_velocity: NDArray[np.float64] | None = None
-    teleports: list[tuple[int, NDArray[np.float64]]] = field(default_factory=list)
+    teleports: tuple[tuple[int, NDArray[np.float64]], ...] = ()
 
 
 class Crowd:

@@ -262,8 +262,7 @@ class SoccerCrowd(Crowd):
         else:
             ball_v = state.velocities[ball_row] * self.ball_keep**self.dt_s
         restart = self.ball_restart(state.positions[ball_row])
-        teleports = [] if restart is None else [(self.count, restart)]
-        return Commands(member_v, ball_v, teleports)
+        return Commands(member_v, ball_v, () if restart is None else ((self.count, restart),))
 
     def draw(self, canvas: Any, state: WorldState) -> None:
         super().draw(canvas, state)
