@@ -100,7 +100,7 @@ class BearingCamera(SensorBase):
     def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
         cfg = self.config
         draws = rng.random((3, self.count))  # dropout, false detection, false bearing
-        noise = np.asarray(rng.standard_normal(self.count) * cfg.noise_std_rad, dtype=np.float64)
+        noise = rng.standard_normal((self.count,)) * cfg.noise_std_rad
         obs, visible_ids, false_ids = _bearing_slots(
             state.positions[0],
             state.angles[0],
