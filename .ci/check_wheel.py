@@ -84,7 +84,7 @@ def check_envs() -> None:
     if not envs.ENV_WORLDS:
         fail("no env ids registered")
     for env_id, world in envs.ENV_WORLDS.items():
-        localizer = "candidate_sets" if envs.load_world(world).camera is not None else "mcl_lidar"
+        localizer = "candidate_sets" if envs.load_world(world).sensor_of_type("bearing_camera") is not None else "mcl_lidar"
         try:
             env = gym.make(env_id, localizer=localizer)
             env.reset(seed=0)
