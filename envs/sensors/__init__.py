@@ -1,7 +1,8 @@
 """Sensors as plug-ins: one module per sensor type, registered by type name.
 
 Built in: ``odometry`` (:mod:`.odometry`), ``bearing_camera`` (:mod:`.bearing_camera`),
-``lidar`` and ``sonar`` (:mod:`.ranging`). See :mod:`.base` for the interface and
+``lidar`` (:mod:`.lidar`) and ``sonar`` (:mod:`.sonar`), the last two on the shared
+:class:`~envs.sensors.ranging.RangeSensor`. See :mod:`.base` for the interface and
 ``docs/architecture.md`` for adding one.
 """
 
@@ -18,8 +19,10 @@ from envs.sensors.base import (
     sensor_types,
 )
 from envs.sensors.bearing_camera import BearingCamera, BearingCameraConfig
+from envs.sensors.lidar import Lidar, LidarConfig
 from envs.sensors.odometry import Odometry, OdometryConfig
-from envs.sensors.ranging import Lidar, LidarConfig, RangeSensor, Sonar, SonarConfig
+from envs.sensors.ranging import RangeSensor
+from envs.sensors.sonar import Sonar, SonarConfig
 
 __all__ = [
     "BearingCamera",
