@@ -11,7 +11,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from agents.util import positive_int
+from agents.util import positive_int, seed_int
 
 DEFAULT_RESULTS = Path("results")
 
@@ -24,7 +24,7 @@ def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "report steps per second and landmark / wall visibility, and save one frame per world.",
     )
     demo.add_argument("--steps", type=positive_int, default=3000, help="steps per (world, density) run (default 3000)")
-    demo.add_argument("--seed", type=int, default=0, help="seed of the env and the policy (default 0)")
+    demo.add_argument("--seed", type=seed_int, default=0, help="seed of the env and the policy (default 0)")
     demo.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "demo", help="output folder (default results/demo)")
     demo.add_argument(
         "--active-seeds",
@@ -62,10 +62,10 @@ def _add_train(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     train.add_argument("config", help="experiment YAML path or name under configs/experiments/")
     train.add_argument("--total-timesteps", type=positive_int, help="override total_timesteps")
     seeds = train.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=int, help="override the run seed")
+    seeds.add_argument("--seed", type=seed_int, help="override the run seed")
     seeds.add_argument(
         "--seeds",
-        type=int,
+        type=seed_int,
         nargs="+",
         metavar="SEED",
         help="train one run per seed, side by side (a local process pool, or Ray with --ray-address)",
@@ -227,6 +227,8 @@ def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
                 raise ConfigError(f"--resume latest: no checkpoint under {args.out / config.name}")
         elif args.resume:
             resume = Path(args.resume)
+            if not resume.is_file():
+                raise ConfigError(f"--resume {args.resume}: no such checkpoint file (or give 'latest')")
     except ConfigError as exc:
         parser.error(str(exc))
     if args.seeds:
@@ -270,6 +272,10 @@ def _run_tune(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 def _run_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.papers import EXPERIMENTS
 
+    try:
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        parser.error(f"--out {args.out}: cannot create the output folder ({exc.strerror})")
     report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
     print(f"wrote {report}")
     return 0

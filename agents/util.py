@@ -23,6 +23,17 @@ def positive_int(text: str) -> int:
     return value
 
 
+def seed_int(text: str) -> int:
+    """argparse type: a seed, an integer >= 0 (what numpy and Gymnasium accept), with a one-line error."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a seed (an integer >= 0), got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a seed (an integer >= 0), got {value}")
+    return value
+
+
 def nest(dotted: Mapping[str, Any]) -> dict[str, Any]:
     """``{"ppo.learning_rate": 1e-3, "n": 1}`` -> ``{"ppo": {"learning_rate": 1e-3}, "n": 1}``.
 

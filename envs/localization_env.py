@@ -33,6 +33,10 @@ from localizers.schema import ConfigError, replace_checked
 #: keyword overrides of world sections accepted by the env (besides the sensors, by name or type)
 OVERRIDE_SECTIONS = ("robot", "crowd")
 _SECTION_FIELDS = {"robot": "robot", "crowd": "crowds"}  # keyword -> WorldConfig field
+#: what gym.make takes besides the world overrides (the localizer wrapper's keywords, the time limit)
+MAKE_KEYWORDS = ("localizer", "localizer_params", "prior", "belief_spread", "max_episode_steps")
+#: the options ``reset`` understands
+RESET_OPTIONS = ("robot_pose",)
 
 Overlay = Callable[[Any], None]
 
@@ -96,6 +100,9 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, NDArray[np.float32]], dict[str, Any]]:
+        unknown = sorted(set(options or ()) - set(RESET_OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown reset option {unknown[0]!r} (options: {', '.join(RESET_OPTIONS)})")
         super().reset(seed=seed)
         # independent streams: a sensor setting never changes how the crowd moves
         self._world_rng, self._sensor_rng = self.np_random.spawn(2)
@@ -239,7 +246,7 @@ def apply_overrides(config: WorldConfig, crowd_size: int | None = None, **overri
             added = [t for t in sensor_types() if t not in config.sensors]
             raise ConfigError(
                 f"unknown env keyword {section!r} = {value!r} (valid: {', '.join(valid)}; "
-                f"or a sensor type to add: {', '.join(added)})"
+                f"or a sensor type to add: {', '.join(added)}; gym.make also takes {', '.join(MAKE_KEYWORDS)})"
             )
         if value is None:
             continue

@@ -155,6 +155,11 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
             self.localizer: Localizer = make_localizer(localizer, self.landmark_map, dt_s=dt_s, params=localizer_params)
             default_prior = "start" if entry.needs_prior else "none"
         else:
+            if not isinstance(localizer, Localizer):
+                raise ConfigError(
+                    f"localizer must be a registered name or an object with the Localizer interface "
+                    f"(reset, predict, update, estimate, overlay), got {type(localizer).__name__} {localizer!r}"
+                )
             if localizer_params:
                 raise ConfigError("localizer_params only apply to a localizer given by name")
             self.localizer_name = type(localizer).__name__

@@ -32,8 +32,8 @@ from agents.tune.objective import (
     tuning_seeds,
 )
 from agents.tune.report import write_report
-from agents.tune.space import SearchSpace, load_search_space
-from agents.util import flatten, nest
+from agents.tune.space import SearchSpace, load_search_space, space_path
+from agents.util import flatten, nest, seed_int
 from localizers.registry import LOCALIZERS, spec
 from localizers.schema import ConfigError
 
@@ -328,9 +328,9 @@ def _count(minimum: int) -> Any:
 def add_arguments(parser: Any) -> None:
     """The ``crowdloc tune`` options; their defaults are :class:`TuneConfig`'s and :class:`EpisodeSetup`'s."""
     config, setup = TuneConfig(localizer=""), EpisodeSetup()
-    bearing = ", ".join(n for n, s in LOCALIZERS.items() if s.measurement == "bearings")
+    shipped = ", ".join(n for n, s in LOCALIZERS.items() if s.measurement == "bearings" and space_path(n).is_file())
     x_m, y_m, _ = SOCCER_START_POSE
-    parser.add_argument("localizer", help=f"a bearing localizer: {bearing}")
+    parser.add_argument("localizer", help=f"a bearing localizer with a search space: {shipped} (others: give --space)")
     parser.add_argument("--space", type=Path, help="search-space YAML (default configs/tuning/LOCALIZER.yaml)")
     parser.add_argument("--env-id", default=setup.env_id, help=f"a bearing world (default {setup.env_id})")
     parser.add_argument("--crowd-size", type=_count(0), help="crowd size (default: the world's own)")
@@ -352,7 +352,7 @@ def add_arguments(parser: Any) -> None:
     parser.add_argument("--ray-address", help="run the workers on this Ray cluster (use a storage all nodes reach)")
     parser.add_argument("--storage", default=config.storage, help=f"SQLAlchemy database URL (default {config.storage})")
     parser.add_argument("--study-name", help="default LOCALIZER-ENV-crowdN-SCENARIO; an existing study is continued")
-    parser.add_argument("--seed", type=int, default=config.seed, help=f"sampler seed (default {config.seed})")
+    parser.add_argument("--seed", type=seed_int, default=config.seed, help=f"sampler seed (default {config.seed})")
     parser.add_argument("--penalty-m", type=float, default=config.penalty_m,
                         help=f"metres added to the objective per unit of unavailability (default {config.penalty_m:g})")  # fmt: skip
     parser.add_argument("--out", type=Path, help="report folder (default results/tuning/STUDY)")

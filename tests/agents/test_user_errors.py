@@ -1,0 +1,85 @@
+"""Bad input from a user gets a one-line error naming it (issue: the command line and the make call)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401  (registers crowdloc/*)
+from agents.cli import build_parser, main
+from localizers.schema import ConfigError
+
+
+def _parse_error(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
+    with pytest.raises(SystemExit) as exc:
+        build_parser(list(argv)).parse_args(list(argv))
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ("train", "ppo_candidate_sets", "--seed", "-1"),
+        ("train", "ppo_candidate_sets", "--seeds", "0", "-2"),
+        ("demo", "--seed", "-3"),
+        ("tune", "candidate_sets", "--seed", "-1"),
+        ("train", "ppo_candidate_sets", "--seed", "one"),
+    ],
+)
+def test_a_bad_seed_is_a_one_line_error_naming_the_flag(capsys: pytest.CaptureFixture[str], argv: tuple[str, ...]) -> None:
+    err = _parse_error(capsys, *argv)
+    assert "--seed" in err and "expected a seed (an integer >= 0)" in err and argv[-1] in err
+
+
+def test_resume_from_a_missing_file_says_so(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    missing = tmp_path / "missing.zip"
+    with pytest.raises(SystemExit):
+        main(["train", "ppo_candidate_sets", "--resume", str(missing), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert f"--resume {missing}: no such checkpoint file" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_reproduce_into_a_folder_that_cannot_be_made(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    with pytest.raises(SystemExit):
+        main(["reproduce", "bearing-candidates", "--quick", "--out", str(blocker / "out")])
+    err = capsys.readouterr().err
+    assert "cannot create the output folder" in err and str(blocker / "out") in err
+
+
+def test_tune_lists_only_the_localizers_it_has_a_search_space_for(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        build_parser(["tune", "--help"]).parse_args(["tune", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert (
+        "with a search space: mcl_bearing, candidate_sets" in text or "with a search space: candidate_sets, mcl_bearing" in text
+    )
+    assert "kalman," not in text
+
+
+def test_a_localizer_that_is_neither_a_name_nor_a_localizer_is_refused_at_make() -> None:
+    with pytest.raises(ConfigError, match="registered name or an object with the Localizer interface.*int 3"):
+        gym.make("crowdloc/RoboCupCrowded-v0", localizer=3)
+
+
+def test_the_unknown_keyword_message_names_what_gym_make_also_takes() -> None:
+    with pytest.raises(ConfigError) as exc:
+        gym.make("crowdloc/RoboCupCrowded-v0", localiser="candidate_sets")
+    for word in ("'localiser'", "localizer, localizer_params, prior, belief_spread, max_episode_steps"):
+        assert word in str(exc.value)
+
+
+def test_an_unknown_reset_option_is_refused() -> None:
+    env = gym.make("crowdloc/RoboCupStatic-v0")
+    with pytest.raises(ValueError, match="unknown reset option 'robot_pos' \\(options: robot_pose\\)"):
+        env.reset(seed=0, options={"robot_pos": [1.0, 1.0, 0.0]})
+    obs, _ = env.reset(seed=0, options={"robot_pose": [1.0, 1.0, 0.0]})
+    assert np.isfinite(obs["odometry"]).all()
