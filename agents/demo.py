@@ -89,7 +89,7 @@ def run_world(env_id: str, crowd_size: int, steps: int, seed: int) -> RunStats:
         obs, _, terminated, truncated, info = env.step(action)
         contacts += len(info["contacts"])
         if landmarks:
-            histogram[len(info["visible_landmarks"])] += 1
+            histogram[int(np.count_nonzero(info["visible_landmarks"]))] += 1
         if terminated or truncated:
             obs, info = env.reset()
             policy.reset()

@@ -191,7 +191,7 @@ def record(
     drv.reset(base)
     # the driver may have moved the ball or the crowd: observations are unchanged (the ball
     # does not occlude; parked members sit outside the field), the truth is re-read below
-    n_lm = base.landmark_map.count
+    no_landmarks = np.zeros(base.landmark_map.count, dtype=bool)
     keys = [str(meta["key"]) for meta in sensors.values()]
     observed: dict[str, list[NDArray[np.float32]]] = {key: [] for key in keys}
     truth: list[tuple[Any, ...]] = []
@@ -199,10 +199,8 @@ def record(
     def keep(o: Mapping[str, Any], i: Mapping[str, Any]) -> None:
         for key in keys:
             observed[key].append(o[key].copy())
-        vis = np.zeros(n_lm, dtype=bool)
-        vis[np.asarray(i.get("visible_landmarks", ()), dtype=np.int64)] = True
-        false = np.zeros(n_lm, dtype=bool)
-        false[np.asarray(i.get("false_detections", ()), dtype=np.int64)] = True
+        vis = np.array(i.get("visible_landmarks", no_landmarks), dtype=bool)
+        false = np.array(i.get("false_detections", no_landmarks), dtype=bool)
         truth.append((np.asarray(i["true_pose"]).copy(), float(i["time_s"]), vis, false, len(i["contacts"])))
 
     keep(obs, info)

@@ -365,7 +365,7 @@ class Renderer:
                 sensor.draw(canvas, state, readings[sensor.key], info)
         for crowd in env.world.crowds.values():
             crowd.draw(canvas, state)
-        visible = np.asarray(info.get("visible_landmarks", ()), dtype=np.int64)
+        visible = np.flatnonzero(info.get("visible_landmarks", ()))
         self._draw_landmarks(canvas, state.landmark_xy, state.landmark_radius_m, visible)
         canvas.circle(pose[0], pose[1], state.radii_m[0], ROBOT_FILL, 0)
         canvas.pose(pose[0], pose[1], pose[2], ROBOT_OUTLINE, state.radii_m[0], 2)

@@ -51,9 +51,7 @@ def bearing_metrics(track: Track, visible: ArrayLike, bound_rmse_m: ArrayLike) -
 
 
 def _collect(info: Mapping[str, Any], context: EpisodeContext) -> dict[str, NDArray[np.bool_]]:
-    seen = np.zeros(context.landmark_map.count, dtype=bool)
-    seen[np.asarray(info["visible_landmarks"], dtype=np.int64)] = True
-    return {"visible": seen}
+    return {"visible": np.array(info["visible_landmarks"], dtype=bool)}
 
 
 def _compute(track: Track, collected: Mapping[str, NDArray[Any]], context: EpisodeContext) -> PluginOutput:

@@ -62,8 +62,9 @@ class BearingCamera(SensorBase):
     Observation ``(3 L,)``: for each landmark slot in turn ``(visible, cos(bearing),
     sin(bearing))`` in the robot frame (a flat vector, as stable-baselines3 expects; reshape
     to ``(L, 3)`` to read it), zeros when not detected. A false detection puts a uniformly
-    random bearing in a slot with ``visible = 1``. ``info`` gets ``visible_landmarks`` (ids
-    truly in sight, before dropout) and ``false_detections``.
+    random bearing in a slot with ``visible = 1``. ``info`` gets ``visible_landmarks`` and
+    ``false_detections``: ``(L,)`` flags of the landmarks truly in sight (before dropout) and of
+    the slots holding a false detection.
     """
 
     draw_layer = "under"
@@ -101,22 +102,24 @@ class BearingCamera(SensorBase):
         cfg = self.config
         draws = rng.random((3, self.count))  # dropout, false detection, false bearing
         noise = rng.standard_normal((self.count,)) * cfg.noise_std_rad
-        obs, visible_ids, false_ids = _bearing_slots(
+        visible = self.true_visibility(state)
+        obs = _bearing_slots(
             state.positions[0],
             state.angles[0],
             state.landmark_xy,
-            self.true_visibility(state),
+            visible,
             draws,
             noise,
             cfg.dropout_probability,
             cfg.false_detection_probability,
         )
-        return obs.reshape(-1), {"visible_landmarks": visible_ids, "false_detections": false_ids}
+        # fixed shapes (one flag per landmark), so that vector envs can stack the infos
+        return obs.reshape(-1), {"visible_landmarks": visible, "false_detections": draws[1] < cfg.false_detection_probability}
 
     def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None:
         """Sight lines to the landmarks truly in view and, for a narrow camera, the edges of its view."""
         pose = state.robot_pose
-        for j in np.asarray(info.get("visible_landmarks", ()), dtype=np.int64):
+        for j in np.flatnonzero(info.get("visible_landmarks", ())):
             canvas.line(pose[:2], state.landmark_xy[j], SIGHT_LINE, 1)
         fov = self.config.fov_rad
         if fov < 2 * np.pi:
@@ -136,12 +139,10 @@ def _bearing_slots(
     noise: NDArray[np.float64],
     dropout: float,
     false_rate: float,
-) -> tuple[NDArray[np.float32], NDArray[np.int64], NDArray[np.int64]]:
-    """Fill the ``(L, 3)`` camera slots; also return the truly visible and the falsely reported ids."""
+) -> NDArray[np.float32]:
+    """Fill the ``(L, 3)`` camera slots."""
     n = landmark_xy.shape[0]
     obs = np.zeros((n, 3), dtype=np.float32)
-    visible_ids = np.flatnonzero(visible)
-    false_ids = np.flatnonzero(draws[1] < false_rate)
     for j in range(n):
         if draws[1, j] < false_rate:
             bearing = (draws[2, j] * 2.0 - 1.0) * math.pi
@@ -152,4 +153,4 @@ def _bearing_slots(
         obs[j, 0] = 1.0
         obs[j, 1] = math.cos(bearing)
         obs[j, 2] = math.sin(bearing)
-    return obs, visible_ids, false_ids
+    return obs

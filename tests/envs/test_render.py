@@ -82,7 +82,7 @@ def test_occluded_landmark_is_grey_and_visible_landmarks_are_coloured() -> None:
     # the only crowd member stands halfway between the robot and L7
     world.place_crowd_member(0, (2.0, 9.0))
     _, _, _, _, info = env.step(STILL)
-    assert l7 not in info["visible_landmarks"] and l6 in info["visible_landmarks"]
+    assert not info["visible_landmarks"][l7] and info["visible_landmarks"][l6]
     frame = env.render()
     assert _pixel(env, frame, tuple(world.landmark_xy[l7])) == HIDDEN_LANDMARK
     assert _pixel(env, frame, tuple(world.landmark_xy[l6])) == landmark_color(l6)
@@ -90,7 +90,7 @@ def test_occluded_landmark_is_grey_and_visible_landmarks_are_coloured() -> None:
     # moved out of the way, L7 is seen and drawn in its colour
     world.place_crowd_member(0, (4.0, 1.0))
     _, _, _, _, info = env.step(STILL)
-    assert l7 in info["visible_landmarks"]
+    assert info["visible_landmarks"][l7]
     frame = env.render()
     assert _pixel(env, frame, tuple(world.landmark_xy[l7])) == landmark_color(l7)
     assert landmark_color(l7) != HIDDEN_LANDMARK
