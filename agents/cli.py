@@ -100,7 +100,12 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="fixed policy names or ppo:PATH/model.zip (default: every fixed policy but patrol; landmark_seeking and "
         "greedy_info_gain need a camera)",
     )
-    ev.add_argument("--localizers", nargs="+", metavar="NAME", help="registered localizers (default: candidate_sets)")
+    ev.add_argument(
+        "--localizers",
+        nargs="+",
+        metavar="NAME",
+        help="registered localizers (default: the --conditions config's localizer, else candidate_sets)",
+    )
     ev.add_argument(
         "--crowd-sizes", "--densities", dest="crowd_sizes", nargs="+", type=int, metavar="N", help="crowd sizes (default: 2 6 10)"
     )

@@ -18,11 +18,8 @@ checkpoints then gives identical weights (a test proves it).
 from __future__ import annotations
 
 import dataclasses
-import json
 import pickle
-import platform
 import random
-import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -35,7 +32,7 @@ import torch
 import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
 from agents.rewards import ActiveLocalizationReward, RewardWeights
-from agents.util import jsonable, nest
+from agents.util import nest, write_run_record
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, parse_yaml, replace_checked
 
 EXPERIMENT_DIR = crowdloc_configs.path("experiments")  # package data (configs/ in the checkout)
@@ -354,18 +351,4 @@ def latest_checkpoint(config: TrainConfig, out: Path) -> Path | None:
 
 
 def _write_run_json(config: TrainConfig, directory: Path) -> None:
-    import stable_baselines3
-
-    record = {
-        "config": jsonable(asdict(config)),
-        "seed": config.seed,
-        "command": sys.argv,
-        "versions": {
-            "python": platform.python_version(),
-            "stable_baselines3": stable_baselines3.__version__,
-            "torch": torch.__version__,
-            "gymnasium": gym.__version__,
-            "numpy": np.__version__,
-        },
-    }
-    (directory / "run.json").write_text(json.dumps(record, indent=2) + "\n")
+    write_run_record(directory / "run.json", config=asdict(config), seed=config.seed)

@@ -3,8 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
+import json
 import math
+import platform
+import subprocess
+import sys
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -81,3 +87,37 @@ def jsonable(o: Any) -> Any:
     if isinstance(o, (int, bool, str)) or o is None:
         return o
     return str(o)
+
+
+_RECORDED_PACKAGES = ("crowdloc", "gymnasium", "numpy", "pymunk", "stable-baselines3", "torch")
+
+
+def write_run_record(path: Path, **fields: Any) -> Path:
+    """Write ``run.json``: ``fields`` (a config, seeds, conditions) plus the command line, the
+    package versions and the git commit of the code (None outside a git checkout)."""
+    record = {
+        **{key: jsonable(value) for key, value in fields.items()},
+        "command": list(sys.argv),
+        "versions": {"python": platform.python_version(), **{n.replace("-", "_"): _version(n) for n in _RECORDED_PACKAGES}},
+        "git_commit": _git_commit(),
+    }
+    path.write_text(json.dumps(record, indent=2) + "\n")
+    return path
+
+
+def _version(package: str) -> str | None:
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def _git_commit() -> str | None:
+    """The commit of the checkout this code runs from, or None (an installed wheel, no git)."""
+    try:
+        done = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=Path(__file__).resolve().parent, capture_output=True, text=True, timeout=5
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return done.stdout.strip() if done.returncode == 0 else None

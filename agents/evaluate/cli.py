@@ -36,9 +36,12 @@ def spec_from_args(args: Any) -> EvalSpec:
         trained = load_train_config(args.conditions)
         check(args.env_id in (None, trained.env_id),
               f"--env-id {args.env_id} differs from the env of --conditions {args.conditions} ({trained.env_id})")  # fmt: skip
-        conditions = {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward}
+        # the config's conditions include its localizer, unless --localizers names others
+        conditions = {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward,
+                      "localizers": (trained.localizer,)}  # fmt: skip
     conditions["env_kwargs"] = merge_nested(conditions.get("env_kwargs", {}), nest(parse_overrides(args.env_set)))
-    return EvalSpec(**{k: v for k, v in {**given, **conditions}.items() if v is not None}, seeds=args.seeds,
+    chosen = {k: v for k, v in given.items() if v is not None}
+    return EvalSpec(**{k: v for k, v in {**conditions, **chosen}.items() if v is not None}, seeds=args.seeds,
                     first_seed=args.first_seed, episode_steps=args.episode_steps)  # fmt: skip
 
 

@@ -9,8 +9,9 @@ plug-ins of its localizers' measurement kinds; an episode of another kind has Na
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,7 @@ from agents.evaluate.plugins import Array, MetricInfo, localizer_kind, plugins_f
 from agents.evaluate.spec import Cell, EvalSpec
 from agents.evaluate.stats import EvalResult, Stat
 from agents.train import EVAL_SEED_BASE
+from agents.util import flatten, write_run_record
 
 
 # --------------------------------------------------------------------------- TUM trajectories
@@ -88,8 +90,9 @@ def _write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]])
 
 
 def write_tables(result: EvalResult, out_dir: Path) -> dict[str, Path]:
-    """Write ``episodes.csv`` (one row per episode) and ``summary.csv`` (mean, CI and count per
-    metric and group) under ``out_dir`` (created if missing); any subset of a grid will do."""
+    """Write ``episodes.csv`` (one row per episode), ``summary.csv`` (mean, CI and count per
+    metric and group) and ``run.json`` (the resolved conditions and grid, the command line,
+    versions and git commit) under ``out_dir`` (created if missing); any subset of a grid will do."""
     out_dir.mkdir(parents=True, exist_ok=True)
     keys = [m.key for m in result.metrics]
     out: dict[str, Path] = {}
@@ -103,7 +106,17 @@ def write_tables(result: EvalResult, out_dir: Path) -> dict[str, Path]:
                 for r in result.summary]  # fmt: skip
     sum_cols = ["policy", "localizer", "crowd_size", "episodes", *stat_cols]
     out["summary_csv"] = _write_csv(out_dir / "summary.csv", sum_cols, sum_rows)
+    out["run"] = write_run_record(
+        out_dir / "run.json", spec=dataclasses.asdict(result.spec), episodes=len(result.episodes), wall_s=result.wall_s
+    )
     return out
+
+
+def conditions_text(env_kwargs: Mapping[str, Any]) -> str:
+    """``camera.fov_rad=1.5708, prior=none`` for the env overrides of an evaluation, or the defaults."""
+    flat = flatten(env_kwargs)
+    return ", ".join(f"{key}={value!r}" if isinstance(value, str) else f"{key}={value:g}" if isinstance(value, float) else
+                     f"{key}={value}" for key, value in flat.items()) or "the world's own (no overrides)"  # fmt: skip
 
 
 def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
@@ -118,6 +131,8 @@ def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
             "",
             f"{s.env_id}, {s.episode_steps} steps per episode, {s.seeds} held-out seeds "
             f"({EVAL_SEED_BASE} + {s.first_seed}..{s.first_seed + s.seeds - 1}) per cell, {len(result.episodes)} episodes in {result.wall_s:.0f} s.",
+            "",
+            f"Conditions: {conditions_text(s.env_kwargs)} (all of them, with the command line and versions, in `run.json`).",
             "",
             summary_markdown(result),
             "",
@@ -198,7 +213,7 @@ def write_outputs(result: EvalResult, out_dir: Path, *, gif_cell: Cell | None = 
         gif: whether to render the GIF at all.
 
     Returns:
-        Name -> path of what was written (``episodes``, ``summary_csv``, ``summary_md``,
+        Name -> path of what was written (``episodes``, ``summary_csv``, ``run``, ``summary_md``,
         ``plots``, ``tum``, and ``gif``: ``episode.gif``).
     """
     if gif:

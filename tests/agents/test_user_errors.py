@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import math
 from pathlib import Path
 
 import gymnasium as gym
@@ -83,3 +85,22 @@ def test_an_unknown_reset_option_is_refused() -> None:
         env.reset(seed=0, options={"robot_pos": [1.0, 1.0, 0.0]})
     obs, _ = env.reset(seed=0, options={"robot_pose": [1.0, 1.0, 0.0]})
     assert np.isfinite(obs["odometry"]).all()
+
+
+def test_eval_records_its_conditions_and_takes_the_config_localizer(tmp_path: Path) -> None:
+    out = tmp_path / "eval"
+    argv = ["eval", "--conditions", "ppo_mcl_bearing", "--policies", "spin", "--crowd-sizes", "2", "--seeds", "1",
+            "--episode-steps", "20", "--workers", "1", "--no-gif", "--no-progress", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    record = json.loads((out / "run.json").read_text())
+    assert record["spec"]["localizers"] == ["mcl_bearing"]  # the config's localizer, not the default
+    assert record["spec"]["env_kwargs"]["camera"]["fov_rad"] == pytest.approx(math.pi / 2)
+    assert record["spec"]["env_kwargs"]["prior"] == "none" and record["episodes"] == 1
+    assert set(record) >= {"command", "versions", "git_commit"} and record["versions"]["gymnasium"]
+    summary = (out / "summary.md").read_text()
+    assert "Conditions: " in summary and "camera.fov_rad=1.5708" in summary and "prior='none'" in summary
+    episodes = (out / "episodes.csv").read_text().splitlines()
+    assert episodes[1].startswith("spin,mcl_bearing,2,")
+    # --localizers still chooses
+    assert main([*argv[:-1], str(tmp_path / "cs"), "--localizers", "candidate_sets"]) == 0
+    assert json.loads((tmp_path / "cs" / "run.json").read_text())["spec"]["localizers"] == ["candidate_sets"]
