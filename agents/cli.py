@@ -82,6 +82,11 @@ def _add_train(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         help="override any config field, e.g. --set ppo.learning_rate=1e-3 (repeatable)",
     )
     train.add_argument("--resume", metavar="CHECKPOINT", help="a checkpoint .zip to resume from, or 'latest'")
+    train.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="start again where a run of this config and seed already is (its files are deleted)",
+    )
     train.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "train", help="output folder (default results/train)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -217,6 +222,8 @@ def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
 
     if args.seeds and args.resume:
         parser.error("--resume continues one run; give --seed, not --seeds")
+    if args.resume and args.overwrite:
+        parser.error("--resume continues a run and --overwrite starts it again: give one")
     if (args.workers or args.ray_address) and not args.seeds:
         parser.error("--workers and --ray-address spread several runs: give --seeds")
     try:
@@ -241,12 +248,15 @@ def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
 
         try:
             models = train_seeds(config, args.out, args.seeds, workers=args.workers, ray_address=args.ray_address,
-                                 progress=not args.no_progress)  # fmt: skip
+                                 progress=not args.no_progress, overwrite=args.overwrite)  # fmt: skip
         except ConfigError as exc:
             parser.error(str(exc))
         print("\n".join(f"wrote {m}" for m in models))
         return 0
-    model = train(config, args.out, resume=resume, progress_bar=not args.no_progress)
+    try:
+        model = train(config, args.out, resume=resume, progress_bar=not args.no_progress, overwrite=args.overwrite)
+    except ConfigError as exc:
+        parser.error(str(exc))
     print(f"wrote {model}")
     return 0
 

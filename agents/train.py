@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import pickle
 import random
+import shutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -190,6 +191,46 @@ def run_dir(config: TrainConfig, out: Path) -> Path:
     return out / config.name / f"seed_{config.seed}"
 
 
+def check_train_config(config: TrainConfig) -> None:
+    """Build the run's env once per crowd size (and close it), so that a bad localizer,
+    crowd size, prior or env override fails here, naming it, before anything is written.
+
+    Raises:
+        ConfigError: naming the config and what is wrong.
+    """
+    for size in sorted(set(config.crowd_sizes)):
+        try:
+            env = gym.make(
+                config.env_id,
+                crowd_size=size,
+                localizer=config.localizer,
+                localizer_params=dict(config.localizer_params),
+                **dict(config.env_kwargs),
+            )
+        except gym.error.Error as exc:
+            raise ConfigError(f"training config {config.name!r}: env_id {config.env_id!r}: {exc}") from None
+        except ConfigError as exc:
+            raise ConfigError(f"training config {config.name!r} (crowd size {size}): {exc}") from None
+        env.close()
+
+
+def check_run_dir(config: TrainConfig, out: Path, *, resume: bool, overwrite: bool) -> None:
+    """Refuse to start a new run where one already is, unless told to resume it or overwrite it.
+
+    Raises:
+        ConfigError: naming the folder and the two ways on.
+    """
+    directory = run_dir(config, out)
+    held = (directory / "model.zip").exists() or any((directory / "checkpoints").glob("step_*"))
+    if held and not resume and not overwrite:
+        raise ConfigError(
+            f"{directory} already holds a run (model.zip or checkpoints): give --resume latest to continue it "
+            "or --overwrite to start it again"
+        )
+    if held and overwrite and not resume:
+        shutil.rmtree(directory)
+
+
 def train(
     config: TrainConfig,
     out: Path,
@@ -197,11 +238,18 @@ def train(
     progress_bar: bool = True,
     verbose: int = 0,
     extra_callbacks: Sequence[Any] = (),
+    overwrite: bool = False,
 ) -> Path:
     """Train (or resume) and return the path of the final ``model.zip``.
 
     ``extra_callbacks`` are stable-baselines3 callbacks run beside the checkpointing (timing, logging).
+
+    Raises:
+        ConfigError: before anything is written, for a config whose env cannot be built, or a
+            run folder that already holds a run (unless ``resume`` or ``overwrite``).
     """
+    check_train_config(config)
+    check_run_dir(config, out, resume=resume is not None, overwrite=overwrite)
     # A 64x64 MLP is fastest on one thread; the parallelism is in the env processes. More
     # threads only fight the env workers for the cores (measured: 1.8 ms per layer on 2 busy cores).
     torch.set_num_threads(1)
@@ -306,6 +354,7 @@ def train_seeds(
     workers: int | None = None,
     ray_address: str | None = None,
     progress: bool = True,
+    overwrite: bool = False,
 ) -> list[Path]:
     """Train ``config`` once per seed (``<out>/<name>/seed_<s>/``), the runs side by side.
 
@@ -318,7 +367,11 @@ def train_seeds(
 
     check(len(seeds) >= 1, "train_seeds needs at least one seed")
     check(len(set(seeds)) == len(seeds), f"seeds repeat: {list(seeds)}")
-    tasks = [(dataclasses.replace(config, seed=int(seed)), Path(out)) for seed in seeds]
+    runs = [dataclasses.replace(config, seed=int(seed)) for seed in seeds]
+    check_train_config(config)  # here, before any run starts: not once per worker
+    for run in runs:
+        check_run_dir(run, Path(out), resume=False, overwrite=overwrite)
+    tasks = [(run, Path(out)) for run in runs]
     return run_tasks(_train_task, tasks, workers=workers, ray_address=ray_address, desc="training runs", progress=progress)
 
 

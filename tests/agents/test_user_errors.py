@@ -104,3 +104,44 @@ def test_eval_records_its_conditions_and_takes_the_config_localizer(tmp_path: Pa
     # --localizers still chooses
     assert main([*argv[:-1], str(tmp_path / "cs"), "--localizers", "candidate_sets"]) == 0
     assert json.loads((tmp_path / "cs" / "run.json").read_text())["spec"]["localizers"] == ["candidate_sets"]
+
+
+@pytest.mark.parametrize(
+    ("override", "fragments"),
+    [
+        ("localizer=candidate_set", ["unknown localizer 'candidate_set'"]),
+        ("crowd_sizes=[2, 60]", ["crowd size 60", "crowd.count must be in [0, 14], got 60"]),
+        ("env_kwargs.prior=nowhere", ["prior must be 'start' or 'none', got 'nowhere'"]),
+        ("env_kwargs.camera.fov=1", ["unknown key 'fov'", "BearingCameraConfig"]),
+    ],
+)
+def test_a_bad_training_config_fails_before_anything_is_written(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, override: str, fragments: list[str]
+) -> None:
+    with pytest.raises(SystemExit):
+        main(["train", "ppo_candidate_sets", "--set", override, "--out", str(tmp_path / "out"), "--no-progress"])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "training config 'ppo_candidate_sets'" in err
+    for fragment in fragments:
+        assert fragment in err, (fragment, err)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_run_folder_that_holds_a_run_is_not_overwritten_unless_asked(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    from agents.train import check_run_dir, load_train_config, run_dir
+
+    config = load_train_config("ppo_candidate_sets")
+    folder = run_dir(config, tmp_path)
+    (folder / "checkpoints").mkdir(parents=True)
+    (folder / "model.zip").write_text("an earlier run")
+    with pytest.raises(SystemExit):
+        main(["train", "ppo_candidate_sets", "--out", str(tmp_path), "--no-progress"])
+    err = capsys.readouterr().err
+    assert "already holds a run" in err and "--resume latest" in err and "--overwrite" in err
+    assert (folder / "model.zip").read_text() == "an earlier run"  # untouched
+    with pytest.raises(SystemExit):
+        main(["train", "ppo_candidate_sets", "--out", str(tmp_path), "--resume", "latest", "--overwrite"])
+    check_run_dir(config, tmp_path, resume=False, overwrite=True)
+    assert not folder.exists()
