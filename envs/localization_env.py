@@ -164,6 +164,13 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
             self._renderer.close()
             self._renderer = None
 
+    def __reduce__(self) -> Any:
+        # pymunk's space holds C data that cannot be pickled: say so, rather than a cffi error
+        raise TypeError(
+            "a crowdloc env cannot be pickled or deep-copied (its pymunk space holds C data); make another with "
+            "gym.make(id, ...) instead, or pass a function that makes one (as vector envs do)"
+        )
+
     # ------------------------------------------------------------------ extras
     def add_overlay(self, draw: Overlay) -> None:
         """Register ``draw(canvas)``, called on every rendered frame (estimates, particles)."""

@@ -145,3 +145,14 @@ def test_a_run_folder_that_holds_a_run_is_not_overwritten_unless_asked(
         main(["train", "ppo_candidate_sets", "--out", str(tmp_path), "--resume", "latest", "--overwrite"])
     check_run_dir(config, tmp_path, resume=False, overwrite=True)
     assert not folder.exists()
+
+
+def test_version_and_the_demo_help_say_what_they_should(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        build_parser(["--version"]).parse_args(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.startswith("crowdloc ")
+    with pytest.raises(SystemExit):
+        build_parser(["demo", "--help"]).parse_args(["demo", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for part in ("random-walk policy", "active-localization table", "the verdict"):
+        assert part in text

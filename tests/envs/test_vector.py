@@ -35,3 +35,26 @@ def test_make_vec_steps_through_episode_ends(env_id: str, kwargs: dict, mode: st
             assert info["false_detections"].shape == (3, 8)
     finally:
         vec.close()
+
+
+def test_spawned_workers_find_the_ids_through_the_module_prefix() -> None:
+    # a worker started by spawn or forkserver has not imported envs: "envs:" imports it first
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    vec = SubprocVecEnv([lambda: gym.make("envs:crowdloc/RoboCupStatic-v0")] * 2, start_method="spawn")
+    try:
+        obs = vec.reset()
+        assert obs["odometry"].shape == (2, 3)
+        vec.step(np.zeros((2, 2), dtype=np.float32))
+    finally:
+        vec.close()
+
+
+def test_an_env_says_it_cannot_be_pickled() -> None:
+    import copy
+    import pickle
+
+    env = gym.make("crowdloc/RoboCupStatic-v0")
+    for attempt in (lambda: copy.deepcopy(env), lambda: pickle.dumps(env.unwrapped)):
+        with pytest.raises(TypeError, match="cannot be pickled or deep-copied .* gym.make"):
+            attempt()
