@@ -314,6 +314,9 @@ def _run_worlds(args: argparse.Namespace, parser: argparse.ArgumentParser) -> in
 
     for env_id, world in envs.ENV_WORLDS.items():
         print(f"{env_id:32s} {world:18s} {envs.load_world(world).description}")
+    print("\ntask ids (a world with its localizer, training conditions and reward; the ids above return reward 0):")
+    for env_id, config in envs.TASK_CONFIGS.items():
+        print(f"{env_id:32s} {config:18s} configs/experiments/{config}.yaml")
     return 0
 
 

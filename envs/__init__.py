@@ -23,6 +23,15 @@ ENV_WORLDS = {
 }
 
 
+#: task id -> shipped training config (``configs/experiments/``): a world with its localizer,
+#: conditions and the active-localization reward (``agents.tasks``); the ids above return reward 0
+TASK_CONFIGS = {
+    "crowdloc/ActiveCandidateSets-v0": "ppo_candidate_sets",
+    "crowdloc/ActiveMCLBearing-v0": "ppo_mcl_bearing",
+}
+TASK_EPISODE_STEPS = 450  # 15 s at 30 Hz: the shipped configs' training episodes (ppo.n_steps)
+
+
 def _register() -> None:
     for env_id, world in ENV_WORLDS.items():
         if env_id in registry:
@@ -33,8 +42,14 @@ def _register() -> None:
             kwargs={"world": world},
             max_episode_steps=load_world(world).max_episode_steps,
         )
+    for env_id, config in TASK_CONFIGS.items():
+        if env_id not in registry:
+            # by name only: envs does not import agents; the task module loads when one is made
+            register(
+                id=env_id, entry_point="agents.tasks:make_task", kwargs={"config": config}, max_episode_steps=TASK_EPISODE_STEPS
+            )
 
 
 _register()
 
-__all__ = ["ENV_WORLDS", "LocalizationEnv", "WorldConfig", "available_worlds", "load_world"]
+__all__ = ["ENV_WORLDS", "TASK_CONFIGS", "LocalizationEnv", "WorldConfig", "available_worlds", "load_world"]

@@ -190,8 +190,11 @@ class Cell:
 
 
 def crowdloc_ids() -> list[str]:
-    """The registered env ids of the ``crowdloc`` namespace, sorted."""
-    return sorted(env_id for env_id in gym.registry if env_id.startswith("crowdloc/"))
+    """The registered world ids of the ``crowdloc`` namespace, sorted (not the task ids, which
+    bring their own localizer and reward: the grid sets those)."""
+    import envs
+
+    return sorted(i for i in gym.registry if i.startswith("crowdloc/") and i not in envs.TASK_CONFIGS)
 
 
 def check_observation_space(policy: str, expected: spaces.Space[Any], given: spaces.Space[Any]) -> None:

@@ -1,0 +1,35 @@
+"""Task ids hold the whole active-localization task: their reward is not 0 under a random policy."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from stable_baselines3.common.monitor import Monitor
+
+import envs
+from agents.train import load_train_config
+
+
+@pytest.mark.parametrize(("env_id", "config"), sorted(envs.TASK_CONFIGS.items()))
+def test_a_task_id_is_its_training_config_with_the_reward(env_id: str, config: str) -> None:
+    trained = load_train_config(config)
+    env = Monitor(gym.make(env_id))
+    assert env.spec is not None and env.spec.max_episode_steps == trained.ppo.n_steps == envs.TASK_EPISODE_STEPS
+    obs, info = env.reset(seed=0)
+    assert {"estimate", "estimate_valid", "sonar"} <= set(obs) and "true_pose" not in obs
+    assert env.unwrapped.config.sensors["camera"].fov_rad == pytest.approx(trained.env_kwargs["camera"]["fov_rad"])
+    rng = np.random.default_rng(0)
+    total, steps, done = 0.0, 0, False
+    while not done:
+        obs, reward, terminated, truncated, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        total, steps, done = total + reward, steps + 1, terminated or truncated
+    assert steps == trained.ppo.n_steps
+    assert total != 0.0 and "reward_terms" in info
+    assert env.get_episode_rewards() == [pytest.approx(total)]  # Monitor outside sees the task's reward
+
+
+def test_a_bare_world_id_returns_reward_zero() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0")
+    env.reset(seed=0)
+    assert env.step(env.action_space.sample())[1] == 0.0
