@@ -13,7 +13,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-import envs  # noqa: F401  (registers the crowdloc ids)
+import envs  # registers the crowdloc ids
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
 from agents.policies import FIXED_POLICIES
 from agents.rewards import RewardWeights
@@ -192,7 +192,6 @@ class Cell:
 def crowdloc_ids() -> list[str]:
     """The registered world ids of the ``crowdloc`` namespace, sorted (not the task ids, which
     bring their own localizer and reward: the grid sets those)."""
-    import envs
 
     return sorted(i for i in gym.registry if i.startswith("crowdloc/") and i not in envs.TASK_CONFIGS)
 
