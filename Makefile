@@ -1,6 +1,10 @@
 # crowdloc: every target creates or updates .venv first (re-installed when pyproject.toml,
 # setup.py or constraints.txt change). torch is pinned to the CPU build by constraints.txt.
 PYTHON ?= python3
+# Where torch comes from: empty uses pip's own configuration (which, here, has the CPU build at
+# hand). On a machine without a GPU whose pip would pick the CUDA build, give PyTorch's CPU
+# wheel index: make TORCH_INDEX=<index URL> (see the README, "Install").
+TORCH_INDEX ?=
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
@@ -10,7 +14,8 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml setup.py constraints.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -c constraints.txt torch==2.13.0
+	$(PY) -m pip install --quiet -c constraints.txt $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX)) torch==2.13.0
+	$(PY) -c "import torch; print('installed torch', torch.__version__, '(CUDA ' + torch.version.cuda + ' build)' if torch.version.cuda else '(CPU build)')"
 	$(PY) -m pip install --quiet -c constraints.txt -e '.[test,distributed]'
 	$(PY) -m pip check
 	touch $(STAMP)

@@ -177,6 +177,7 @@ def _add_reproduce(sub: argparse._SubParsersAction[argparse.ArgumentParser], arg
     chosen = argv[1] if len(argv) > 1 and argv[0] == "reproduce" else None
     for name, (module, summary) in EXPERIMENTS.items():
         exp = experiments.add_parser(name, help=summary, description=summary)
+        exp.set_defaults(command_parser=exp)
         exp.add_argument("--out", type=Path, default=DEFAULT_RESULTS / name, help=f"output folder (default results/{name})")
         if name == chosen:  # import only the experiment being run (they pull in plotting and more)
             importlib.import_module(module).add_arguments(exp)
@@ -205,6 +206,8 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     _add_eval(sub)
     _add_tune(sub, argv)
     _add_reproduce(sub, argv)
+    for command in sub.choices.values():  # errors found after parsing print the command's own usage
+        command.set_defaults(command_parser=command)
     return parser
 
 
@@ -338,7 +341,7 @@ def main(argv: list[str] | None = None) -> int:
     if runner is None:
         parser.error(f"unknown command {args.command!r}")
         return 2
-    return runner(args, parser)
+    return runner(args, getattr(args, "command_parser", parser))
 
 
 if __name__ == "__main__":

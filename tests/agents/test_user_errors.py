@@ -156,3 +156,10 @@ def test_version_and_the_demo_help_say_what_they_should(capsys: pytest.CaptureFi
     text = " ".join(capsys.readouterr().out.split())
     for part in ("random-walk policy", "active-localization table", "the verdict"):
         assert part in text
+
+
+def test_an_error_after_parsing_prints_the_subcommand_usage(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["demo", "--active-seeds", "-1"])
+    err = capsys.readouterr().err
+    assert err.startswith("usage: crowdloc demo") and "--active-seeds must be >= 0, got -1" in err
