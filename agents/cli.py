@@ -63,7 +63,11 @@ def _add_train(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "active-localization reward. Writes checkpoints, TensorBoard logs and run.json under --out.",
     )
     train.add_argument("config", help="experiment YAML path or name under configs/experiments/")
-    train.add_argument("--total-timesteps", type=positive_int, help="override total_timesteps")
+    train.add_argument(
+        "--total-timesteps",
+        type=positive_int,
+        help="override total_timesteps (rounded up to whole rollouts: n_envs x ppo.n_steps)",
+    )
     seeds = train.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=seed_int, help="override the run seed")
     seeds.add_argument(

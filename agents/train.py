@@ -260,7 +260,9 @@ def train(
         model, venv = _resumed_model(config, resume)
     else:
         model, venv = _new_model(config, directory, verbose)
-    remaining = config.total_timesteps - model.num_timesteps
+    # PPO runs whole rollouts: round up to them, so the progress bar's total is what runs
+    # (the same iterations either way: stable-baselines3 stops at the first rollout past the total)
+    remaining = -(-(config.total_timesteps - model.num_timesteps) // config.rollout_steps) * config.rollout_steps
     if remaining > 0:
         model.learn(
             total_timesteps=remaining,

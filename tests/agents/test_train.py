@@ -126,3 +126,22 @@ def test_a_dotted_override_of_env_kwargs_keeps_the_other_conditions() -> None:
 def test_shipped_experiment_configs_load(name: str) -> None:
     config = load_train_config(name)
     assert config.ppo.n_steps >= 100 and np.all(np.asarray(config.crowd_sizes) <= 14)
+
+
+def test_the_step_total_is_rounded_up_to_whole_rollouts(tmp_path: Path) -> None:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    seen: list[int] = []
+
+    class Total(BaseCallback):
+        def _on_training_start(self) -> None:
+            seen.append(self.model._total_timesteps)  # what the progress bar counts to
+
+        def _on_step(self) -> bool:
+            return True
+
+    config = tiny(100)  # rollouts of 2 envs x 32 steps = 64: two of them
+    path = train(config, tmp_path, progress_bar=False, extra_callbacks=[Total()])
+    from stable_baselines3 import PPO
+
+    assert seen == [128] and PPO.load(path, device="cpu").num_timesteps == 128
