@@ -317,7 +317,7 @@ def _active_table(
         "",
         summary_markdown(result),
         "",
-        f"![one episode: {gif_cell.policy}, {gif_cell.localizer}, crowd {gif_cell.crowd_size}](active/episode.gif)",
+        f"![one episode: {result.spec.policy_label(gif_cell.policy)}, {gif_cell.localizer}, crowd {gif_cell.crowd_size}](active/episode.gif)",
         "",
     ]
     return result, lines
@@ -512,7 +512,7 @@ def first_fix_split(table: EvalResult, ppo_for: Mapping[str, str], judged: EvalR
     for localizer, crowd, _, mine, best in _pairs(table, ppo_for, judged, ("first_fix_s",)):
         for row in (mine, best):
             cells = " | ".join(format_stat(m, row.stats[m.key], row.episodes) for m in infos)
-            lines.append(f"| {localizer} | {crowd} | {row.policy} | {cells} |")
+            lines.append(f"| {localizer} | {crowd} | {table.spec.policy_label(row.policy)} | {cells} |")
         if outcome("first_fix_s", mine.stats["first_fix_s"], best.stats["first_fix_s"]) < 0:
             continue
         fix, search, rest = (mine.stats[k].mean for k in FIX_SPLIT_METRICS)

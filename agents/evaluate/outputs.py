@@ -77,7 +77,8 @@ def summary_markdown(result: EvalResult) -> str:
     nothing = Stat(math.nan, math.nan, math.nan, 0)
     for row in result.summary:
         values = [format_stat(m, row.stats.get(m.key, nothing), row.episodes) for m in shown]
-        lines.append("| " + " | ".join([row.policy, row.localizer, str(row.crowd_size), *values]) + " |")
+        label = result.spec.policy_label(row.policy)
+        lines.append("| " + " | ".join([label, row.localizer, str(row.crowd_size), *values]) + " |")
     return "\n".join(lines)
 
 
@@ -96,18 +97,23 @@ def write_tables(result: EvalResult, out_dir: Path) -> dict[str, Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     keys = [m.key for m in result.metrics]
     out: dict[str, Path] = {}
-    ep_rows = [[e.cell.policy, e.cell.localizer, e.cell.crowd_size, e.cell.seed, len(e.time_s) - 1,
+    label = result.spec.policy_label
+    ep_rows = [[label(e.cell.policy), e.cell.localizer, e.cell.crowd_size, e.cell.seed, len(e.time_s) - 1,
                 *[e.metrics.get(k, math.nan) for k in keys]] for e in result.episodes]  # fmt: skip
     ep_cols = ["policy", "localizer", "crowd_size", "seed", "steps", *keys]
     out["episodes"] = _write_csv(out_dir / "episodes.csv", ep_cols, ep_rows)
     stat_cols = [f"{k}{suffix}" for k in keys for suffix in ("", "_ci_low", "_ci_high", "_n")]
-    sum_rows = [[r.policy, r.localizer, r.crowd_size, r.episodes,
+    sum_rows = [[label(r.policy), r.localizer, r.crowd_size, r.episodes,
                  *[x for k in keys for x in (r.stats[k].mean, r.stats[k].low, r.stats[k].high, r.stats[k].n)]]
                 for r in result.summary]  # fmt: skip
     sum_cols = ["policy", "localizer", "crowd_size", "episodes", *stat_cols]
     out["summary_csv"] = _write_csv(out_dir / "summary.csv", sum_cols, sum_rows)
     out["run"] = write_run_record(
-        out_dir / "run.json", spec=dataclasses.asdict(result.spec), episodes=len(result.episodes), wall_s=result.wall_s
+        out_dir / "run.json",
+        spec=dataclasses.asdict(result.spec),
+        policies={label(p): p for p in result.spec.policies},  # the short names of the tables, in full
+        episodes=len(result.episodes),
+        wall_s=result.wall_s,
     )
     return out
 
@@ -123,7 +129,7 @@ def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
     s = result.spec
     animated = ""
     if gif_cell is not None:
-        animated = f"`episode.gif`: {gif_cell.policy}, {gif_cell.localizer}, crowd {gif_cell.crowd_size}, seed {gif_cell.seed}."
+        animated = f"`episode.gif`: {s.policy_label(gif_cell.policy)}, {gif_cell.localizer}, crowd {gif_cell.crowd_size}, seed {gif_cell.seed}."
     notes = "".join(f"{p.note} " for p in plugins_for(localizer_kind(name) for name in s.localizers) if p.note)
     return "\n".join(
         [
@@ -168,7 +174,7 @@ def plot_summary(result: EvalResult, directory: Path) -> list[Path]:
                 mean = np.array([v.mean for v in st])
                 err = np.abs(np.array([[v.mean - v.low for v in st], [v.high - v.mean for v in st]]))
                 xs = x + (i - (len(s.policies) - 1) / 2) * dodge
-                ax.errorbar(xs, mean, yerr=err, marker="o", ms=4, capsize=3, label=policy)
+                ax.errorbar(xs, mean, yerr=err, marker="o", ms=4, capsize=3, label=s.policy_label(policy))
             ax.set_xticks(x, [str(c) for c in s.crowd_sizes])
             ax.set_xlim(-0.5, len(x) - 0.5)
             ax.set_xlabel("crowd size")
@@ -226,8 +232,9 @@ def write_outputs(result: EvalResult, out_dir: Path, *, gif_cell: Cell | None = 
     out["tum"] = out_dir / "tum"
     out["tum"].mkdir(exist_ok=True)
     for e in result.episodes:
-        write_tum(out["tum"] / f"{e.cell.stem}_estimate.tum", e.time_s, e.estimates, e.valid)
-        write_tum(out["tum"] / f"{e.cell.stem}_groundtruth.tum", e.time_s, e.true_pose)
+        stem = e.cell.stem(result.spec.policy_label(e.cell.policy))
+        write_tum(out["tum"] / f"{stem}_estimate.tum", e.time_s, e.estimates, e.valid)
+        write_tum(out["tum"] / f"{stem}_groundtruth.tum", e.time_s, e.true_pose)
     if gif and gif_cell is not None:
         out["gif"] = render_gif(result.spec, gif_cell, out_dir / "episode.gif")
     return out

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -159,6 +159,10 @@ class EvalSpec:
         prior = self.env_kwargs.get("prior")
         return localizer_spec(localizer).needs_prior if prior is None else prior == "start"
 
+    def policy_label(self, policy: str) -> str:
+        """The short name reports and file names show (:func:`policy_labels`; the full ones are in ``run.json``)."""
+        return policy_labels(self.policies).get(policy) or policy_labels([policy])[policy]
+
     def cells(self) -> list[Cell]:
         """Every (policy, localizer, crowd size, seed), grouped by the first three."""
         return [
@@ -183,10 +187,9 @@ class Cell:
     def group(self) -> tuple[str, str, int]:
         return self.policy, self.localizer, self.crowd_size
 
-    @property
-    def stem(self) -> str:
-        """A file-name stem naming this episode."""
-        return f"{slug(self.policy)}__{self.localizer}__crowd{self.crowd_size}__seed{self.seed}"
+    def stem(self, policy_label: str | None = None) -> str:
+        """A file-name stem naming this episode (with the policy's short name, if given)."""
+        return f"{slug(policy_label or self.policy)}__{self.localizer}__crowd{self.crowd_size}__seed{self.seed}"
 
 
 def crowdloc_ids() -> list[str]:
@@ -225,6 +228,26 @@ def load_ppo(path: str) -> Any:
     from stable_baselines3 import PPO
 
     return PPO.load(path, device="cpu")
+
+
+@functools.lru_cache(maxsize=64)
+def _labels(policies: tuple[str, ...]) -> dict[str, str]:
+    paths = {p: Path(p[len(PPO_PREFIX) :]).with_suffix("").parts for p in policies if p.startswith(PPO_PREFIX)}
+    out = {p: p for p in policies}
+    for policy, parts in paths.items():
+        others = [q for other, q in paths.items() if other != policy]
+        for k in range(1, len(parts) + 1):  # the shortest tail of the path that no other policy shares
+            if all(q[-k:] != parts[-k:] for q in others):
+                break
+        out[policy] = PPO_PREFIX + "/".join(parts[-k:])
+    return out
+
+
+def policy_labels(policies: Sequence[str]) -> dict[str, str]:
+    """Short display names: a fixed policy's own name; a trained one ``ppo:`` and the shortest
+    tail of its path, without ``.zip``, that tells it apart from the others
+    (``ppo:ppo_candidate_sets``; ``ppo:seed_0/model`` beside ``ppo:seed_1/model``)."""
+    return _labels(tuple(policies))
 
 
 def slug(text: str) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -35,7 +36,8 @@ def test_active_part_evaluates_every_policy_and_judges_only_with_enough_seeds(tm
     assert (tmp_path / "episode.gif").is_file() and (tmp_path / "summary.csv").is_file()
     if with_model:
         for path in SHIPPED_MODELS.values():
-            assert f"| ppo:{path} | mcl_bearing | 6 |" in section  # every policy runs with every localizer
+            # every policy runs with every localizer; reports name a trained policy by its file's stem
+            assert f"| ppo:{path.stem} | mcl_bearing | 6 |" in section and str(path) not in section
         assert "no verdict" in section and "No trained policy" not in section  # 1 seed cannot pick the best fixed
         assert not (tmp_path / "verdict").exists()
     else:
@@ -53,6 +55,12 @@ def test_the_verdict_judges_the_table_s_best_fixed_policies_on_fresh_seeds(tmp_p
     assert f"fresh test seeds ({EVAL_SEED_BASE} + {seeds}..{2 * seeds}, after the table's)" in section
     table_rows = list(csv.DictReader((tmp_path / "episodes.csv").read_text().splitlines()))
     judged_rows = list(csv.DictReader((tmp_path / "verdict" / "episodes.csv").read_text().splitlines()))
+    # the tables name policies by short labels; run.json gives each label's full name
+    full = json.loads((tmp_path / "run.json").read_text())["policies"]
+    full_judged = json.loads((tmp_path / "verdict" / "run.json").read_text())["policies"]
+    for rows, names in ((table_rows, full), (judged_rows, full_judged)):
+        for r in rows:
+            r["policy"] = names[r["policy"]]
     assert {int(r["seed"]) for r in table_rows} == {EVAL_SEED_BASE + i for i in range(seeds)}
     assert {int(r["seed"]) for r in judged_rows} == {EVAL_SEED_BASE + seeds + i for i in range(seeds + 1)}
     # the groups judged: the trained policy and the table's best fixed policies, picked from the table's episodes
@@ -149,7 +157,7 @@ def test_first_fix_split_shows_the_trained_and_the_fastest_fixed_policy() -> Non
     body = [line for line in lines[2:] if line.startswith("| ")]
     assert len(body) == 2 * (len(ACTIVE_DENSITIES) - 1)  # the policy and the fastest fixed one per density
     assert all("| candidate_sets |" in line for line in body)
-    assert "| candidate_sets | 6 | ppo:m.zip | 1.00 [0.90, 1.10] | 0.30 [0.20, 0.40] | 0.70 [0.60, 0.80] |" in body
+    assert "| candidate_sets | 6 | ppo:m | 1.00 [0.90, 1.10] | 0.30 [0.20, 0.40] | 0.70 [0.60, 0.80] |" in body
     assert "| candidate_sets | 6 | landmark_seeking | 1.25 [1.15, 1.35] | 0.50 [0.40, 0.60] | 0.75 [0.65, 0.85] |" in body
     assert not any("spin" in line for line in body)
     assert "third landmark seen [s]" in lines[0]

@@ -317,3 +317,15 @@ def test_a_tiny_ppo_model_is_evaluated(tmp_path: Path) -> None:
     assert np.isfinite(episode.metrics["episode_return"]) and 0.0 <= episode.metrics["availability"] <= 1.0
     (row,) = result.summary
     assert row.policy == policy and row.episodes == 1
+
+
+def test_policy_labels_are_the_shortest_distinct_tails_of_their_paths() -> None:
+    from agents.evaluate.spec import policy_labels
+
+    labels = policy_labels(["spin", "ppo:/a/b/seed_0/model.zip", "ppo:/a/b/seed_1/model.zip", "ppo:/m/ppo_cs.zip"])
+    assert labels == {
+        "spin": "spin",
+        "ppo:/a/b/seed_0/model.zip": "ppo:seed_0/model",
+        "ppo:/a/b/seed_1/model.zip": "ppo:seed_1/model",
+        "ppo:/m/ppo_cs.zip": "ppo:ppo_cs",
+    }
