@@ -27,7 +27,7 @@ import envs  # noqa: F401  (registers the crowdloc ids)
 from agents.scenarios import Driver
 from envs.localization_env import LocalizationEnv
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
-from localizers.measurements import decode, find_sensor, measurement_kind, measurement_kinds
+from localizers.measurements import decode, find_sensor, measurement_kind, readable_kinds
 from localizers.registry import make_localizer, spec
 
 #: the covariance of the known start pose handed to localizers that need it (as the wrapper does)
@@ -183,8 +183,7 @@ def record(
     base = env.unwrapped
     assert isinstance(base, LocalizationEnv)
     sensors = base.sensor_metadata
-    readable = {meta["type"] for meta in sensors.values()} & {measurement_kind(k).sensor_type for k in measurement_kinds()}
-    if not readable:
+    if not readable_kinds(sensors):
         raise ValueError(f"record: {env_id} has no sensor that a localizer reads (sensors: {', '.join(sensors)})")
     obs, info = env.reset(seed=seed, options=dict(reset_options) if reset_options else None)
     drv: Driver = driver if hasattr(driver, "act") else driver(base)  # type: ignore[operator]  # a Driver or a factory of one

@@ -17,8 +17,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from agents.rewards import ActiveLocalizationReward
-from agents.train import load_train_config
+from agents.train import load_train_config, make_task_env
 
 
 def make_task(config: str, crowd_size: int | None = None, render_mode: str | None = None, **overrides: Any) -> gym.Env[Any, Any]:
@@ -31,14 +30,4 @@ def make_task(config: str, crowd_size: int | None = None, render_mode: str | Non
         render_mode: as for any crowdloc id.
         **overrides: further ``gym.make`` keywords, on top of the config's conditions.
     """
-    trained = load_train_config(config)
-    kwargs: dict[str, Any] = {**dict(trained.env_kwargs), **overrides}
-    env = gym.make(
-        trained.env_id,
-        crowd_size=crowd_size,
-        localizer=trained.localizer,
-        localizer_params=dict(trained.localizer_params) or None,
-        render_mode=render_mode,
-        **kwargs,
-    )
-    return ActiveLocalizationReward(env, trained.reward)
+    return make_task_env(load_train_config(config), crowd_size, render_mode=render_mode, **overrides)

@@ -144,18 +144,23 @@ class EpisodeSeeds(gym.Wrapper):
         return self.env.reset(seed=episode_seed, options=options)
 
 
-def make_training_env(config: TrainConfig, env_index: int, first_episode: int = 0) -> gym.Env[Any, Any]:
-    """One training env: the localizer wrapper, the reward, the episode length, episode seeding."""
-    crowd = config.crowd_sizes[env_index % len(config.crowd_sizes)]
+def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: Any) -> gym.Env[Any, Any]:
+    """The task a training config describes, at one crowd size: its world, localizer and
+    conditions (``env_kwargs``, then ``make_kwargs`` on top), with the active-localization reward."""
     env = gym.make(
         config.env_id,
-        crowd_size=crowd,
+        crowd_size=crowd_size,
         localizer=config.localizer,
         localizer_params=dict(config.localizer_params) or None,
-        max_episode_steps=config.ppo.n_steps,
-        **dict(config.env_kwargs),
+        **{**dict(config.env_kwargs), **make_kwargs},
     )
-    env = ActiveLocalizationReward(env, config.reward)
+    return ActiveLocalizationReward(env, config.reward)
+
+
+def make_training_env(config: TrainConfig, env_index: int, first_episode: int = 0) -> gym.Env[Any, Any]:
+    """One training env: the task (:func:`make_task_env`), the episode length, episode seeding."""
+    crowd = config.crowd_sizes[env_index % len(config.crowd_sizes)]
+    env = make_task_env(config, crowd, max_episode_steps=config.ppo.n_steps)
     return EpisodeSeeds(env, config.seed, env_index, first_episode)
 
 
@@ -200,13 +205,7 @@ def check_train_config(config: TrainConfig) -> None:
     """
     for size in sorted(set(config.crowd_sizes)):
         try:
-            env = gym.make(
-                config.env_id,
-                crowd_size=size,
-                localizer=config.localizer,
-                localizer_params=dict(config.localizer_params),
-                **dict(config.env_kwargs),
-            )
+            env = make_task_env(config, size)
         except gym.error.Error as exc:
             raise ConfigError(f"training config {config.name!r}: env_id {config.env_id!r}: {exc}") from None
         except ConfigError as exc:

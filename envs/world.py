@@ -258,12 +258,9 @@ class World:
 
     def place_crowd_member(self, index: int, xy: tuple[float, float], hold: bool = True) -> None:
         """Teleport crowd member ``index`` (counted over every crowd's members, in order); ``hold`` freezes it there."""
-        if not 0 <= index < self.member_rows.size:
-            raise IndexError(f"crowd member {index} does not exist (crowd has {self.member_rows.size})")
-        row = int(self.member_rows[index])
-        crowd, i = self._owner[row - 1]
+        crowd, i = self.crowd_of_member(index)
         crowd.hold(i, hold)
-        self.place_body(row, xy)
+        self.place_body(int(self.member_rows[index]), xy)
 
     def crowd_named(self, name: str) -> Crowd:
         """The crowd called ``name`` in the world config (its public control methods)."""

@@ -70,6 +70,12 @@ def decode(kind: str, observation: NDArray[np.float32], metadata: Mapping[str, A
     return measurement_kind(kind).decode(observation, metadata)
 
 
+def readable_kinds(sensors: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """The registered kinds (in registration order) whose sensor type is among ``sensors`` (name -> metadata with a ``type``)."""
+    types = {meta.get("type") for meta in sensors.values()}
+    return [name for name, kind in _KINDS.items() if kind.sensor_type in types]
+
+
 def find_sensor(kind: str, sensors: Mapping[str, Mapping[str, Any]], needed_by: str) -> str:
     """The one sensor (by name) among ``sensors`` (name -> metadata with a ``type``) that
     ``kind`` reads, or a :class:`ConfigError` saying which sensor is missing or ambiguous."""

@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 
 from localizers.base import LandmarkMap, Localizer, OdometryDelta, Overlay, PoseEstimate
 from localizers.geometry import circular_std
-from localizers.measurements import bearing_measurement, find_sensor, measurement_kind, measurement_kinds
+from localizers.measurements import bearing_measurement, find_sensor, measurement_kind, readable_kinds
 from localizers.registry import make_localizer, spec
 from localizers.schema import ConfigError
 
@@ -85,13 +85,11 @@ def decode_estimate(encoded: NDArray[np.float32], bounds_m: tuple[float, float, 
 
 def _first_kind(sensors: Mapping[str, Mapping[str, Any]], name: str) -> str:
     """The first registered measurement kind whose sensor the world has."""
-    types = {meta.get("type") for meta in sensors.values()}
-    for kind in measurement_kinds():
-        if measurement_kind(kind).sensor_type in types:
-            return kind
-    raise ConfigError(
-        f"localizer {name!r}: this world has no sensor that a measurement kind reads ({', '.join(map(str, types))})"
-    )
+    kinds = readable_kinds(sensors)
+    if not kinds:
+        types = ", ".join(str(meta.get("type")) for meta in sensors.values())
+        raise ConfigError(f"localizer {name!r}: this world has no sensor that a measurement kind reads ({types})")
+    return kinds[0]
 
 
 class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):

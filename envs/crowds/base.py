@@ -132,10 +132,14 @@ class Crowd:
         first = int(self.rows[0]) if self.rows.size else 0
         self.member_rows = slice(first, first + self.count)  # a slice: views, no copies per step
 
-    def hold(self, index: int, flag: bool) -> None:
-        """Freeze member ``index`` in place (``flag``) or let it move again."""
+    def check_member(self, index: int) -> None:
+        """Raise :class:`IndexError` unless ``index`` is one of the crowd's members."""
         if not 0 <= index < self.count:
             raise IndexError(f"crowd {self.name!r}: member {index} does not exist (it has {self.count})")
+
+    def hold(self, index: int, flag: bool) -> None:
+        """Freeze member ``index`` in place (``flag``) or let it move again."""
+        self.check_member(index)
         self.held[index] = flag
 
     def reset(self, rng: np.random.Generator, taken: Taken) -> NDArray[np.float64]:

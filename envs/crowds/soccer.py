@@ -187,8 +187,7 @@ class SoccerCrowd(Crowd):
 
     def send(self, index: int, target_xy: NDArray[np.float64], until_s: float | None = None) -> None:
         """Scripted control: wanderer ``index`` heads for ``target_xy`` (until ``until_s``; None: its current deadline)."""
-        if not 0 <= index < self.count:
-            raise IndexError(f"crowd {self.name!r}: member {index} does not exist (it has {self.count})")
+        self.check_member(index)
         self.wander[index] = target_xy
         if until_s is not None:
             self.wander_until[index] = until_s
