@@ -9,8 +9,8 @@ flattened) or ``lidar`` ``(B,)``; ``sonar={}`` adds a sonar ring (``sonar`` ``(S
 Action: ``Box(-1, 1, (2,))``, scaled to the world's forward speed and turn rate limits.
 Ground truth (``true_pose``, ``contacts``, the sensors' facts such as ``visible_landmarks``
 and ``false_detections``, one flag per landmark) is in ``info`` only; every entry but the
-``contacts`` list has a fixed shape, so ``gym.make_vec`` can stack them. The base environment's reward is 0: tasks
-add rewards as wrappers (``agents.rewards``).
+``contacts`` list has a fixed shape, so ``gym.make_vec`` can stack them. The base
+environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``agents.tasks``).
 """
 
 from __future__ import annotations
