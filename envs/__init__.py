@@ -20,6 +20,7 @@ ENV_WORLDS = {
     "crowdloc/RoboCupStatic-v0": "robocup_static",
     "crowdloc/RoboCupCrowded-v0": "robocup_crowded",
     "crowdloc/CrowdedRoom-v0": "crowded_room",
+    "crowdloc/CeilingCorridor-v0": "ceiling_corridor",
 }
 
 

@@ -18,6 +18,7 @@ from typing import Literal
 
 import crowdloc_configs
 from envs.crowds import CrowdConfig
+from envs.features import FeatureConfig
 from envs.sensors import SensorConfig
 from localizers.schema import ConfigError, check, from_mapping, load_yaml
 
@@ -81,7 +82,7 @@ class WorldConfig:
 
     name: str
     description: str
-    size_m: tuple[float, float]  # the field / room the robot moves in, from (0, 0)
+    size_m: tuple[float, float]  # the field / room the robot moves in, from origin_m
     dt_s: float
     max_episode_steps: int
     robot: RobotConfig
@@ -91,6 +92,8 @@ class WorldConfig:
     sensors: Mapping[str, SensorConfig] = field(default_factory=dict)  # name -> config tagged by type
     crowds: Mapping[str, CrowdConfig] = field(default_factory=dict)  # name -> config tagged by type; bodies in this order
     floor: Literal["field", "room"] = "room"  # how the renderer draws the ground
+    origin_m: tuple[float, float] = (0.0, 0.0)  # the field's lower-left corner (a corridor centred on x = 0)
+    features: Mapping[str, FeatureConfig] = field(default_factory=dict)  # name -> static scenery tagged by type (a ceiling)
 
     def __post_init__(self) -> None:
         w, h = self.size_m
@@ -117,6 +120,14 @@ class WorldConfig:
         clash = sorted(set(self.crowds) & set(self.sensors))
         check(not clash, f"world {self.name!r}: {clash} name both a sensor and a crowd (env kwargs address them by name)")
         object.__setattr__(self, "crowds", dict(self.crowds))
+        for name, feature in self.features.items():
+            check(
+                isinstance(feature, FeatureConfig), f"world {self.name!r}: feature {name!r} is not a feature config: {feature!r}"
+            )
+            feature.check_world(self, name)
+        clash = sorted(set(self.features) & (set(self.crowds) | set(self.sensors)))
+        check(not clash, f"world {self.name!r}: {clash} name a feature and a sensor or crowd")
+        object.__setattr__(self, "features", dict(self.features))
 
     @property
     def crowd(self) -> CrowdConfig | None:
@@ -143,10 +154,21 @@ class WorldConfig:
         return next(iter(found.values()), None)
 
     @property
+    def field_m(self) -> tuple[float, float, float, float]:
+        """``(xmin, ymin, xmax, ymax)`` of the field (``size_m`` from ``origin_m``): where the robot may be."""
+        x0, y0 = self.origin_m
+        return (x0, y0, x0 + self.size_m[0], y0 + self.size_m[1])
+
+    @property
     def arena_m(self) -> tuple[float, float, float, float]:
-        """``(xmin, ymin, xmax, ymax)`` inside the boundary walls."""
+        """``(xmin, ymin, xmax, ymax)`` inside the boundary walls (the field and its margin)."""
         m = self.boundary_margin_m
-        return (-m, -m, self.size_m[0] + m, self.size_m[1] + m)
+        xmin, ymin, xmax, ymax = self.field_m
+        return (xmin - m, ymin - m, xmax + m, ymax + m)
+
+    def features_of_type(self, type_name: str) -> dict[str, FeatureConfig]:
+        """The features of one registered type (``"ceiling"``), by name, in config order."""
+        return {name: f for name, f in self.features.items() if f.type_name == type_name}
 
 
 def world_path(name: str) -> Path:

@@ -181,10 +181,11 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
 
     @property
     def landmark_map(self) -> LandmarkMap:
-        """The known map a localizer gets: landmark positions and the field's bounds."""
-        w, h = self.config.size_m
+        """The known map a localizer gets: landmark positions, the field's bounds, the walls and
+        the features' map data (a ceiling's targets), as plain values."""
         walls = np.hstack([self.world.seg_a, self.world.seg_b])
-        return LandmarkMap(self.world.landmark_xy.copy(), self.world.landmark_names, (0.0, 0.0, w, h), walls)
+        features = {name: f.map_data() for name, f in self.config.features.items()}
+        return LandmarkMap(self.world.landmark_xy.copy(), self.world.landmark_names, self.config.field_m, walls, features)
 
     @property
     def sensor_metadata(self) -> dict[str, dict[str, Any]]:

@@ -188,6 +188,11 @@ class Canvas:
         radius_px = max(1, round(radius_m * self.scale))
         pygame.draw.circle(self.surface, color, self._pt((x, y)), min(radius_px, _COORD_LIMIT_PX), width_px)
 
+    def rect(self, x0: float, y0: float, x1: float, y1: float, color: Color, width_px: int = 0) -> None:
+        """Axis-aligned rectangle between world corners ``(x0, y0)`` and ``(x1, y1)``; ``width_px=0`` fills it."""
+        (c0, r0), (c1, r1) = self._pt((min(x0, x1), max(y0, y1))), self._pt((max(x0, x1), min(y0, y1)))
+        pygame.draw.rect(self.surface, color, pygame.Rect(c0, r0, max(1, c1 - c0), max(1, r1 - r0)), width_px)
+
     def pose(self, x: float, y: float, theta: float, color: Color, radius_m: float | None = None, width_px: int = 2) -> None:
         """A pose as a circle outline with a heading line from its centre past the rim."""
         if not all(math.isfinite(v) for v in (x, y, theta)):
@@ -401,9 +406,11 @@ class Renderer:
         xmin, ymin, xmax, ymax = cfg.arena_m
         corner = canvas.to_pixel([[xmin, ymax], [xmax, ymin]])
         pygame.draw.rect(bg, self.floor, pygame.Rect(*corner[0], *(corner[1] - corner[0])))
-        w, h = cfg.size_m
-        outline = [(0.0, 0.0), (w, 0.0), (w, h), (0.0, h)]
+        fx0, fy0, fx1, fy1 = cfg.field_m
+        outline = [(fx0, fy0), (fx1, fy0), (fx1, fy1), (fx0, fy1)]
         pygame.draw.lines(bg, FIELD_LINE if self.is_field else ROOM_OUTLINE, True, [canvas._pt(p) for p in outline], 2)
+        for feature in cfg.features.values():
+            feature.draw(canvas, cfg)
         for a, b in zip(seg_a, seg_b):
             canvas.line(a, b, WALL, 3)
         label_font = _font(_LABEL_FONT_PX)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -29,12 +30,15 @@ class LandmarkMap:
         names: ``L`` landmark names (for reports).
         bounds_m: ``(xmin, ymin, xmax, ymax)`` of the region the robot can be in.
         walls_m: ``(S, 4)`` static wall segments ``(x1, y1, x2, y2)`` (what a LIDAR sees of the map).
+        features: per world feature name, its map data as plain values (a ceiling's targets:
+            their positions and colour codes); empty for worlds without features.
     """
 
     positions_xy_m: NDArray[np.float64]
     names: tuple[str, ...]
     bounds_m: tuple[float, float, float, float]
     walls_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
+    features: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         pos = np.asarray(self.positions_xy_m, dtype=np.float64)

@@ -159,8 +159,8 @@ class Crowd:
 
     # ------------------------------------------------------------------ helpers
     def field_box(self, margin: float) -> tuple[float, float, float, float]:
-        w, h = self.world_config.size_m
-        return (margin, margin, w - margin, h - margin)
+        xmin, ymin, xmax, ymax = self.world_config.field_m
+        return (xmin + margin, ymin + margin, xmax - margin, ymax - margin)
 
     def free_positions(self, rng: np.random.Generator, count: int, radius: float, taken: Taken) -> NDArray[np.float64]:
         """``count`` random positions in the field that overlap nothing in ``taken`` (x, y, r), appended to it."""
