@@ -67,6 +67,27 @@ class DeadReckoningParams:
             check(math.isfinite(value) and value >= 0.0, f"DeadReckoningParams.{name} must be >= 0, got {value!r}")
 
 
+def dead_reckon(
+    pose: NDArray[np.float64],
+    cov: NDArray[np.float64],
+    d: NDArray[np.float64],
+    position_var_m2_per_m: float,
+    heading_var_rad2_per_m: float,
+    heading_var_rad2_per_rad: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One dead-reckoning step: ``pose`` (3,) composed with the increment ``d`` (3,) and its
+    covariance propagated as ``F P F^T + G Q G^T`` with the random-walk drift of the module
+    docstring (``Q`` in the robot frame). Returns the new pose and covariance."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    # Jacobians of compose(pose, d): F w.r.t. the pose, G w.r.t. the increment.
+    F = np.array([[1.0, 0.0, -s * d[0] - c * d[1]], [0.0, 1.0, c * d[0] - s * d[1]], [0.0, 0.0, 1.0]])
+    G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    dist = math.hypot(d[0], d[1])
+    q_pos = position_var_m2_per_m * dist
+    Q = np.diag([q_pos, q_pos, heading_var_rad2_per_m * dist + heading_var_rad2_per_rad * abs(d[2])])
+    return compose(pose, d), F @ cov @ F.T + G @ Q @ G.T
+
+
 class DeadReckoningLocalizer:
     """Integrates odometry from the prior pose; bearings are validated and ignored."""
 
@@ -106,19 +127,13 @@ class DeadReckoningLocalizer:
         return pose
 
     def predict(self, odometry: OdometryDelta) -> None:
-        """Compose the increment and propagate the covariance ``F P F^T + G Q G^T``."""
+        """Compose the increment and propagate the covariance (:func:`dead_reckon`)."""
         pose = self._require_reset()
         d = checked_odometry(self.name, odometry)
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        # Jacobians of compose(pose, d): F w.r.t. the pose, G w.r.t. the increment.
-        F = np.array([[1.0, 0.0, -s * d[0] - c * d[1]], [0.0, 1.0, c * d[0] - s * d[1]], [0.0, 0.0, 1.0]])
-        G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         p = self._params
-        dist = math.hypot(d[0], d[1])
-        q_pos = p.position_var_m2_per_m * dist
-        Q = np.diag([q_pos, q_pos, p.heading_var_rad2_per_m * dist + p.heading_var_rad2_per_rad * abs(d[2])])
-        self._cov = F @ self._cov @ F.T + G @ Q @ G.T
-        self._pose = compose(pose, d)
+        self._pose, self._cov = dead_reckon(
+            pose, self._cov, d, p.position_var_m2_per_m, p.heading_var_rad2_per_m, p.heading_var_rad2_per_rad
+        )
 
     def update(self, measurement: BearingMeasurement) -> None:
         """Validate (bad bearings still raise) and otherwise ignore the measurement."""

@@ -1,7 +1,7 @@
 """Sensors as plug-ins: one module per sensor type, registered by type name.
 
 Built in: ``odometry`` (:mod:`.odometry`), ``bearing_camera`` (:mod:`.bearing_camera`),
-``lidar`` (:mod:`.lidar`) and ``sonar`` (:mod:`.sonar`), the last two on the shared
+``lidar`` (:mod:`.lidar`), ``sonar`` (:mod:`.sonar`) and ``ceiling_camera`` (:mod:`.ceiling_camera`), the last two on the shared
 :class:`~envs.sensors.ranging.RangeSensor`. See :mod:`.base` for the interface and
 ``docs/architecture.md`` for adding one.
 """
@@ -19,6 +19,7 @@ from envs.sensors.base import (
     sensor_types,
 )
 from envs.sensors.bearing_camera import BearingCamera, BearingCameraConfig
+from envs.sensors.ceiling_camera import CeilingCamera, CeilingCameraConfig
 from envs.sensors.lidar import Lidar, LidarConfig
 from envs.sensors.odometry import Odometry, OdometryConfig
 from envs.sensors.ranging import RangeSensor
@@ -27,6 +28,8 @@ from envs.sensors.sonar import Sonar, SonarConfig
 __all__ = [
     "BearingCamera",
     "BearingCameraConfig",
+    "CeilingCamera",
+    "CeilingCameraConfig",
     "Lidar",
     "LidarConfig",
     "Odometry",
