@@ -187,6 +187,30 @@ def _add_reproduce(sub: argparse._SubParsersAction[argparse.ArgumentParser], arg
             importlib.import_module(module).add_arguments(exp)
 
 
+#: localizers whose parameters are learned from data by ``crowdloc fit``: name -> module with add_arguments / run_cli
+FITTERS = {"ceiling_target": "agents.papers.ceiling_target.fit"}
+
+
+def _add_fit(sub: argparse._SubParsersAction[argparse.ArgumentParser], argv: Sequence[str]) -> None:
+    fit = sub.add_parser(
+        "fit",
+        help="learn a localizer's parameters from rendered, labelled data (ceiling_target: its colour thresholds)",
+        description="Learn parameters that the papers learned from sample data, and write them into the localizer's "
+        "YAML with a record of the data used.",
+    )
+    which = fit.add_subparsers(dest="localizer", required=True, metavar="LOCALIZER")
+    chosen = argv[1] if len(argv) > 1 and argv[0] == "fit" else None
+    for name, module in FITTERS.items():
+        one = which.add_parser(
+            name,
+            help=f"fit {name}",
+            description=importlib.import_module(module).__doc__.split("\n")[0] if name == chosen else None,
+        )
+        one.set_defaults(command_parser=one)
+        if name == chosen:
+            importlib.import_module(module).add_arguments(one)
+
+
 def _version() -> str:
     import importlib.metadata
 
@@ -210,6 +234,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     _add_eval(sub)
     _add_tune(sub, argv)
     _add_reproduce(sub, argv)
+    _add_fit(sub, argv)
     for command in sub.choices.values():  # errors found after parsing print the command's own usage
         command.set_defaults(command_parser=command)
     return parser
@@ -316,6 +341,17 @@ def _run_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
     return 0
 
 
+def _run_fit(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from localizers.schema import ConfigError
+
+    try:
+        path = importlib.import_module(FITTERS[args.localizer]).run_cli(args)
+    except ConfigError as exc:
+        parser.error(str(exc))
+    print(f"wrote {path}")
+    return 0
+
+
 def _run_worlds(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     import envs
 
@@ -334,6 +370,7 @@ _RUNNERS: dict[str, Callable[[argparse.Namespace, argparse.ArgumentParser], int]
     "tune": _run_tune,
     "reproduce": _run_reproduce,
     "worlds": _run_worlds,
+    "fit": _run_fit,
 }
 
 

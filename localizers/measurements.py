@@ -5,8 +5,8 @@ A :class:`MeasurementKind` names the sensor type whose observations it reads and
 sensor's metadata: beam angles, maximum range, ...) into a measurement dataclass of
 :mod:`localizers.base`. The localizer wrapper, the recordings of ``agents.replay`` and
 ``crowdloc eval`` go through :func:`decode`, so they handle any registered kind without a
-branch on observation keys. Built in: ``bearings`` (a bearing camera's slots) and ``scan``
-(a LIDAR's ranges). This module imports nothing from ``envs``: metadata are plain values.
+branch on observation keys. Built in: ``bearings`` (a bearing camera's slots), ``scan``
+(a LIDAR's ranges) and ``ceiling_image`` (an upward camera's image). This module imports nothing from ``envs``: metadata are plain values.
 """
 
 from __future__ import annotations
@@ -106,7 +106,17 @@ def scan_measurement(ranges: NDArray[np.float32], metadata: Mapping[str, Any]) -
     )
 
 
+def ceiling_image_measurement(image: NDArray[Any], metadata: Mapping[str, Any]) -> Any:
+    """An upward camera's RGB image with its camera (:class:`localizers.ceiling_target.CeilingImage`)."""
+    from localizers.ceiling_target import ceiling_image  # OpenCV is imported only where images are read
+
+    return ceiling_image(image, metadata)
+
+
 BEARINGS = register_measurement(
     MeasurementKind("bearings", "bearing_camera", bearing_measurement, "identified landmark bearings")
 )
 SCAN = register_measurement(MeasurementKind("scan", "lidar", scan_measurement, "a 2-D range scan"))
+CEILING_IMAGE = register_measurement(
+    MeasurementKind("ceiling_image", "ceiling_camera", ceiling_image_measurement, "an upward camera's RGB image of the ceiling")
+)

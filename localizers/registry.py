@@ -97,6 +97,14 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         True,
         "LIDAR MCL on scans accumulated over 0.5 m of travel, far point per angular bin (paper B's method)",
     ),
+    "ceiling_target": LocalizerSpec(
+        "localizers.ceiling_target",
+        "CeilingTargetLocalizer",
+        "CeilingTargetParams",
+        "ceiling_image",
+        False,
+        "ceiling colour targets through the paper's HSV pipeline, dead reckoning between them (paper C's method)",
+    ),
 }
 
 

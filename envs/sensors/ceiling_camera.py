@@ -322,6 +322,10 @@ class CeilingCamera(SensorBase):
         }
 
     # ------------------------------------------------------------------ rendering
+    def seed_noise(self, rng: np.random.Generator) -> None:
+        """Refill the pixel-noise pool from ``rng`` (done at the first frame after every reset)."""
+        self._noise = (rng.standard_normal(_NOISE_POOL) * self.config.noise_std).astype(np.float32)
+
     def gain(self, pose: NDArray[np.float64], time_s: float, phase: float = 0.0) -> float:
         """The illumination gain at the camera's view centre: brighter under the light panels."""
         c, ce = self.config, self.ceiling
@@ -398,7 +402,7 @@ class CeilingCamera(SensorBase):
         c = self.config
         pose = state.robot_pose
         if self._fresh:
-            self._noise = (rng.standard_normal(_NOISE_POOL) * c.noise_std).astype(np.float32)
+            self.seed_noise(rng)
             self._phase = float(rng.uniform(0.0, 2 * math.pi))  # where in its flicker the light starts
             self._fresh = False
         if self._steps % c.period_steps == 0:

@@ -1,0 +1,210 @@
+"""``crowdloc fit ceiling_target``: learn the colour thresholds from rendered, labelled images.
+
+The upward camera renders the corridor's ceiling at poses near the targets and the signs,
+under illumination gains wider than the camera's own variation, with its noise and
+vignetting and the heads of passers-by; it also says which pixel shows what (the labels of
+:mod:`envs.features.ceiling`). Each target colour's threshold box holds ``coverage`` of its
+labelled pixels (:func:`localizers.ceiling_vision.fit_colour_range`), in HSV as the paper and
+in RGB for comparison. Held-out images (other seeds) then measure, per colour, the share of
+its pixels inside its box and the share of every other kind of pixel (tiles, lights, the
+exit sign, the other colours) that falls inside it too.
+
+The thresholds and the record of the data behind them are written into the localizer's YAML,
+below a marker line; everything above it is kept.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from tqdm import tqdm
+
+from envs.features.ceiling import LABEL_NAMES, PALETTE, colour_label
+from envs.localization_env import LocalizationEnv
+from envs.sensors.ceiling_camera import CeilingCamera
+from localizers.ceiling_vision import ColourRange, fit_colour_range, hsv8
+from localizers.registry import params_path
+from localizers.schema import ConfigError, check
+
+MARKER = "# --- learned by `crowdloc fit ceiling_target` (do not edit below by hand) ---"
+_HSV_SCALE = np.array([256.0, 255.0, 255.0])  # OpenCV's 8-bit HSV_FULL -> the paper's units
+
+
+@dataclass(frozen=True)
+class FitPlan:
+    """Which images the thresholds are learned from and tested on."""
+
+    world: str = "ceiling_corridor"
+    train_images: int = 160
+    test_images: int = 80
+    seed: int = 0  # training images from this seed, held-out ones from seed + 1
+    gain_range: tuple[float, float] = (0.6, 1.4)  # illumination gains drawn per image
+    near_target_share: float = 0.75  # the rest of the images are near a sign or anywhere
+    coverage: float = 0.995
+    margin: float = 0.02
+
+    def __post_init__(self) -> None:
+        check(self.train_images >= 10 and self.test_images >= 10, "fit: need at least 10 training and 10 test images")
+        lo, hi = self.gain_range
+        check(0 < lo <= hi, f"fit: gain_range must be 0 < low <= high, got {self.gain_range}")
+        check(0 <= self.near_target_share <= 1, f"fit: near_target_share must be in [0, 1], got {self.near_target_share}")
+
+
+def camera_of(env: LocalizationEnv) -> CeilingCamera:
+    """The env's ceiling camera, or a ConfigError."""
+    camera = env.sensor_of_type("ceiling_camera")
+    if not isinstance(camera, CeilingCamera):
+        raise ConfigError(f"world {env.config.name!r} has no ceiling_camera sensor")
+    return camera
+
+
+def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDArray[np.uint8], NDArray[np.int64]]]:
+    """``count`` rendered images and their pixel labels, without motion blur (labels are exact)."""
+    env = LocalizationEnv(plan.world, camera={"exposure_s": 0.0})
+    camera = camera_of(env)
+    ceiling = camera.ceiling
+    rng = np.random.default_rng(seed)
+    camera.seed_noise(rng)
+    xmin, ymin, xmax, ymax = env.config.field_m
+    spots = [(t.x_m, t.y_m) for t in ceiling.targets]
+    signs = [(s.x_m, s.y_m) for s in ceiling.signs]
+    for _ in range(count):
+        if spots and rng.random() < plan.near_target_share:
+            cx, cy = spots[rng.integers(len(spots))]
+            xy = (cx + rng.uniform(-0.3, 0.3), cy + rng.uniform(-0.4, 0.4))
+        elif signs and rng.random() < 0.5:
+            cx, cy = signs[rng.integers(len(signs))]
+            xy = (cx + rng.uniform(-0.3, 0.3), cy + rng.uniform(-0.3, 0.3))
+        else:
+            xy = (rng.uniform(-0.7, 0.7), rng.uniform(ymin + 0.5, ymax - 0.5))
+        pose = np.array([[xy[0], xy[1], rng.uniform(-math.pi, math.pi)]])
+        heads = pose[:, :2] + rng.normal(0.0, 0.45, size=(int(rng.integers(0, 3)), 2))
+        heads = heads[np.hypot(*(heads - pose[:, :2]).T) > 0.45]  # people stand outside the robot
+        gain = rng.uniform(*plan.gain_range)
+        image, labels = camera.render(pose, heads, gain, int(rng.integers(1 << 30)), labels=True)
+        assert labels is not None
+        yield image, labels
+
+
+def _pixels(images: Any, count: int, desc: str) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """HSV (paper units), RGB and labels of every pixel of ``images``, flattened."""
+    hsv, rgb, lab = [], [], []
+    for image, labels in tqdm(images, total=count, desc=desc, unit="image", leave=False):
+        hsv.append(hsv8(image).reshape(-1, 3) / _HSV_SCALE)
+        rgb.append(image.reshape(-1, 3).astype(np.float64))
+        lab.append(labels.reshape(-1))
+    return np.concatenate(hsv), np.concatenate(rgb), np.concatenate(lab)
+
+
+def inside(rng: ColourRange, hsv: NDArray[np.float64], rgb: NDArray[np.float64], space: str) -> NDArray[np.bool_]:
+    """Which pixels (paper-unit HSV and RGB, ``(n, 3)`` each) fall in a colour's box."""
+    if space == "rgb":
+        return np.all((rgb >= rng.rgb_lo) & (rgb <= rng.rgb_hi), axis=1)
+    lo, hi = rng.hsv_lo, rng.hsv_hi
+    h = hsv[:, 0]
+    hue = (h >= lo[0]) & (h <= hi[0]) if lo[0] <= hi[0] else (h >= lo[0]) | (h <= hi[0])
+    return hue & np.all((hsv[:, 1:] >= lo[1:]) & (hsv[:, 1:] <= hi[1:]), axis=1)
+
+
+def fit(plan: FitPlan) -> tuple[dict[str, ColourRange], dict[str, Any]]:
+    """Learn the ranges of every colour the world's targets use; measure them on held-out images.
+
+    Returns the ranges and the record: the plan, pixel counts, and per colour and space the
+    held-out true-positive share and the false-positive share of every other pixel kind.
+    """
+    env = LocalizationEnv(plan.world)
+    colours = sorted({c for t in camera_of(env).ceiling.targets for c in t.code}, key=list(PALETTE).index)
+    hsv, rgb, lab = _pixels(labelled_images(plan, plan.seed, plan.train_images), plan.train_images, "fit: training images")
+    ranges: dict[str, ColourRange] = {}
+    counts = {}
+    for colour in colours:
+        mine = lab == colour_label(colour)
+        counts[colour] = int(mine.sum())
+        if counts[colour] < 10:
+            raise ConfigError(f"fit: colour {colour!r} has only {counts[colour]} labelled pixels in {plan.train_images} images")
+        ranges[colour] = fit_colour_range(hsv[mine], rgb[mine], plan.coverage, plan.margin)
+    hsv, rgb, lab = _pixels(labelled_images(plan, plan.seed + 1, plan.test_images), plan.test_images, "fit: held-out images")
+    held_out: dict[str, Any] = {}
+    for colour, rng in ranges.items():
+        mine = lab == colour_label(colour)
+        per_space = {}
+        for space in ("hsv", "rgb"):
+            hit = inside(rng, hsv, rgb, space)
+            others = {
+                LABEL_NAMES[int(k)]: round(float(hit[lab == k].mean()), 6) for k in np.unique(lab) if k != colour_label(colour)
+            }
+            per_space[space] = {
+                "true_positive": round(float(hit[mine].mean()), 4) if mine.any() else None,
+                "false_positive": others,
+            }
+        held_out[colour] = per_space
+    record = {
+        "plan": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(plan).items()},
+        "training_pixels": counts,
+        "held_out": held_out,
+    }
+    return ranges, record
+
+
+def thresholds_yaml(ranges: dict[str, ColourRange], record: dict[str, Any]) -> str:
+    """The YAML block written below :data:`MARKER`."""
+
+    def short(values: tuple[float, ...]) -> list[float]:
+        return [round(v, 4) for v in values]
+
+    thresholds = {
+        name: {"hsv_lo": short(r.hsv_lo), "hsv_hi": short(r.hsv_hi), "rgb_lo": short(r.rgb_lo), "rgb_hi": short(r.rgb_hi)}
+        for name, r in ranges.items()
+    }
+    return yaml.safe_dump({"thresholds": thresholds, "fitted_on": record}, sort_keys=False, default_flow_style=None, width=120)
+
+
+def write(path: Path, ranges: dict[str, ColourRange], record: dict[str, Any], overwrite: bool, base: Path | None = None) -> Path:
+    """Write the localizer YAML ``path``: the text above the marker of ``path`` (or of ``base``,
+    the shipped file, for a new one) and the learned block.
+
+    Raises:
+        ConfigError: if ``path`` exists and ``overwrite`` is false.
+    """
+    if path.exists() and not overwrite:
+        raise ConfigError(f"{path} exists; give --overwrite to replace its thresholds")
+    source = path if path.exists() else (base or params_path("ceiling_target"))
+    head = source.read_text().split(MARKER)[0].rstrip() + "\n\n" if source.is_file() else ""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(head + MARKER + "\n" + thresholds_yaml(ranges, record))
+    return path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, default=Path("results/fit/ceiling_target.yaml"),
+                        help="the localizer YAML to write (default results/fit/ceiling_target.yaml; the shipped one is "
+                        "configs/localizers/ceiling_target.yaml)")  # fmt: skip
+    parser.add_argument("--overwrite", action="store_true", help="replace the thresholds of an existing --out file")
+    parser.add_argument("--train-images", type=int, default=FitPlan.train_images)
+    parser.add_argument("--test-images", type=int, default=FitPlan.test_images)
+    parser.add_argument("--seed", type=int, default=FitPlan.seed)
+
+
+def run_cli(args: argparse.Namespace) -> Path:
+    for flag in ("train_images", "test_images", "seed"):
+        value = getattr(args, flag)
+        if value < 0:
+            raise ConfigError(f"--{flag.replace('_', '-')} must be >= 0, got {value}")
+    if args.out.exists() and not args.overwrite:
+        raise ConfigError(f"--out {args.out} exists; give --overwrite to replace its thresholds")
+    plan = FitPlan(train_images=args.train_images, test_images=args.test_images, seed=args.seed)
+    ranges, record = fit(plan)
+    for colour, spaces in record["held_out"].items():
+        worst = max(spaces["hsv"]["false_positive"].items(), key=lambda kv: kv[1])
+        print(
+            f"{colour:8s} hsv: {spaces['hsv']['true_positive']:.3f} of its pixels inside, worst other: {worst[0]} {worst[1]:.4f}"
+        )
+    return write(args.out, ranges, record, args.overwrite)

@@ -1,0 +1,263 @@
+"""The ceiling-target paper's localizer (Fukaya et al.): a pose fix from every colour target in view.
+
+Each image goes through the paper's pipeline (:mod:`localizers.ceiling_vision`): HSV, the
+learned thresholds, the line C fitted by least squares, the end squares A and B found with a
+5 x 5 mask, and the map positions of A and B. A target is identified by its colour code; a
+code that several targets share (or a reading with one end in view that fits several) is
+resolved by the current estimate, and left unused without one.
+
+Between fixes the pose is dead-reckoned from the last fix (:func:`localizers.dead_reckoning.dead_reckon`)
+with a covariance that grows with travel. ``fusion: reset`` is the paper's correction (the
+fix replaces the pose); ``fusion: ekf`` fuses each fix with the dead-reckoned pose in an
+extended Kalman filter (the paper's future work), the fix's covariance being
+``diag(position_sd_m^2, position_sd_m^2, heading_sd_rad^2)``.
+
+Parameters: ``configs/localizers/ceiling_target.yaml``; the colour thresholds there are
+learned by ``crowdloc fit ceiling_target`` from rendered, labelled images and record the data
+they were learned from.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from localizers.base import (
+    LandmarkMap,
+    MeasurementError,
+    OdometryDelta,
+    Overlay,
+    PoseEstimate,
+    checked_dt,
+    checked_odometry,
+    finite_covariance,
+    require_reset,
+)
+from localizers.ceiling_vision import (
+    CameraIntrinsics,
+    ColourRange,
+    PipelineSettings,
+    Sighting,
+    TargetMap,
+    check_image,
+    colour_ranges,
+    sight_targets,
+)
+from localizers.dead_reckoning import dead_reckon
+from localizers.geometry import wrap_angle
+from localizers.schema import ConfigError, check
+
+
+@dataclass(frozen=True)
+class CeilingImage:
+    """One upward camera frame and the camera it came from.
+
+    Attributes:
+        image: ``uint8 (H, W, 3)`` RGB.
+        camera: the camera's intrinsics and mounting (:class:`CameraIntrinsics`).
+        feature: the name of the world feature (ceiling) it looks at.
+    """
+
+    image: NDArray[np.uint8]
+    camera: CameraIntrinsics
+    feature: str = "ceiling"
+
+
+def ceiling_image(observation: NDArray[Any], metadata: Mapping[str, Any]) -> CeilingImage:
+    """Decode a ceiling camera's observation (the image) with its metadata."""
+    return CeilingImage(
+        np.asarray(observation), CameraIntrinsics.from_metadata(metadata), str(metadata.get("feature", "ceiling"))
+    )
+
+
+@dataclass(frozen=True)
+class CeilingTargetParams:
+    """Parameters of :class:`CeilingTargetLocalizer` (defaults: ``configs/localizers/ceiling_target.yaml``).
+
+    Attributes:
+        thresholds: colour name -> learned :class:`~localizers.ceiling_vision.ColourRange`.
+        fitted_on: a record of the data the thresholds were learned from (written by ``fit``).
+        colour_space: ``"hsv"`` (the paper's) or ``"rgb"`` (plain RGB boxes, for comparison).
+        mask_px, mask_fill: the square mask of the end squares and the share of it that must
+            be of the end's colour.
+        min_line_fraction: a line blob needs this share of a whole line's expected pixel count.
+        undistort: remove the lens distortion (from the camera's metadata) before converting.
+        metres_per_px: > 0: the paper's single calibration constant instead of the intrinsics.
+        fusion: ``"reset"`` (the paper's correction) or ``"ekf"``.
+        position_sd_m, heading_sd_rad: the uncertainty of one fix.
+        position_var_m2_per_m, heading_var_rad2_per_m, heading_var_rad2_per_rad: dead-reckoning
+            drift between fixes (as :mod:`localizers.dead_reckoning`).
+        max_gate: with an estimate, a fix farther than this many sds (Mahalanobis) is refused
+            as a misreading (0: never refused).
+    """
+
+    thresholds: Mapping[str, ColourRange] = field(default_factory=dict)
+    fitted_on: Mapping[str, Any] = field(default_factory=dict)
+    colour_space: Literal["hsv", "rgb"] = "hsv"
+    mask_px: int = 5
+    mask_fill: float = 0.5
+    min_line_fraction: float = 0.15
+    undistort: bool = False
+    metres_per_px: float = 0.0
+    fusion: Literal["reset", "ekf"] = "reset"
+    position_sd_m: float = 0.02
+    heading_sd_rad: float = 0.05
+    position_var_m2_per_m: float = 2e-4
+    heading_var_rad2_per_m: float = 2e-4
+    heading_var_rad2_per_rad: float = 1e-3
+    max_gate: float = 0.0
+
+    def __post_init__(self) -> None:
+        check(
+            self.mask_px >= 3 and self.mask_px % 2 == 1, f"ceiling_target.mask_px must be an odd number >= 3, got {self.mask_px}"
+        )
+        check(0 < self.mask_fill <= 1, f"ceiling_target.mask_fill must be in (0, 1], got {self.mask_fill}")
+        check(
+            0 < self.min_line_fraction <= 1, f"ceiling_target.min_line_fraction must be in (0, 1], got {self.min_line_fraction}"
+        )
+        for name in (
+            "metres_per_px",
+            "position_sd_m",
+            "heading_sd_rad",
+            "position_var_m2_per_m",
+            "heading_var_rad2_per_m",
+            "heading_var_rad2_per_rad",
+            "max_gate",
+        ):
+            value = getattr(self, name)
+            check(math.isfinite(value) and value >= 0, f"ceiling_target.{name} must be >= 0, got {value!r}")
+        check(self.position_sd_m > 0 and self.heading_sd_rad > 0, "ceiling_target: position_sd_m and heading_sd_rad must be > 0")
+
+    @property
+    def settings(self) -> PipelineSettings:
+        return PipelineSettings(
+            self.colour_space, self.mask_px, self.mask_fill, self.min_line_fraction, self.undistort, self.metres_per_px
+        )
+
+
+class CeilingTargetLocalizer:
+    """Pose fixes from ceiling colour targets, dead reckoning in between (module docstring)."""
+
+    name: ClassVar[str] = "ceiling_target"
+    measurement: ClassVar[str] = "ceiling_image"
+
+    def __init__(self, landmarks: LandmarkMap, params: CeilingTargetParams, *, dt_s: float) -> None:
+        self._dt = checked_dt("CeilingTargetLocalizer", dt_s)
+        self._params = params
+        ceilings = {name: data for name, data in landmarks.features.items() if data.get("type") == "ceiling"}
+        if not ceilings:
+            raise ConfigError(
+                f"localizer 'ceiling_target' needs a world with a ceiling feature (features: {', '.join(landmarks.features) or 'none'})"
+            )
+        self._targets = {name: TargetMap.from_map_data(data) for name, data in ceilings.items()}
+        for name, targets in self._targets.items():
+            try:
+                colour_ranges(params.thresholds, targets.colours, f"ceiling_target on feature {name!r}")
+            except ValueError as exc:
+                raise ConfigError(str(exc)) from None
+        self._settings = params.settings
+        self._fix_cov = np.diag([params.position_sd_m**2, params.position_sd_m**2, params.heading_sd_rad**2])
+        self._pose: NDArray[np.float64] | None = None
+        self._cov = np.full((3, 3), np.nan)
+        self._ready = False
+        #: the sightings of the last image (every reading of every blob), and the one used
+        self.last_sightings: list[list[Sighting]] = []
+        self.last_fix: Sighting | None = None
+        self.fixes = 0
+
+    def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
+        """Start lost, or from ``prior`` (the paper starts under a target that fixes the pose)."""
+        del rng  # deterministic
+        self._ready = True
+        self.last_sightings, self.last_fix, self.fixes = [], None, 0
+        if prior is not None and prior.valid and np.isfinite(prior.as_array()).all():
+            self._pose = np.array([prior.x_m, prior.y_m, wrap_angle(prior.theta_rad)])
+            cov = finite_covariance(prior)
+            self._cov = self._fix_cov.copy() if cov is None else 0.5 * (cov + cov.T)
+        else:
+            self._pose = None
+            self._cov = np.full((3, 3), np.nan)
+
+    def predict(self, odometry: OdometryDelta) -> None:
+        require_reset(self.name, self._ready)
+        d = checked_odometry(self.name, odometry)
+        if self._pose is None:
+            return
+        p = self._params
+        self._pose, self._cov = dead_reckon(
+            self._pose, self._cov, d, p.position_var_m2_per_m, p.heading_var_rad2_per_m, p.heading_var_rad2_per_rad
+        )
+
+    def update(self, measurement: CeilingImage) -> None:
+        """Run the pipeline on the image and correct the pose with the best target reading."""
+        require_reset(self.name, self._ready)
+        if not isinstance(measurement, CeilingImage):
+            raise MeasurementError(f"{self.name}: expected a CeilingImage, got {type(measurement).__name__}")
+        targets = self._targets.get(measurement.feature)
+        if targets is None:
+            raise MeasurementError(
+                f"{self.name}: the camera looks at feature {measurement.feature!r}, not one of {', '.join(self._targets)}"
+            )
+        image = check_image(measurement.image, measurement.camera, self.name)
+        self.last_sightings = sight_targets(image, measurement.camera, targets, self._params.thresholds, self._settings)
+        fix = self._choose(self.last_sightings)
+        if fix is None:
+            return
+        self.last_fix = fix
+        self.fixes += 1
+        if self._pose is None or self._params.fusion == "reset":
+            self._pose = fix.pose.copy()
+            self._cov = self._fix_cov.copy()
+            return
+        # EKF: the fix measures the pose directly (H = I)
+        innovation = fix.pose - self._pose
+        innovation[2] = wrap_angle(innovation[2])
+        gain = self._cov @ np.linalg.inv(self._cov + self._fix_cov)
+        self._pose = self._pose + gain @ innovation
+        self._pose[2] = wrap_angle(self._pose[2])
+        cov = (np.eye(3) - gain) @ self._cov
+        self._cov = 0.5 * (cov + cov.T)
+
+    def _choose(self, sightings: list[list[Sighting]]) -> Sighting | None:
+        """The reading to use: per blob the one nearest the estimate (the only one without an
+        estimate, else none); of the blobs, the one with the most line pixels."""
+        chosen: list[Sighting] = []
+        for readings in sightings:
+            if self._pose is None:
+                if len(readings) == 1:  # without an estimate only an unambiguous reading counts
+                    chosen.append(readings[0])
+                continue
+            best = min(readings, key=self._distance)
+            gate = self._params.max_gate
+            if gate == 0 or self._distance(best) <= gate * gate:
+                chosen.append(best)
+        if not chosen:
+            return None
+        return max(chosen, key=lambda r: (len(r.ends), r.line_px))
+
+    def _distance(self, reading: Sighting) -> float:
+        """Squared Mahalanobis distance of a reading from the estimate (with the fix's own covariance)."""
+        assert self._pose is not None
+        diff = reading.pose - self._pose
+        diff[2] = wrap_angle(diff[2])
+        cov = self._cov + self._fix_cov
+        return float(diff @ np.linalg.solve(cov, diff))
+
+    @property
+    def estimate(self) -> PoseEstimate:
+        if self._pose is None:
+            return PoseEstimate.invalid()
+        x, y, th = self._pose
+        return PoseEstimate(float(x), float(y), float(th), self._cov.copy(), True)
+
+    def overlay(self) -> Overlay:
+        if self._pose is None:
+            return Overlay(label="ceiling target: no fix yet")
+        fixes = [r.pose for readings in self.last_sightings for r in readings]
+        poses = np.array(fixes).reshape(-1, 3) if fixes else self._pose[None, :].copy()
+        return Overlay(poses=poses, weights=np.ones(poses.shape[0]), label=f"ceiling target: {self.fixes} fixes")
