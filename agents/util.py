@@ -1,4 +1,5 @@
-"""Small helpers shared by the command-line tools: argparse types, dotted overrides, JSON conversion."""
+"""Small helpers shared by the command-line tools: argparse types, dotted overrides, JSON conversion,
+console tables."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import math
 import platform
 import subprocess
 import sys
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -87,6 +88,33 @@ def jsonable(o: Any) -> Any:
     if isinstance(o, (int, bool, str)) or o is None:
         return o
     return str(o)
+
+
+def text_table(header: Sequence[str], rows: Iterable[Sequence[str]], align: str | None = None) -> str:
+    """``rows`` under ``header`` as an aligned plain-text table for the console: rich's markdown
+    form, without colour or markup, each column as wide as its widest cell, whatever the terminal's
+    width. ``align``: one letter per column, ``l`` (left) or ``r`` (right); by default the first
+    column left and the others right (a label, then numbers)."""
+    import io
+
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+    from rich.text import Text
+
+    align = align if align is not None else "l" + "r" * (len(header) - 1)
+    if len(align) != len(header) or set(align) - {"l", "r"}:
+        raise ValueError(f"align must give l or r for each of the {len(header)} columns, got {align!r}")
+    table = Table(box=box.MARKDOWN, header_style="", show_edge=True)
+    for name, side in zip(header, align):
+        table.add_column(Text(name), justify="left" if side == "l" else "right", no_wrap=True)
+    for row in rows:
+        if len(row) != len(header):
+            raise ValueError(f"a table row needs {len(header)} cells ({', '.join(header)}), got {len(row)}: {list(row)}")
+        table.add_row(*(Text(cell) for cell in row))
+    buffer = io.StringIO()
+    Console(file=buffer, width=100_000, color_system=None, no_color=True, highlight=False).print(table)
+    return "\n".join(line.rstrip() for line in buffer.getvalue().splitlines() if line.strip())
 
 
 _RECORDED_PACKAGES = ("crowdloc", "gymnasium", "numpy", "pymunk", "stable-baselines3", "torch")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from agents.evaluate.outputs import summary_markdown, write_outputs
-from agents.evaluate.spec import Cell, EvalSpec
+from agents.evaluate.spec import Cell, EvalSpec, check_first_seed
 from agents.evaluate.stats import EvalResult, evaluate
 from localizers.schema import ConfigError, check
 
@@ -30,6 +30,7 @@ def spec_from_args(args: Any) -> EvalSpec:
     from agents.util import nest
     from localizers.schema import merge_nested
 
+    check_first_seed(args.first_seed, "--first-seed")
     given = {"policies": args.policies, "localizers": args.localizers, "crowd_sizes": args.crowd_sizes}
     conditions: dict[str, Any] = {"env_id": args.env_id}
     if args.conditions:

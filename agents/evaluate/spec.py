@@ -28,6 +28,18 @@ PPO_PREFIX = "ppo:"
 _POLICY_SALT = 0x9011C7  # the policy's seed differs from the env's for the same evaluation seed
 #: env_kwargs the grid sets itself
 _GRID_KEYS = ("crowd_size", "max_episode_steps", "localizer", "localizer_params", "render_mode")
+#: the largest first_seed: EVAL_SEED_BASE + first_seed + i stays a valid seed (< 2**32) for up to 2**30 seeds
+FIRST_SEED_MAX = 2**30
+
+
+def check_first_seed(value: object, name: str = "first_seed") -> None:
+    """``value`` is an evaluation seed offset, an integer from 0 to :data:`FIRST_SEED_MAX`.
+
+    Raises:
+        ConfigError: naming the value ``name`` (the keyword argument; ``crowdloc eval`` gives its flag).
+    """
+    check(isinstance(value, int) and 0 <= value <= FIRST_SEED_MAX,
+          f"{name} must be an integer from 0 to {FIRST_SEED_MAX}, got {value!r}")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -95,8 +107,7 @@ class EvalSpec:
     def _check_grid(self) -> None:
         """The counts, the axes of the grid, the env id and the conditions' own values."""
         check(isinstance(self.seeds, int) and self.seeds >= 1, f"seeds must be an integer >= 1, got {self.seeds!r}")
-        check(isinstance(self.first_seed, int) and 0 <= self.first_seed <= 2**30,
-              f"first_seed must be an integer from 0 to {2**30}, got {self.first_seed!r}")  # fmt: skip
+        check_first_seed(self.first_seed)
         check(isinstance(self.episode_steps, int) and self.episode_steps >= 1,
               f"episode_steps must be an integer >= 1, got {self.episode_steps!r}")  # fmt: skip
         check(self.bootstrap_resamples >= 1, f"bootstrap_resamples must be >= 1, got {self.bootstrap_resamples}")

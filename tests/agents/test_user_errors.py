@@ -12,6 +12,7 @@ import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.cli import build_parser, main
+from agents.evaluate import EvalSpec
 from localizers.schema import ConfigError
 
 
@@ -163,3 +164,16 @@ def test_an_error_after_parsing_prints_the_subcommand_usage(capsys: pytest.Captu
         main(["demo", "--active-seeds", "-1"])
     err = capsys.readouterr().err
     assert err.startswith("usage: crowdloc demo") and "--active-seeds must be >= 0, got -1" in err
+
+
+@pytest.mark.parametrize("value", ["-5", str(2**30 + 1)])
+def test_a_bad_first_seed_names_the_flag(capsys: pytest.CaptureFixture[str], tmp_path: Path, value: str) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["eval", "--first-seed", value, "--policies", "spin", "--out", str(tmp_path / "eval")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: crowdloc eval") and "Traceback" not in err
+    assert f"--first-seed must be an integer from 0 to {2**30}, got {value}" in err and "first_seed" not in err
+    assert not (tmp_path / "eval").exists()  # nothing run, nothing written
+    with pytest.raises(ConfigError, match=rf"^first_seed must be an integer from 0 to {2**30}, got {value}$"):
+        EvalSpec(policies=("spin",), first_seed=int(value))  # the Python API names its keyword

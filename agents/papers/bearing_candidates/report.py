@@ -53,7 +53,7 @@ from agents.papers.bearing_candidates.jobs import (
 )
 from agents.papers.bearing_candidates.paper import PAPER, PaperRow
 from agents.papers.bearing_candidates.text import about, and_list, facing, field, num, pm, ratio, xy
-from agents.util import jsonable
+from agents.util import jsonable, text_table
 
 PAPER_TITLE = "Candidate-set paper (Motomura et al.)"
 
@@ -342,8 +342,7 @@ def write_report(
 
 
 def summary_table(analysis: Analysis) -> str:
-    """Plain-text summary of Tables 1-3 (ours against the paper) for stdout."""
-    out = []
+    """Tables 1-3 (ours beside the paper) for stdout, one aligned table per experiment."""
     studies: list[tuple[str, int, list[Row]]] = []
     if analysis.exp1:
         studies.append(("exp1", analysis.exp1.seeds, analysis.exp1.rows))
@@ -351,14 +350,14 @@ def summary_table(analysis: Analysis) -> str:
         shown = {r.key for r in analysis.exp2.rows}
         extra = [r for r in analysis.exp2.exp3_rows if r.key not in shown]
         studies.append(("exp2", analysis.exp2.seeds, analysis.exp2.rows + extra))
+    tables = []
     for study, seeds, rows in studies:
-        out.append(f"{study} ({seeds} seeds)  position mm ours [paper] | heading deg ours [paper] | first fix mm | avail")
+        head = [f"{study} ({seeds} seeds)", "position mm", "paper", "heading deg", "paper", "first fix mm", "available"]
+        cells = []
         for r in rows:
             p = PAPER[study].get(r.key) or (PAPER["exp3"].get(r.key) if study == "exp2" else None)
-            pp = f"[{p[0][0]:.0f} ± {p[0][1]:.0f}]" if p else ""
-            ph = f"[{p[1][0]:.1f} ± {p[1][1]:.1f}]" if p else ""
-            out.append(
-                f"  {r.label:30s} {pm(r.pos_mm):>12s} {pp:14s} | {pm(r.head_deg, 1):>11s} {ph:13s} | "
-                f"{num(r.first_fix_mm[0]):>6s} | {100 * r.availability:5.1f} %"
-            )
-    return "\n".join(out)
+            paper_pos, paper_head = (pm(p[0]), pm(p[1], 1)) if p else ("", "")
+            available = f"{num(100 * r.availability, '{:.1f}')} %"
+            cells.append([r.label, pm(r.pos_mm), paper_pos, pm(r.head_deg, 1), paper_head, num(r.first_fix_mm[0]), available])
+        tables.append(text_table(head, cells))
+    return "\n\n".join(tables)

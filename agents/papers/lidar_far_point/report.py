@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.util import jsonable
+from agents.util import jsonable, text_table
 
 from . import experiment, paper, world
 from .analysis import (
@@ -527,19 +527,20 @@ SECTIONS: tuple[Callable[[Context], Lines], ...] = (
 
 
 def summary_text(plan: Plan, st: StatsTable, verdicts: Sequence[Verdict]) -> str:
-    """Plain-text summary for stdout: both sweeps and the verdicts."""
-    out = []
+    """Both sweeps and the verdicts for stdout, as aligned tables."""
+    tables = []
     for name, points in (("sampling", plan.sampling_configs()), ("hit", plan.hit_configs())):
-        out.append(f"{name:>8s} | raw: error m (failures/run) | far: error m (failures/run)")
+        head = [name, "raw: error m", "raw: failures/run", "far: error m", "far: failures/run"]
+        cells = []
         for x, pair in points:
-            r, f = pair_stats(st, pair)
-            out.append(
-                f"{x:8g} | {r.mean_m:6.3f} ± {r.sd_m:5.3f} ({r.failures:4.2f}) | "
-                f"{f.mean_m:6.3f} ± {f.sd_m:5.3f} ({f.failures:4.2f})"
-            )
-    for v in verdicts:
-        out.append(f"{v.claim_id} {v.verdict:>13s}: {CLAIMS[v.claim_id].text}")
-    return "\n".join(out)
+            row = [f"{x:g}"]
+            for s in pair_stats(st, pair):
+                row += [f"{fmt(s.mean_m)} ± {fmt(s.sd_m)}", f"{s.failures:.2f}"]
+            cells.append(row)
+        tables.append(text_table(head, cells, align="rrrrr"))  # the swept value, then numbers
+    claims = [[v.claim_id, v.verdict, CLAIMS[v.claim_id].text] for v in verdicts]
+    tables.append(text_table(["claim", "verdict", "the paper's claim"], claims, align="lll"))
+    return "\n\n".join(tables)
 
 
 def write_report(out: Path, c: Context) -> Path:

@@ -12,6 +12,7 @@ import pytest
 from agents.cli import build_parser, main
 from agents.papers.bearing_candidates import conditions, jobs
 from agents.papers.bearing_candidates.paper import PAPER
+from tests.console import assert_aligned, printed_tables
 from tests.pinning import PINNED_DIR, assert_same_numbers
 
 PAPERS_MD = Path(__file__).resolve().parents[3] / "docs" / "papers.md"
@@ -103,6 +104,10 @@ def test_quick_run_writes_report_tables_and_figures(tmp_path: Path, capsys: pyte
     assert_same_numbers(pinned, json.loads((out / "results.json").read_text()), "results", frozenset({"wall_s", "workers"}))
     printed = capsys.readouterr().out
     assert "exp1 (2 seeds)" in printed and "wrote" in printed
+    tables = printed_tables(printed)
+    assert [t[0].split("|")[1].strip() for t in tables] == ["exp1 (2 seeds)", "exp2 (2 seeds)"]
+    for t in tables:
+        assert_aligned(t)
     # ours are numbers, not n/a, for the method every statistic starts from
     row = next(line for line in report.splitlines() if line.startswith("| (5) candidate sets K=10 |"))
     ours = row.split("|")[3]

@@ -17,6 +17,7 @@ from agents.papers.lidar_far_point import experiment as ex
 from agents.replay import Recording, record, replay
 from agents.scenarios import square_driver, square_vertices
 from localizers.geometry import wrap_angle
+from tests.console import assert_aligned, printed_tables
 from tests.pinning import PINNED_DIR, assert_same_numbers
 
 NOISE_FREE = {"odometry": {"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0}, "lidar": {"range_std_m": 0.0}}
@@ -168,7 +169,12 @@ def _check_report(out: Path, printed: str) -> str:
 def test_quick_run_writes_report_and_figures(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "quick"
     assert main(["reproduce", "lidar-far-point", "--quick", "--out", str(out)]) == 0
-    report = _check_report(out, capsys.readouterr().out)
+    printed = capsys.readouterr().out
+    report = _check_report(out, printed)
+    tables = printed_tables(printed)  # the sampling sweep, the hit sweep, the claims
+    assert [t[0].split("|")[1].strip() for t in tables] == ["sampling", "hit", "claim"]
+    for t in tables:
+        assert_aligned(t)
     # same seeds, same numbers as recorded before the architecture change
     pinned = json.loads((PINNED_DIR / "lidar_far_point_quick.json").read_text())
     assert_same_numbers(pinned, json.loads((out / "results.json").read_text()), "results", frozenset({"wall_s", "workers"}))
