@@ -201,11 +201,7 @@ def _add_fit(sub: argparse._SubParsersAction[argparse.ArgumentParser], argv: Seq
     which = fit.add_subparsers(dest="localizer", required=True, metavar="LOCALIZER")
     chosen = argv[1] if len(argv) > 1 and argv[0] == "fit" else None
     for name, module in FITTERS.items():
-        one = which.add_parser(
-            name,
-            help=f"fit {name}",
-            description=importlib.import_module(module).__doc__.split("\n")[0] if name == chosen else None,
-        )
+        one = which.add_parser(name, help=f"fit {name}'s parameters", description=f"fit {name}'s parameters ({module})")
         one.set_defaults(command_parser=one)
         if name == chosen:
             importlib.import_module(module).add_arguments(one)

@@ -77,6 +77,26 @@ class RobotConfig:
 
 
 @dataclass(frozen=True)
+class GoalConfig:
+    """Where an episode ends: the robot has stopped within ``radius_m`` of ``(x_m, y_m)``.
+
+    Stopped: the commanded speed and turn rate have stayed below ``still_fraction`` of their
+    limits for ``hold_s``. The episode then terminates (``terminated=True``).
+    """
+
+    x_m: float
+    y_m: float
+    radius_m: float = 0.3
+    hold_s: float = 1.0
+    still_fraction: float = 0.02
+
+    def __post_init__(self) -> None:
+        check(self.radius_m > 0, f"goal.radius_m must be > 0, got {self.radius_m}")
+        check(self.hold_s >= 0, f"goal.hold_s must be >= 0, got {self.hold_s}")
+        check(0 <= self.still_fraction < 1, f"goal.still_fraction must be in [0, 1), got {self.still_fraction}")
+
+
+@dataclass(frozen=True)
 class WorldConfig:
     """One scenario: geometry, landmarks, robot, its sensors (in observation order) and the crowds."""
 
@@ -94,6 +114,7 @@ class WorldConfig:
     floor: Literal["field", "room"] = "room"  # how the renderer draws the ground
     origin_m: tuple[float, float] = (0.0, 0.0)  # the field's lower-left corner (a corridor centred on x = 0)
     features: Mapping[str, FeatureConfig] = field(default_factory=dict)  # name -> static scenery tagged by type (a ceiling)
+    goal: GoalConfig | None = None  # where an episode terminates (None: it only times out)
 
     def __post_init__(self) -> None:
         w, h = self.size_m

@@ -9,8 +9,9 @@ flattened) or ``lidar`` ``(B,)``; ``sonar={}`` adds a sonar ring (``sonar`` ``(S
 Action: ``Box(-1, 1, (2,))``, scaled to the world's forward speed and turn rate limits.
 Ground truth (``true_pose``, ``contacts``, the sensors' facts such as ``visible_landmarks``
 and ``false_detections``, one flag per landmark) is in ``info`` only; every entry but the
-``contacts`` list has a fixed shape, so ``gym.make_vec`` can stack them. The base
-environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``agents.tasks``).
+``contacts`` list has a fixed shape, so ``gym.make_vec`` can stack them. An episode
+terminates when the world has a ``goal`` and the robot has stood still there (else it only
+times out). The base environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``agents.tasks``).
 """
 
 from __future__ import annotations
@@ -96,6 +97,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         self._sensor_rng = np.random.default_rng(1)
         self._last_obs: dict[str, NDArray[np.float32]] = {}
         self._last_info: dict[str, Any] = {}
+        self._still_s = 0.0
 
     # ------------------------------------------------------------------ gym API
     def reset(
@@ -119,6 +121,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
             self.world.set_robot_pose(pose)
         for sensor in self.sensors.values():
             sensor.reset()
+        self._still_s = 0.0
         obs, info = self._observe()
         if self.render_mode == "human":
             self.render()
@@ -145,9 +148,21 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         self.world.step(velocity, omega * slip, self._world_rng)
         obs, info = self._observe()
         info["contacts"] = self.world.contacts[n_contacts:]
+        terminated = self._at_goal(a_v, a_w)
         if self.render_mode == "human":
             self.render()
-        return obs, 0.0, False, False, info
+        return obs, 0.0, terminated, False, info
+
+    def _at_goal(self, a_v: float, a_w: float) -> bool:
+        """Whether the robot has now stood still at the world's goal for its hold time."""
+        goal = self.config.goal
+        if goal is None:
+            return False
+        x, y, _ = self.world.robot_pose
+        still = abs(a_v) <= goal.still_fraction and abs(a_w) <= goal.still_fraction
+        near = math.hypot(x - goal.x_m, y - goal.y_m) <= goal.radius_m
+        self._still_s = self._still_s + self.config.dt_s if (still and near) else 0.0
+        return self._still_s >= goal.hold_s - 1e-9
 
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode is None:

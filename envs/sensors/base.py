@@ -56,7 +56,7 @@ class SensorConfig:
 class Sensor(Protocol):
     """What the env calls on a sensor.
 
-    ``observe`` returns the observation array (float32, inside ``space()``) and a dict of
+    ``observe`` returns the observation array (inside ``space()``: float32, or uint8 for images) and a dict of
     ground-truth facts for ``info``. ``command`` sees the exact commanded increment before
     every physics step (odometry records it). ``metadata`` is what a localizer or a
     recording needs to interpret the readings (plain numbers and arrays, no env objects).
@@ -75,11 +75,11 @@ class Sensor(Protocol):
 
     def command(self, delta: NDArray[np.float64], rng: np.random.Generator) -> None: ...
 
-    def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]: ...
+    def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[Any], dict[str, Any]]: ...
 
     def metadata(self) -> dict[str, Any]: ...
 
-    def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None: ...
+    def draw(self, canvas: Any, state: WorldState, reading: NDArray[Any], info: Mapping[str, Any]) -> None: ...
 
 
 class SensorBase:
@@ -98,7 +98,7 @@ class SensorBase:
     def metadata(self) -> dict[str, Any]:
         return {}
 
-    def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None:
+    def draw(self, canvas: Any, state: WorldState, reading: NDArray[Any], info: Mapping[str, Any]) -> None:
         pass
 
 
