@@ -101,7 +101,7 @@ class CeilingTargetParams:
     colour_space: Literal["hsv", "rgb"] = "hsv"
     mask_px: int = 5
     mask_fill: float = 0.5
-    min_line_fraction: float = 0.15
+    min_line_fraction: float = 0.4
     undistort: bool = False
     metres_per_px: float = 0.0
     fusion: Literal["reset", "ekf"] = "reset"
@@ -184,7 +184,7 @@ class CeilingTargetLocalizer:
             self._cov = np.full((3, 3), np.nan)
 
     def predict(self, odometry: OdometryDelta) -> None:
-        require_reset(self.name, self._ready)
+        require_reset("CeilingTargetLocalizer", self._ready)
         d = checked_odometry(self.name, odometry)
         if self._pose is None:
             return
@@ -195,7 +195,7 @@ class CeilingTargetLocalizer:
 
     def update(self, measurement: CeilingImage) -> None:
         """Run the pipeline on the image and correct the pose with the best target reading."""
-        require_reset(self.name, self._ready)
+        require_reset("CeilingTargetLocalizer", self._ready)
         if not isinstance(measurement, CeilingImage):
             raise MeasurementError(f"{self.name}: expected a CeilingImage, got {type(measurement).__name__}")
         targets = self._targets.get(measurement.feature)

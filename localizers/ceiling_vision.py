@@ -98,17 +98,33 @@ class ColourRange:
     def mask(self, hsv: NDArray[np.uint8], rgb: NDArray[np.uint8], space: str = "hsv") -> NDArray[np.uint8]:
         """``(H, W)`` uint8 mask (255 inside) of the pixels of an image inside this range."""
         if space == "rgb":
-            return np.asarray(cv2.inRange(rgb, _bytes(self.rgb_lo, 1.0, math.floor), _bytes(self.rgb_hi, 1.0, math.ceil)))
-        lo_h, hi_h = self.hsv_lo[0], self.hsv_hi[0]
-        s_v_lo = [_byte(self.hsv_lo[1] * 255, math.floor), _byte(self.hsv_lo[2] * 255, math.floor)]
-        s_v_hi = [_byte(self.hsv_hi[1] * 255, math.ceil), _byte(self.hsv_hi[2] * 255, math.ceil)]
-        if lo_h <= hi_h:
-            lo = np.array([_byte(lo_h * 256, math.floor), *s_v_lo], dtype=np.uint8)
-            hi = np.array([_byte(hi_h * 256, math.ceil), *s_v_hi], dtype=np.uint8)
-            return np.asarray(cv2.inRange(hsv, lo, hi))
-        upper = cv2.inRange(hsv, np.array([_byte(lo_h * 256, math.floor), *s_v_lo], np.uint8), np.array([255, *s_v_hi], np.uint8))
-        lower = cv2.inRange(hsv, np.array([0, *s_v_lo], np.uint8), np.array([_byte(hi_h * 256, math.ceil), *s_v_hi], np.uint8))
-        return np.asarray(cv2.bitwise_or(upper, lower))
+            lo, hi = self._bounds["rgb"]
+            return np.asarray(cv2.inRange(rgb, lo, hi))
+        boxes = self._bounds["hsv"]
+        out = cv2.inRange(hsv, *boxes[0])
+        if len(boxes) > 1:  # a hue range through 0: two boxes
+            out = cv2.bitwise_or(out, cv2.inRange(hsv, *boxes[1]))
+        return np.asarray(out)
+
+    @property
+    def _bounds(self) -> dict[str, Any]:
+        """The byte bounds of :meth:`mask` (computed once per range)."""
+        cached = self.__dict__.get("_byte_bounds")
+        if cached is None:
+            s_v_lo = [_byte(self.hsv_lo[1] * 255, math.floor), _byte(self.hsv_lo[2] * 255, math.floor)]
+            s_v_hi = [_byte(self.hsv_hi[1] * 255, math.ceil), _byte(self.hsv_hi[2] * 255, math.ceil)]
+            h_lo, h_hi = _byte(self.hsv_lo[0] * 256, math.floor), _byte(self.hsv_hi[0] * 256, math.ceil)
+            if self.hsv_lo[0] <= self.hsv_hi[0]:
+                hsv = [(np.array([h_lo, *s_v_lo], np.uint8), np.array([h_hi, *s_v_hi], np.uint8))]
+            else:
+                hsv = [
+                    (np.array([h_lo, *s_v_lo], np.uint8), np.array([255, *s_v_hi], np.uint8)),
+                    (np.array([0, *s_v_lo], np.uint8), np.array([h_hi, *s_v_hi], np.uint8)),
+                ]
+            rgb = (_bytes(self.rgb_lo, 1.0, math.floor), _bytes(self.rgb_hi, 1.0, math.ceil))
+            cached = {"hsv": hsv, "rgb": rgb}
+            object.__setattr__(self, "_byte_bounds", cached)
+        return cached
 
 
 def _byte(x: float, rounding: Any) -> int:
@@ -120,15 +136,21 @@ def _bytes(values: Sequence[float], scale: float, rounding: Any) -> NDArray[np.u
 
 
 def fit_colour_range(
-    hsv_pixels: NDArray[np.floating[Any]], rgb_pixels: NDArray[np.floating[Any]], coverage: float = 0.995, margin: float = 0.02
+    hsv_pixels: NDArray[np.floating[Any]],
+    rgb_pixels: NDArray[np.floating[Any]],
+    coverage: float = 0.995,
+    margin: float = 0.02,
+    hue_margin: float = 0.005,
 ) -> ColourRange:
-    """The threshold box that holds ``coverage`` of a colour's labelled pixels, widened by ``margin``.
+    """The threshold box that holds ``coverage`` of a colour's labelled pixels, widened by a margin.
 
     Args:
         hsv_pixels: ``(n, 3)`` the colour's pixels in the paper's HSV (``[0, 1]``).
         rgb_pixels: ``(n, 3)`` the same pixels in RGB (``[0, 255]``).
         coverage: the share of the pixels inside the box on each channel (central quantiles).
-        margin: added on each side, in the channel's unit over its range.
+        margin: added on each side of S, V and the RGB channels, in the channel's unit over its range.
+        hue_margin: the same for H (of a turn): a hue's spread is small and its neighbours are near
+            (an exit sign's green), so it gets a narrower margin.
 
     Hue is circular: its quantiles are taken of the offsets from the circular mean, so a red
     that straddles 0 gets a wrapping range (``lo > hi``).
@@ -142,7 +164,7 @@ def fit_colour_range(
     mean = math.atan2(float(np.mean(np.sin(angle))), float(np.mean(np.cos(angle)))) / (2 * np.pi)
     offsets = (hsv[:, 0] - mean + 0.5) % 1.0 - 0.5
     h_lo, h_hi = np.quantile(offsets, [q, 1 - q])
-    h_lo, h_hi = h_lo - margin, h_hi + margin
+    h_lo, h_hi = h_lo - hue_margin, h_hi + hue_margin
     if h_hi - h_lo >= 1.0:
         hue = (0.0, 1.0)
     else:
@@ -277,7 +299,7 @@ class PipelineSettings:
     colour_space: str = "hsv"
     mask_px: int = 5  # the paper's square mask for the end squares
     mask_fill: float = 0.5  # share of the mask that must be of the end's colour
-    min_line_fraction: float = 0.15  # a line blob needs this share of a whole line's expected pixels
+    min_line_fraction: float = 0.4  # a line blob needs this share of a whole line's expected pixels
     undistort: bool = False
     metres_per_px: float = 0.0  # > 0: the paper's single calibration constant
 
@@ -301,6 +323,8 @@ def check_image(image: Any, intrinsics: CameraIntrinsics, source: str) -> NDArra
 
 def _line_blobs(mask: NDArray[np.uint8], min_px: int) -> list[_Blob]:
     """The blobs of a line colour large enough to be a line, each with its least-squares direction."""
+    if cv2.countNonZero(mask) < min_px:  # most frames: no line of this colour in view
+        return []
     count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     out = []
     for k in range(1, count):
@@ -359,6 +383,10 @@ def _find_end(
     centre = np.array([cols.mean() + max(0, bu - r) + u0 + 0.5, rows.mean() + max(0, bv - r) + v0 + 0.5])
     # the square must sit at this end of the line: not farther than a square and a mask from it
     if float(np.hypot(*(centre - guess))) > end_px + k:
+        return None
+    # and lie wholly in the image: a square cut by the border has a biased centroid
+    reach = end_px * math.sqrt(0.5) + 1.0
+    if not (reach <= centre[0] <= w - reach and reach <= centre[1] <= h - reach):
         return None
     return centre
 

@@ -82,8 +82,8 @@ class CeilingCameraConfig(SensorConfig):
     vignetting: float = 0.25  # relative darkening at the image corners
     exposure_s: float = 1.0 / 60.0  # 0: no motion blur
     max_blur_samples: int = 8
-    head_height_m: float = 1.65  # the people's heads (0: no heads)
-    head_radius_m: float = 0.1
+    head_height_m: float = 1.70  # the people's heads, as discs at this height (0: no heads)
+    head_radius_m: float = 0.12  # a head with its hair; people pressing on the robot show at the image corners
     period_steps: int = 1  # render every this many steps
 
     def __post_init__(self) -> None:
@@ -405,13 +405,15 @@ class CeilingCamera(SensorBase):
             self.seed_noise(rng)
             self._phase = float(rng.uniform(0.0, 2 * math.pi))  # where in its flicker the light starts
             self._fresh = False
-        if self._steps % c.period_steps == 0:
+        rendered = self._steps % c.period_steps == 0
+        if rendered:
             offset = int(rng.integers(_NOISE_POOL)) if c.noise_std > 0 else None
             heads = state.positions[self._rows] if c.head_height_m > 0 else None
             self._image, _ = self.render(self.exposure_poses(pose), heads, self.gain(pose, state.time_s, self._phase), offset)
         self._steps += 1
         self._previous_pose = pose
-        return self._image, {}
+        # a repeated frame is a copy: every step hands out its own array
+        return (self._image if rendered else self._image.copy()), {}
 
     def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.uint8], info: Mapping[str, Any]) -> None:
         """The view's footprint on the ceiling, as an outline."""

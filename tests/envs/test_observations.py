@@ -16,7 +16,8 @@ ENV_IDS = sorted(envs.ENV_WORLDS)
 def assert_inside(space: gym.spaces.Dict, obs: dict, where: str) -> None:
     assert set(obs) == set(space.spaces), where
     for key, value in obs.items():
-        assert value.dtype == np.float32, (where, key)
+        assert value.dtype == space[key].dtype, (where, key)
+        assert value.dtype in (np.float32, np.uint8), (where, key)  # float readings, or an RGB image
         assert not np.isnan(value).any(), (where, key)
     assert space.contains(obs), where
 
@@ -46,6 +47,9 @@ def test_observation_space_is_bounded_float32(env_id: str) -> None:
     assert isinstance(env.observation_space, gym.spaces.Dict)
     for key, box in env.observation_space.spaces.items():
         assert isinstance(box, gym.spaces.Box), key
+        if box.dtype == np.uint8:  # an image: (H, W, 3) over the full byte range, as SB3's image checks expect
+            assert box.shape[-1] == 3 and np.all(box.low == 0) and np.all(box.high == 255), key
+            continue
         assert box.dtype == np.float32, key
         assert np.all(np.isfinite(box.low)) and np.all(np.isfinite(box.high)), key
     assert env.action_space == gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)

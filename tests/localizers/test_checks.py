@@ -7,6 +7,7 @@ import re
 import numpy as np
 import pytest
 
+from envs.features import CeilingConfig, CeilingTarget
 from localizers.base import (
     LandmarkMap,
     Localizer,
@@ -21,7 +22,15 @@ from localizers.registry import LOCALIZERS, make_localizer
 
 NAMES = sorted(LOCALIZERS)
 BOX = np.array([[0.0, 0.0, 10.0, 0.0], [10.0, 0.0, 10.0, 8.0], [10.0, 8.0, 0.0, 8.0], [0.0, 8.0, 0.0, 0.0]])
-MAP = LandmarkMap(np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]]), ("a", "b", "c", "d"), (0.0, 0.0, 10.0, 8.0), BOX)
+# with a ceiling feature too, for the localizers that read ceiling targets
+CEILING = CeilingConfig(targets=(CeilingTarget("T0", 2.0, 5.0), CeilingTarget("T1", 6.0, 5.0, b="blue"))).map_data()
+MAP = LandmarkMap(
+    np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]]),
+    ("a", "b", "c", "d"),
+    (0.0, 0.0, 10.0, 8.0),
+    BOX,
+    {"ceiling": CEILING},
+)
 START = PoseEstimate(3.0, 4.0, 0.5, np.diag([0.01, 0.01, 0.001]))
 
 

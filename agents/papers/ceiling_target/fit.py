@@ -49,7 +49,8 @@ class FitPlan:
     gain_range: tuple[float, float] = (0.6, 1.4)  # illumination gains drawn per image
     near_target_share: float = 0.75  # the rest of the images are near a sign or anywhere
     coverage: float = 0.995
-    margin: float = 0.02
+    margin: float = 0.02  # S, V and RGB
+    hue_margin: float = 0.005
 
     def __post_init__(self) -> None:
         check(self.train_images >= 10 and self.test_images >= 10, "fit: need at least 10 training and 10 test images")
@@ -130,7 +131,7 @@ def fit(plan: FitPlan) -> tuple[dict[str, ColourRange], dict[str, Any]]:
         counts[colour] = int(mine.sum())
         if counts[colour] < 10:
             raise ConfigError(f"fit: colour {colour!r} has only {counts[colour]} labelled pixels in {plan.train_images} images")
-        ranges[colour] = fit_colour_range(hsv[mine], rgb[mine], plan.coverage, plan.margin)
+        ranges[colour] = fit_colour_range(hsv[mine], rgb[mine], plan.coverage, plan.margin, plan.hue_margin)
     hsv, rgb, lab = _pixels(labelled_images(plan, plan.seed + 1, plan.test_images), plan.test_images, "fit: held-out images")
     held_out: dict[str, Any] = {}
     for colour, rng in ranges.items():

@@ -1,0 +1,251 @@
+"""The ceiling-target pipeline and localizer: HSV, learned thresholds, round trips, bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401  (registers the ids)
+from agents.papers.ceiling_target.fit import FitPlan, fit, inside, labelled_images
+from envs.features.ceiling import LABEL_SIGN, PALETTE, CeilingConfig, colour_label
+from envs.localization_env import LocalizationEnv
+from envs.sensors.ceiling_camera import CeilingCamera
+from localizers.base import MeasurementError, OdometryDelta
+from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
+from localizers.ceiling_vision import CameraIntrinsics, ColourRange, fit_colour_range, hsv8, paper_hsv
+from localizers.registry import load_params, make_localizer
+from localizers.schema import ConfigError
+
+CLEAN = {
+    "k1": 0.0,
+    "noise_std": 0.0,
+    "vignetting": 0.0,
+    "gain_along_amplitude": 0.0,
+    "gain_time_amplitude": 0.0,
+    "exposure_s": 0.0,
+}
+
+
+def _setup(**camera: object) -> tuple[LocalizationEnv, CeilingCamera, CameraIntrinsics, CeilingTargetLocalizer]:
+    env = LocalizationEnv("ceiling_corridor", camera=camera or None)
+    cam = env.sensors["camera"]
+    assert isinstance(cam, CeilingCamera)
+    loc = make_localizer("ceiling_target", env.landmark_map, dt_s=env.config.dt_s)
+    assert isinstance(loc, CeilingTargetLocalizer)
+    return env, cam, CameraIntrinsics.from_metadata(cam.metadata()), loc
+
+
+# ---------------------------------------------------------------------------- HSV
+def test_paper_hsv_edge_cases() -> None:
+    cases = {
+        (0.0, 0.0, 0.0): (0.0, 0.0, 0.0),  # V = 0: S = 0, H undefined (0)
+        (0.5, 0.5, 0.5): (0.0, 0.0, 0.5),  # grey: S = 0
+        (1.0, 0.0, 0.0): (0.0, 1.0, 1.0),  # R max
+        (0.0, 1.0, 0.0): (1 / 3, 1.0, 1.0),  # G max: H = 2 / 6
+        (0.0, 0.0, 1.0): (2 / 3, 1.0, 1.0),  # B max: H = 4 / 6
+        (1.0, 0.0, 0.5): (1 - 0.5 / 6, 1.0, 1.0),  # R max, B > G: H < 0 wraps by + 1
+        (0.8, 0.4, 0.2): ((0.4 - 0.2) / 0.6 / 6, 0.75, 0.8),
+    }
+    for rgb, hsv in cases.items():
+        assert paper_hsv(np.array(rgb)) == pytest.approx(hsv, abs=1e-12), rgb
+
+
+def test_opencv_hsv_equals_the_paper_formulas_after_scaling() -> None:
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(0, 256, size=(200, 200, 3), dtype=np.uint8)
+    edges = np.array(
+        [[0, 0, 0], [128, 128, 128], [255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 0, 128], [255, 255, 255]], np.uint8
+    )
+    rgb[0, : len(edges)] = edges
+    ours = paper_hsv(rgb / 255.0)
+    cv = hsv8(rgb).astype(np.float64) / [256.0, 255.0, 255.0]
+    dh = np.abs((cv[..., 0] - ours[..., 0] + 0.5) % 1.0 - 0.5)  # hue is circular
+    defined = ours[..., 1] > 0  # hue is undefined for greys
+    assert dh[defined].max() <= 1.0 / 256 + 1e-9
+    assert np.abs(cv[..., 1:] - ours[..., 1:]).max() <= 1.0 / 255 + 1e-9
+
+
+# ---------------------------------------------------------------------------- thresholds
+def test_a_red_range_wraps_through_zero_hue() -> None:
+    rng = np.random.default_rng(1)
+    hue = (rng.normal(0.0, 0.01, 500)) % 1.0
+    hsv = np.stack([hue, rng.uniform(0.7, 0.9, 500), rng.uniform(0.5, 1.0, 500)], axis=1)
+    r = fit_colour_range(hsv, rng.uniform(0, 255, (500, 3)))
+    assert r.hsv_lo[0] > 0.9 and r.hsv_hi[0] < 0.1  # lo > hi: through 0
+
+
+def test_colour_range_checks_its_values() -> None:
+    with pytest.raises(ConfigError, match="hsv_lo must lie in"):
+        ColourRange((1.5, 0.0, 0.0), (0.2, 1.0, 1.0))
+    with pytest.raises(ConfigError, match="S range 0.9..0.1 is empty"):
+        ColourRange((0.1, 0.9, 0.0), (0.2, 0.1, 1.0))
+
+
+def test_learned_thresholds_separate_target_colours_from_the_distractors_on_held_out_images() -> None:
+    plan = FitPlan(train_images=60, test_images=30, seed=5)
+    ranges, record = fit(plan)
+    assert set(ranges) <= set(PALETTE) and {"green", "red", "yellow"} <= set(ranges)
+    for colour, spaces in record["held_out"].items():
+        hsv = spaces["hsv"]
+        assert hsv["true_positive"] is None or hsv["true_positive"] > 0.9, colour
+        assert max(hsv["false_positive"].values()) < 0.02, (colour, hsv["false_positive"])
+    # the exit sign is green too: HSV keeps it out of the target's green, a plain RGB box does not
+    assert record["held_out"]["green"]["hsv"]["false_positive"]["exit sign"] < 0.02
+    assert record["held_out"]["green"]["rgb"]["false_positive"]["exit sign"] > 0.1
+
+
+def test_the_shipped_thresholds_hold_on_fresh_images() -> None:
+    params = load_params("ceiling_target")
+    plan = FitPlan(test_images=30)
+    images = list(labelled_images(plan, seed=12345, count=30))
+    hsv = np.concatenate([hsv8(im).reshape(-1, 3) / [256.0, 255.0, 255.0] for im, _ in images])
+    rgb = np.concatenate([im.reshape(-1, 3).astype(np.float64) for im, _ in images])
+    lab = np.concatenate([labels.reshape(-1) for _, labels in images])
+    assert params.fitted_on["plan"]["seed"] == 0  # the record of the data behind them is there
+    for colour, rng in params.thresholds.items():
+        hit = inside(rng, hsv, rgb, "hsv")
+        mine = lab == colour_label(colour)
+        if mine.sum() > 50:
+            assert hit[mine].mean() > 0.9, colour
+        assert hit[lab == LABEL_SIGN].mean() < 0.02, colour
+        assert hit[~mine].mean() < 0.001, colour
+
+
+# ---------------------------------------------------------------------------- round trip
+def _sight(pose: np.ndarray, cam: CeilingCamera, intr: CameraIntrinsics, loc: CeilingTargetLocalizer) -> None:
+    image, _ = cam.render(pose[None, :])
+    loc.reset(np.random.default_rng(0), None)
+    loc.update(CeilingImage(image, intr))
+
+
+def _error(loc: CeilingTargetLocalizer, pose: np.ndarray) -> tuple[float, float]:
+    d = loc.estimate.as_array() - pose
+    return float(math.hypot(d[0], d[1])), abs(float((d[2] + math.pi) % (2 * math.pi) - math.pi))
+
+
+def test_round_trip_on_clean_images_recovers_the_pose_and_the_target() -> None:
+    env, cam, intr, loc = _setup(**CLEAN)
+    footprint = intr.depth_m / intr.fx_px
+    ceiling = env.config.features["ceiling"]
+    assert isinstance(ceiling, CeilingConfig)
+    rng = np.random.default_rng(2)
+    errors = {"AB": [], "A": [], "B": []}
+    for _ in range(240):
+        target = ceiling.targets[rng.integers(len(ceiling.targets))]
+        pose = np.array(
+            [target.x_m + rng.uniform(-0.45, 0.45), target.y_m + rng.uniform(-0.35, 0.35), rng.uniform(-math.pi, math.pi)]
+        )
+        _sight(pose, cam, intr, loc)
+        if loc.last_fix is None:
+            continue
+        assert loc.last_fix.name == target.name  # read from the colour code
+        errors[loc.last_fix.ends].append(_error(loc, pose))
+    both = np.array(errors["AB"])
+    assert both.shape[0] > 80
+    assert both[:, 0].max() <= footprint and both[:, 1].max() <= math.radians(1.0)
+    one = np.array(errors["A"] + errors["B"])
+    assert one.shape[0] > 40  # with one end and part of the line in view
+    assert np.percentile(one[:, 0], 95) <= footprint and one[:, 0].max() <= 3 * footprint
+    assert one[:, 1].max() <= math.radians(1.5)
+
+
+def test_only_one_end_in_view_is_enough() -> None:
+    env, cam, intr, loc = _setup(**CLEAN)
+    footprint = intr.depth_m / intr.fx_px
+    # 0.42 m to the side of a target: one end is out of view, the other and most of the line in;
+    # T1's blue B and T2's magenta A are each the only end of their colour on a yellow line
+    for x, y, end, name in ((0.42, 6.9, "B", "T1"), (-0.42, 13.9, "A", "T2")):
+        pose = np.array([x, y, math.pi / 2])
+        _sight(pose, cam, intr, loc)
+        assert loc.last_fix is not None and loc.last_fix.ends == end and loc.last_fix.name == name
+        position, heading = _error(loc, pose)
+        assert position <= footprint and heading <= math.radians(1.0)
+
+
+def test_ambiguous_readings_are_resolved_by_the_estimate_and_not_guessed_without_one() -> None:
+    env, cam, intr, loc = _setup(**CLEAN)
+    # only T0's and T1's green end A and part of their yellow line in view: both codes fit
+    pose = np.array([-0.42, 6.9, math.pi / 2])
+    image, _ = cam.render(pose[None, :])
+    loc.reset(np.random.default_rng(0), None)
+    loc.update(CeilingImage(image, intr))
+    assert loc.last_fix is None and not loc.estimate.valid
+    assert {r.name for r in loc.last_sightings[0]} == {"T0", "T1"}
+    from localizers.base import PoseEstimate
+
+    loc.reset(np.random.default_rng(0), PoseEstimate(-0.4, 6.8, math.pi / 2, np.diag([0.01, 0.01, 0.01])))
+    loc.update(CeilingImage(image, intr))
+    assert loc.last_fix is not None and loc.last_fix.name == "T1"
+
+
+def test_fix_then_dead_reckoning_with_a_growing_covariance() -> None:
+    env, cam, intr, loc = _setup(**CLEAN)
+    _sight(np.array([0.0, 0.0, math.pi / 2]), cam, intr, loc)
+    first = loc.estimate
+    assert first.valid and first.position_spread_m < 0.05
+    blank = np.zeros((intr.height_px, intr.width_px, 3), np.uint8)
+    spreads = []
+    for _ in range(40):
+        loc.predict(OdometryDelta(0.025, 0.0, 0.0))
+        loc.update(CeilingImage(blank, intr))
+        spreads.append(loc.estimate.position_spread_m)
+    assert all(b > a for a, b in zip(spreads, spreads[1:]))
+    travelled = math.hypot(loc.estimate.x_m - first.x_m, loc.estimate.y_m - first.y_m)
+    assert travelled == pytest.approx(1.0, abs=1e-9)  # 40 x 2.5 cm from the fix
+
+
+def test_ekf_fusion_and_the_single_calibration_constant_run() -> None:
+    env, cam, intr, _ = _setup()
+    for params in ({"fusion": "ekf"}, {"metres_per_px": intr.depth_m / intr.fx_px}, {"undistort": True}, {"colour_space": "rgb"}):
+        loc = make_localizer("ceiling_target", env.landmark_map, dt_s=0.05, params=params)
+        pose = np.array([0.05, 6.95, 1.7])
+        image, _ = cam.render(pose[None, :], None, 1.0, 7)
+        from localizers.base import PoseEstimate
+
+        loc.reset(np.random.default_rng(0), PoseEstimate(0.0, 6.9, 1.6, np.diag([0.01, 0.01, 0.01])))
+        loc.update(CeilingImage(image, intr))
+        position, heading = _error(loc, pose)
+        assert loc.fixes == 1 and position < 0.03 and heading < 0.05, params
+
+
+# ---------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize(
+    "image", [np.zeros((240, 320, 3), np.float32), np.zeros((240, 320), np.uint8), np.zeros((120, 160, 3), np.uint8)]
+)
+def test_an_image_of_the_wrong_shape_or_dtype_is_refused(image: np.ndarray) -> None:
+    _, _, intr, loc = _setup()
+    loc.reset(np.random.default_rng(0))
+    with pytest.raises(MeasurementError, match=r"expected a uint8 image of shape \(240, 320, 3\), got"):
+        loc.update(CeilingImage(image, intr))
+
+
+def test_a_target_colour_without_a_threshold_is_named() -> None:
+    env = LocalizationEnv("ceiling_corridor")
+    params = load_params("ceiling_target")
+    thresholds = {k: v for k, v in params.thresholds.items() if k != "magenta"}
+    with pytest.raises(ConfigError, match="no learned threshold for colour.* magenta"):
+        make_localizer("ceiling_target", env.landmark_map, dt_s=0.05, params=dataclasses.replace(params, thresholds=thresholds))
+
+
+def test_a_world_without_a_ceiling_is_refused() -> None:
+    with pytest.raises(ConfigError, match="ceiling_target.*ceiling_camera sensor"):
+        gym.make("crowdloc/CrowdedRoom-v0", localizer="ceiling_target")
+
+
+def test_in_the_env_loop_it_is_deterministic_and_fixes_under_the_start_target() -> None:
+    def run() -> list[np.ndarray]:
+        env = gym.make("crowdloc/CeilingCorridor-v0", localizer="ceiling_target")
+        obs, info = env.reset(seed=4)
+        out = [info["estimate"].as_array()]
+        for _ in range(30):
+            obs, _, _, _, info = env.step(np.array([0.5, 0.0], dtype=np.float32))
+            out.append(info["estimate"].as_array())
+        return out
+
+    a, b = run(), run()
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert np.all(np.isfinite(a[0])) and abs(a[0][1]) < 0.03  # fixed on the first frame, under T0
