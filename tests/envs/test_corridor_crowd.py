@@ -6,11 +6,13 @@ Nothing here depends on which sensors the world has, beyond odometry in the push
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import envs  # noqa: F401  (registers crowdloc/*)
 from envs.crowds import CorridorConfig, CorridorCrowd
@@ -71,6 +73,10 @@ def gaps(xy: np.ndarray, radii: np.ndarray) -> np.ndarray:
 
 
 def test_the_world_uses_the_corridor_crowd() -> None:
+    default = gym.make(ENV_ID)
+    default.reset(seed=0)
+    assert default.unwrapped.world.member_rows.size == 0  # the paper's empty corridor unless asked
+    default.close()
     env, crowd = make(20, seed=0)
     config = env.unwrapped.config.crowds["corridor"]
     assert isinstance(config, CorridorConfig) and list(env.unwrapped.config.crowds) == ["corridor"]
@@ -253,6 +259,15 @@ def test_a_walker_pushes_a_stopped_robot(behind_m: float, crowd: dict) -> None:
     assert moved[1] > 0.02, moved  # shoved along the walker's way ...
     assert read < 1e-9  # ... which odometry never sees
     assert world.positions[people.rows[0], 1] > 10.5  # and the walker went on past
+    env.close()
+
+
+def test_gymnasium_check_env_with_a_crowd() -> None:
+    env = gym.make(ENV_ID, crowd_size=20)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("error")
+        gym_check_env(env.unwrapped, skip_render_check=True)
+    assert caught == []
     env.close()
 
 
