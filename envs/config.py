@@ -16,12 +16,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
+import numpy as np
+from numpy.typing import NDArray
+
 import crowdloc_configs
 from envs.crowds import CrowdConfig
 from envs.features import FeatureConfig
 from envs.sensors import SensorConfig
 from localizers.schema import ConfigError, check, from_mapping, load_yaml
 
+#: the first this-many rows of :meth:`WorldConfig.wall_segments` are the arena boundary
+BOUNDARY_SEGMENTS = 4
 CONFIG_DIR = crowdloc_configs.path()  # package data (configs/ in the checkout)
 WORLD_DIR = CONFIG_DIR / "worlds"
 
@@ -186,6 +191,15 @@ class WorldConfig:
         m = self.boundary_margin_m
         xmin, ymin, xmax, ymax = self.field_m
         return (xmin - m, ymin - m, xmax + m, ymax + m)
+
+    def wall_segments(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(seg_a, seg_b)``, each ``(S, 2)``: the arena boundary (counter-clockwise, the first
+        :data:`BOUNDARY_SEGMENTS` rows), then the extra walls; the segments the world collides with and
+        the sensors see."""
+        xmin, ymin, xmax, ymax = self.arena_m
+        boundary = [(xmin, ymin, xmax, ymin), (xmax, ymin, xmax, ymax), (xmax, ymax, xmin, ymax), (xmin, ymax, xmin, ymin)]
+        arr = np.asarray(boundary + [tuple(s) for s in self.walls], dtype=np.float64).reshape(-1, 4)
+        return np.ascontiguousarray(arr[:, :2]), np.ascontiguousarray(arr[:, 2:])
 
     def features_of_type(self, type_name: str) -> dict[str, FeatureConfig]:
         """The features of one registered type (``"ceiling"``), by name, in config order."""

@@ -23,7 +23,7 @@ import pymunk
 import pymunk.batch as pbatch
 from numpy.typing import NDArray
 
-from envs.config import WorldConfig
+from envs.config import BOUNDARY_SEGMENTS, WorldConfig
 from envs.crowds import BodySpec, Crowd, build_crowd
 from envs.state import Rows, WorldState, robot_pose
 
@@ -128,17 +128,8 @@ class World:
     # ------------------------------------------------------------------ construction
     def _wall_segments(self) -> None:
         """The arena boundary (counter-clockwise) and extra walls, as the sensors see them."""
-        xmin, ymin, xmax, ymax = self.config.arena_m
-        boundary = [
-            (xmin, ymin, xmax, ymin),
-            (xmax, ymin, xmax, ymax),
-            (xmax, ymax, xmin, ymax),
-            (xmin, ymax, xmin, ymin),
-        ]
-        self._boundary_count = len(boundary)
-        arr = np.asarray(boundary + [tuple(s) for s in self.config.walls], dtype=np.float64).reshape(-1, 4)
-        self.seg_a = np.ascontiguousarray(arr[:, :2])
-        self.seg_b = np.ascontiguousarray(arr[:, 2:])
+        self._boundary_count = BOUNDARY_SEGMENTS
+        self.seg_a, self.seg_b = self.config.wall_segments()
 
     def _build_space(self) -> None:
         """A fresh pymunk space with every body; called on construction and on every reset.

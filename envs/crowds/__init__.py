@@ -1,7 +1,8 @@
 """Crowds as plug-ins: one module per behaviour, registered by type name.
 
-Built in: ``soccer`` (:mod:`.soccer`, owns the ball), ``queues`` (:mod:`.queues`) and
-``walkers`` (:mod:`.walkers`). See :mod:`.base` for the interface and
+Built in: ``soccer`` (:mod:`.soccer`, owns the ball), ``queues`` (:mod:`.queues`),
+``walkers`` (:mod:`.walkers`) and ``corridor`` (:mod:`.corridor`: walkers both ways along a
+corridor and groups standing by its walls). See :mod:`.base` for the interface and
 ``docs/architecture.md`` for adding one.
 """
 
@@ -19,6 +20,7 @@ from envs.crowds.base import (
     crowd_types,
     register_crowd,
 )
+from envs.crowds.corridor import CorridorConfig, CorridorCrowd
 from envs.crowds.queues import QueueCrowd, QueuesConfig
 from envs.crowds.soccer import SoccerConfig, SoccerCrowd
 from envs.crowds.walkers import WalkerCrowd, WalkersConfig
@@ -27,6 +29,8 @@ __all__ = [
     "CROWDS",
     "BodySpec",
     "Commands",
+    "CorridorConfig",
+    "CorridorCrowd",
     "Crowd",
     "CrowdConfig",
     "CrowdType",

@@ -10,7 +10,8 @@ are (:class:`BodySpec`), where they start, and every step what they want to do
 (:class:`Commands`), reading only a frozen :class:`~envs.state.WorldState`. The world turns
 that into pymunk bodies and forces; bodies follow the robot in crowd order. ``crowd_size``
 sets the count of the world's first crowd (its density). Built in: ``soccer``
-(:mod:`.soccer`), ``queues`` (:mod:`.queues`), ``walkers`` (:mod:`.walkers`).
+(:mod:`.soccer`), ``queues`` (:mod:`.queues`), ``walkers`` (:mod:`.walkers`), ``corridor``
+(:mod:`.corridor`).
 """
 
 from __future__ import annotations
@@ -162,9 +163,20 @@ class Crowd:
         xmin, ymin, xmax, ymax = self.world_config.field_m
         return (xmin + margin, ymin + margin, xmax - margin, ymax - margin)
 
-    def free_positions(self, rng: np.random.Generator, count: int, radius: float, taken: Taken) -> NDArray[np.float64]:
-        """``count`` random positions in the field that overlap nothing in ``taken`` (x, y, r), appended to it."""
-        x0, y0, x1, y1 = self.field_box(radius)
+    def free_positions(
+        self,
+        rng: np.random.Generator,
+        count: int,
+        radius: float,
+        taken: Taken,
+        box: tuple[float, float, float, float] | None = None,
+    ) -> NDArray[np.float64]:
+        """``count`` random positions that overlap nothing in ``taken`` (x, y, r), appended to it.
+
+        The centres are drawn uniformly in ``box`` (xmin, ymin, xmax, ymax), by default the
+        field less ``radius`` (:meth:`field_box`).
+        """
+        x0, y0, x1, y1 = self.field_box(radius) if box is None else box
         out = np.zeros((count, 2))
         for i in range(count):
             for _ in range(1000):

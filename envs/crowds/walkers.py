@@ -47,18 +47,29 @@ def social_force_velocities(
     others: NDArray[np.float64],
     seg_a: NDArray[np.float64],
     seg_b: NDArray[np.float64],
-    desired_speed: float,
+    desired_speed: NDArray[np.float64],
     relaxation_s: float,
     strength: float,
     length: float,
     dt: float,
+    other_gain: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """One explicit step of the social-force model (Helbing and Molnar, 1995).
 
-    ``dv/dt = (v0 e - v) / tau + sum_j A exp(-d_ij / B) n_ij`` over other people and the
-    robot (``others``, all positions including the walkers themselves) and walls, where
-    ``d_ij`` is the centre distance (walls: distance to the segment) and ``n_ij`` the unit
-    vector pointing away from the obstacle. Speeds are capped at 1.3 v0.
+    ``dv/dt = (v0_i e - v) / tau + sum_j g_j A exp(-d_ij / B) n_ij`` over other people and the
+    robot (``others``, all positions including the walkers themselves) and walls (``g = 1``),
+    where ``d_ij`` is the centre distance (walls: distance to the segment) and ``n_ij`` the
+    unit vector pointing away from the obstacle. Speeds are capped at 1.3 v0_i.
+
+    Args:
+        pos, vel, goals: ``(N, 2)`` the walkers' positions, velocities and goals.
+        others: ``(M, 2)`` positions of everyone who repels them.
+        seg_a, seg_b: ``(S, 2)`` wall segments.
+        desired_speed: ``(N,)`` each walker's desired speed v0_i.
+        relaxation_s, strength, length: tau, A and B.
+        dt: the time step.
+        other_gain: ``(M,)`` each other's repulsion as a multiple of ``strength`` (ones: all
+            alike; a larger value for the robot makes people keep clear of it).
     """
     n = pos.shape[0]
     out = np.empty((n, 2))
@@ -69,15 +80,15 @@ def social_force_velocities(
         if d > 1e-9:
             ex /= d
             ey /= d
-        fx = (desired_speed * ex - vel[i, 0]) / relaxation_s
-        fy = (desired_speed * ey - vel[i, 1]) / relaxation_s
+        fx = (desired_speed[i] * ex - vel[i, 0]) / relaxation_s
+        fy = (desired_speed[i] * ey - vel[i, 1]) / relaxation_s
         for j in range(others.shape[0]):
             rx = pos[i, 0] - others[j, 0]
             ry = pos[i, 1] - others[j, 1]
             r = math.sqrt(rx * rx + ry * ry)
             if r < 1e-9:
                 continue  # itself
-            mag = strength * math.exp(-r / length)
+            mag = strength * other_gain[j] * math.exp(-r / length)
             fx += mag * rx / r
             fy += mag * ry / r
         for s in range(seg_a.shape[0]):
@@ -100,7 +111,7 @@ def social_force_velocities(
         vx = vel[i, 0] + dt * fx
         vy = vel[i, 1] + dt * fy
         speed = math.sqrt(vx * vx + vy * vy)
-        cap = 1.3 * desired_speed
+        cap = 1.3 * desired_speed[i]
         if speed > cap:
             vx *= cap / speed
             vy *= cap / speed
@@ -120,6 +131,7 @@ class WalkerCrowd(Crowd):
         self.w = config
         self.goals = np.zeros((self.count, 2))
         self.dt_s = world.dt_s
+        self.desired_speed = np.full(self.count, config.desired_speed_mps)
 
     def _free_goals(self, rng: np.random.Generator, count: int) -> NDArray[np.float64]:
         x0, y0, x1, y1 = self.field_box(0.5)
@@ -137,18 +149,20 @@ class WalkerCrowd(Crowd):
         arrived = np.sum((pos - self.goals) ** 2, axis=1) < 0.25
         if arrived.any():
             self.goals[arrived] = self._free_goals(rng, int(arrived.sum()))
+        others_xy = state.positions[others]  # the robot and every person, walkers included
         v = social_force_velocities(
             pos,
             state.velocities[self.member_rows],
             self.goals,
-            state.positions[others],  # the robot and every person, walkers included
+            others_xy,
             state.seg_a,
             state.seg_b,
-            w.desired_speed_mps,
+            self.desired_speed,
             w.relaxation_s,
             w.repulsion_strength_mps2,
             w.repulsion_range_m,
             self.dt_s,
+            np.ones(others_xy.shape[0]),  # everyone repels alike
         )
         v[self.held] = 0.0
         return Commands(v)
