@@ -90,6 +90,16 @@ def jsonable(o: Any) -> Any:
     return str(o)
 
 
+def markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> list[str]:
+    """``rows`` under ``header`` as the lines of a markdown table (the first column left-aligned, the others right)."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join([":---"] + ["---:"] * (len(header) - 1)) + "|"]
+    for row in rows:
+        if len(row) != len(header):
+            raise ValueError(f"markdown_table: a row has {len(row)} cells for {len(header)} columns: {list(row)!r}")
+        lines.append("| " + " | ".join(row) + " |")
+    return lines
+
+
 def text_table(header: Sequence[str], rows: Iterable[Sequence[str]], align: str | None = None) -> str:
     """``rows`` under ``header`` as an aligned plain-text table for the console: rich's markdown
     form, without colour or markup, each column as wide as its widest cell, whatever the terminal's

@@ -89,6 +89,8 @@ class CeilingTargetParams:
         undistort: remove the lens distortion (from the camera's metadata) before converting.
         metres_per_px: > 0: the paper's single calibration constant instead of the intrinsics.
         fusion: ``"reset"`` (the paper's correction) or ``"ekf"``.
+        fixes: ``"every"`` target in view corrects the pose; ``"first"``: only the first fix
+            counts (the start target), then dead reckoning alone (the paper's Table 5 drive).
         position_sd_m, heading_sd_rad: the uncertainty of one fix.
         position_var_m2_per_m, heading_var_rad2_per_m, heading_var_rad2_per_rad: dead-reckoning
             drift between fixes (as :mod:`localizers.dead_reckoning`).
@@ -105,6 +107,7 @@ class CeilingTargetParams:
     undistort: bool = False
     metres_per_px: float = 0.0
     fusion: Literal["reset", "ekf"] = "reset"
+    fixes: Literal["every", "first"] = "every"
     position_sd_m: float = 0.02
     heading_sd_rad: float = 0.05
     position_var_m2_per_m: float = 2e-4
@@ -204,6 +207,8 @@ class CeilingTargetLocalizer:
                 f"{self.name}: the camera looks at feature {measurement.feature!r}, not one of {', '.join(self._targets)}"
             )
         image = check_image(measurement.image, measurement.camera, self.name)
+        if self._params.fixes == "first" and self.fixes:
+            return  # dead reckoning from the start fix on
         self.last_sightings = sight_targets(image, measurement.camera, targets, self._params.thresholds, self._settings)
         fix = self._choose(self.last_sightings)
         if fix is None:

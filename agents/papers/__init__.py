@@ -12,6 +12,10 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
         "agents.papers.bearing_candidates",
         "two-landmark candidate sets (Motomura et al.): Exp 1-3, Tables 1-3, beside the paper's numbers",
     ),
+    "ceiling-target": (
+        "agents.papers.ceiling_target",
+        "ceiling colour targets (Fukaya et al.): Tables 2-6 beside the paper's numbers, and drives among crowds",
+    ),
     "lidar-far-point": (
         "agents.papers.lidar_far_point",
         "LIDAR scan accumulation + far points (Fujii et al.): MCL with and without them vs sampling and hit (Figs 5, 7-11)",

@@ -77,9 +77,9 @@ def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDAr
     xmin, ymin, xmax, ymax = env.config.field_m
     spots = [(t.x_m, t.y_m) for t in ceiling.targets]
     signs = [(s.x_m, s.y_m) for s in ceiling.signs]
-    for _ in range(count):
+    for i in range(count):
         if spots and rng.random() < plan.near_target_share:
-            cx, cy = spots[rng.integers(len(spots))]
+            cx, cy = spots[i % len(spots)]  # every target in turn: each colour is seen
             xy = (cx + rng.uniform(-0.3, 0.3), cy + rng.uniform(-0.4, 0.4))
         elif signs and rng.random() < 0.5:
             cx, cy = signs[rng.integers(len(signs))]
@@ -89,7 +89,9 @@ def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDAr
         pose = np.array([[xy[0], xy[1], rng.uniform(-math.pi, math.pi)]])
         heads = pose[:, :2] + rng.normal(0.0, 0.45, size=(int(rng.integers(0, 3)), 2))
         heads = heads[np.hypot(*(heads - pose[:, :2]).T) > 0.45]  # people stand outside the robot
-        gain = rng.uniform(*plan.gain_range)
+        # gains spread evenly over the range (a low-discrepancy sequence), whatever the count
+        lo, hi = plan.gain_range
+        gain = lo + (hi - lo) * ((i * 0.6180339887498949 + rng.uniform(0, 0.05)) % 1.0)
         image, labels = camera.render(pose, heads, gain, int(rng.integers(1 << 30)), labels=True)
         assert labels is not None
         yield image, labels
