@@ -165,8 +165,8 @@ def ceiling_texture(
     """
     xmin, ymin, xmax, ymax = extent_m
     cols, rows = int(math.ceil((xmax - xmin) / texel_m)), int(math.ceil((ymax - ymin) / texel_m))
-    xs = xmin + (np.arange(cols) + 0.5) * texel_m
-    ys = ymin + (np.arange(rows) + 0.5) * texel_m
+    xs = np.asarray(xmin + (np.arange(cols) + 0.5) * texel_m, dtype=np.float64)
+    ys = np.asarray(ymin + (np.arange(rows) + 0.5) * texel_m, dtype=np.float64)
     rgb = np.empty((rows, cols, 3), dtype=np.uint8)
     rgb[:] = ceiling.rgb
     labels = np.full((rows, cols), LABEL_CEILING, dtype=np.uint8)
@@ -379,14 +379,18 @@ class CeilingCamera(SensorBase):
         # texture coordinates of every pixel's ceiling point: affine in its robot-frame point
         map_x = cv2.addWeighted(self._forward, cos / t, self._left, -sin / t, (pose[0] - xmin) / t - 0.5)
         map_y = cv2.addWeighted(self._forward, sin / t, self._left, cos / t, (pose[1] - ymin) / t - 0.5)
-        image = np.asarray(cv2.remap(self._texture, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE))
+        image: NDArray[np.uint8] = np.asarray(
+            cv2.remap(self._texture, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE), dtype=np.uint8
+        )
         label_image = self._no_labels
         if labels:
-            label_image = np.asarray(cv2.remap(self._labels, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE))
+            label_image = np.asarray(
+                cv2.remap(self._labels, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE), dtype=np.uint8
+            )
         if heads_xy is not None and c.head_height_m > 0 and len(heads_xy):
             self._draw_heads(pose, np.asarray(heads_xy, dtype=np.float64).reshape(-1, 2), image, label_image)
         if kernel is not None:
-            image = np.asarray(cv2.filter2D(image, -1, kernel, borderType=cv2.BORDER_REPLICATE))
+            image = np.asarray(cv2.filter2D(image, -1, kernel, borderType=cv2.BORDER_REPLICATE), dtype=np.uint8)
         out = np.empty_like(image)
         if noise_offset is None:
             noise = self._no_noise
