@@ -88,6 +88,21 @@ def run_all(quick: bool = False) -> list[Result]:
     results.append(
         Result("envs", "CrowdedRoom-v0, 20 queueing + 10 social-force walkers", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}")
     )
+    c = n // 10
+    med, lo, hi = _env_rate("crowdloc/CeilingCorridor-v0", c, crowd_size=20)
+    results.append(
+        Result(
+            "envs",
+            "CeilingCorridor-v0, 320 x 240 image every step, 20 people, random actions",
+            med,
+            "steps/s",
+            f"{lo:,.0f}-{hi:,.0f}",
+            ">= 2,000",
+            med >= 2_000,
+        )  # fmt: skip
+    )
+    med, lo, hi = _env_rate("crowdloc/CeilingCorridor-v0", c, crowd_size=20, camera={"exposure_s": 0.0})
+    results.append(Result("envs", "CeilingCorridor-v0, as above without motion blur", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}"))
     med, lo, hi = _pymunk_reference(15, 8, n // 2)
     results.append(
         Result("reference", "plain pymunk: 15 circles + 8 segment_query_first per step", med, "steps/s", f"{lo:,.0f}-{hi:,.0f}")

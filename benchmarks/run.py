@@ -9,13 +9,14 @@ import platform
 import sys
 from pathlib import Path
 
-from benchmarks import bench_envs, bench_lidar, bench_localizers, bench_train
+from benchmarks import bench_ceiling, bench_envs, bench_lidar, bench_localizers, bench_train
 from benchmarks.common import Result
 
 SUITES = {
     "envs": bench_envs.run_all,
     "localizers": bench_localizers.run_all,
     "lidar": bench_lidar.run_all,
+    "ceiling": bench_ceiling.run_all,
     "training": bench_train.run_all,
 }
 
