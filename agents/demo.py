@@ -282,13 +282,13 @@ def _active_table(
 ) -> tuple[EvalResult, list[str]]:
     """Evaluate the fixed and the trained policies on ``seeds`` test seeds; write the outputs; the table's lines."""
     from agents.evaluate import Cell, EvalSpec, evaluate, summary_markdown, write_outputs
-    from agents.policies import FIXED_POLICIES
+    from agents.evaluate.spec import runnable_policies, world_of
     from agents.train import load_train_config
 
-    policies = list(FIXED_POLICIES)
+    trained = load_train_config(SHIPPED_CONFIG)
+    policies = runnable_policies(world_of(trained.env_id, trained.env_kwargs))  # not those planning on another world's map
     policies += list(dict.fromkeys(ppo_for.values()))
     ppo = ppo_for.get(ACTIVE_LOCALIZERS[0]) or next(iter(ppo_for.values()), None)
-    trained = load_train_config(SHIPPED_CONFIG)
     spec = EvalSpec(
         policies=tuple(policies),
         localizers=ACTIVE_LOCALIZERS,

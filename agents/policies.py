@@ -14,6 +14,13 @@ the estimate need the wrapped observation and say so when it is missing.
 - :class:`LandmarkSeeking`: head for the nearby spot from which most landmarks are in range.
 - :class:`GreedyInformationGain`: one-step look-ahead over a set of motions maximizing the
   Fisher information of the bearings expected to be visible from the estimated pose.
+- :class:`~agents.navigation.CorridorFollower` (``"corridor_follower"``): the ceiling-target
+  paper's navigation, from target to target of a ceiling along a corridor, centred by the
+  side sonars, stopping under each target to correct the pose (:mod:`agents.navigation`).
+
+The base class and the helpers the policies share are in :mod:`agents.policy_base`. A policy
+names the sensor type it reads (``needs_sensor``) and the map feature type it plans on
+(``needs_feature``); :meth:`FixedPolicy.unmet_need` says what a world lacks for it.
 
 The last two also keep clear of the crowd when the robot has a sonar ring (observation key
 ``sonar``): they do not drive toward a direction whose sonar reads closer than ``clearance_m``.
@@ -22,61 +29,39 @@ The last two also keep clear of the crowd when the robot has a sonar ring (obser
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import Any, ClassVar
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
+from agents.navigation import CorridorFollower
+from agents.policy_base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
 from envs.sensors import BearingCameraConfig
 from localizers.base import LandmarkMap
 from localizers.bounds import bearing_information
-from localizers.geometry import in_field_of_view, ring_directions, wrap_angle
-from localizers.wrappers import decode_estimate
+from localizers.geometry import in_field_of_view, wrap_angle
 
-Observation = dict[str, NDArray[np.float32]]
+__all__ = [
+    "CLEARANCE_M",
+    "FIXED_POLICIES",
+    "CorridorFollower",
+    "FixedPolicy",
+    "GreedyInformationGain",
+    "LandmarkSeeking",
+    "Observation",
+    "PatrolPath",
+    "RandomWalk",
+    "SpinInPlace",
+    "StopAndGo",
+    "make_policy",
+    "read_estimate",
+    "sonar_cones",
+]
 
 #: map policies do not drive toward a sonar reading closer than this (two robot radii and a margin)
 CLEARANCE_M = 0.7
-
-
-class FixedPolicy:
-    """Base class: one action per call for a single (non-vectorized) environment.
-
-    Args:
-        action_space: the env's ``Box(-1, 1, (2,))`` action space.
-        seed: seed of the policy's own random stream (independent of the env's).
-    """
-
-    #: the sensor type whose readings the policy reads besides the estimate (None: only odometry and the estimate)
-    needs_sensor: ClassVar[str | None] = None
-
-    def __init__(self, action_space: spaces.Box, seed: int | None = None) -> None:
-        if not isinstance(action_space, spaces.Box) or action_space.shape != (2,):
-            raise ValueError(f"{type(self).__name__} needs a Box action space of shape (2,), got {action_space!r}")
-        self.action_space = action_space
-        self.rng = np.random.default_rng(seed)
-
-    def reset(self, seed: int | None = None) -> None:
-        """Start a new episode (and optionally re-seed)."""
-        if seed is not None:
-            self.rng = np.random.default_rng(seed)
-
-    def predict(
-        self,
-        observation: Observation,
-        state: Any = None,
-        episode_start: Any = None,
-        deterministic: bool = False,
-    ) -> tuple[NDArray[np.float32], Any]:
-        if episode_start is not None and bool(np.any(episode_start)):
-            self.reset()
-        action = np.clip(self._act(observation), self.action_space.low, self.action_space.high)
-        return action.astype(np.float32), state
-
-    def _act(self, observation: Observation) -> NDArray[np.float64]:
-        raise NotImplementedError
 
 
 class RandomWalk(FixedPolicy):
@@ -97,7 +82,7 @@ class RandomWalk(FixedPolicy):
         persistence: float = 0.9,
     ) -> None:
         super().__init__(action_space, seed)
-        _check_command("RandomWalk speed", speed)
+        check_command("RandomWalk speed", speed)
         if not 0.0 <= persistence < 1.0:
             raise ValueError(f"RandomWalk persistence must be in [0, 1), got {persistence}")
         self.speed = speed
@@ -119,7 +104,7 @@ class SpinInPlace(FixedPolicy):
 
     def __init__(self, action_space: spaces.Box, seed: int | None = None, turn: float = 0.5) -> None:
         super().__init__(action_space, seed)
-        _check_command("SpinInPlace turn", turn)
+        check_command("SpinInPlace turn", turn)
         self.turn = turn
 
     def _act(self, observation: Observation) -> NDArray[np.float64]:
@@ -150,8 +135,8 @@ class PatrolPath(FixedPolicy):
     ) -> PatrolPath:
         """Segments ``(speed, turn, steps)`` in action units."""
         for i, (v, w, n) in enumerate(segments):
-            _check_command(f"PatrolPath segment {i} speed", v)
-            _check_command(f"PatrolPath segment {i} turn", w)
+            check_command(f"PatrolPath segment {i} speed", v)
+            check_command(f"PatrolPath segment {i} turn", w)
             if int(n) != n or n < 1:
                 raise ValueError(f"PatrolPath segment {i} needs a positive whole number of steps, got {n!r}")
         rows = [np.tile([v, w], (int(n), 1)) for v, w, n in segments]
@@ -234,7 +219,7 @@ class _MapPolicy(FixedPolicy):
         clearance_m: float = CLEARANCE_M,
     ) -> None:
         super().__init__(action_space, seed)
-        _check_command(f"{type(self).__name__} speed", speed)
+        check_command(f"{type(self).__name__} speed", speed)
         if landmarks.count == 0:
             raise ValueError(f"{type(self).__name__} needs a map with landmarks")
         self.landmarks = landmarks
@@ -250,14 +235,7 @@ class _MapPolicy(FixedPolicy):
         self.search = SpinInPlace(action_space, seed, turn=search_turn)
 
     def _estimate(self, observation: Observation) -> NDArray[np.float64] | None:
-        if "estimate" not in observation:
-            raise KeyError(
-                f"{type(self).__name__} plans from the localizer's estimate: make the env with localizer=... "
-                f"(observation keys: {sorted(observation)})"
-            )
-        if observation["estimate_valid"][0] < 0.5:
-            return None
-        return decode_estimate(observation["estimate"], self.landmarks.bounds_m)
+        return read_estimate(observation, self.landmarks.bounds_m, type(self).__name__)
 
     def expected_visible(
         self,
@@ -299,8 +277,7 @@ class _MapPolicy(FixedPolicy):
         if "sonar" not in observation:
             return np.zeros(directions.shape, dtype=bool)
         ranges = np.asarray(observation["sonar"], dtype=np.float64)
-        near = np.abs(wrap_angle(ring_directions(ranges.shape[0]) - directions[..., None])) <= math.pi / 4
-        return np.any(near & (ranges < self.clearance_m), axis=-1)
+        return np.any(sonar_cones(ranges.shape[0], directions, math.pi / 4) & (ranges < self.clearance_m), axis=-1)
 
     def _inside(self, xy: NDArray[np.float64], margin: float = 0.4) -> NDArray[np.bool_]:
         xmin, ymin, xmax, ymax = self.landmarks.bounds_m
@@ -431,11 +408,6 @@ class GreedyInformationGain(_MapPolicy):
         return self.candidates[int(np.argmax(scores))].copy()
 
 
-def _check_command(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and -1.0 <= value <= 1.0):
-        raise ValueError(f"{name} must be a number in [-1, 1] (action units), got {value!r}")
-
-
 def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> FixedPolicy:
     """Build fixed policy ``name`` for ``env`` (the map and limits come from ``env.unwrapped``)."""
     base = env.unwrapped
@@ -455,7 +427,33 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
             if cam is not None:
                 kwargs.setdefault("bearing_std_rad", max(cam.noise_std_rad, 1e-3))
         return FIXED_POLICIES[name](space, base.landmark_map, seed, **kwargs)
+    if name == "corridor_follower":
+        kwargs.setdefault("dt_s", base.config.dt_s)
+        kwargs.setdefault("max_speed_mps", base.config.robot.max_speed_mps)
+        kwargs.setdefault("max_turn_rate_rps", base.config.robot.max_turn_rate_rps)
+        sonar = base.config.sensor_of_type("sonar")
+        if sonar is not None:
+            kwargs.setdefault("sonar_cone_rad", sonar.cone_rad)
+        lmap = base.landmark_map
+        return CorridorFollower(space, ceiling_targets(base.config, lmap.features), lmap.bounds_m, seed, **kwargs)
     return FIXED_POLICIES[name](space, seed=seed, **kwargs)
+
+
+def ceiling_targets(world: Any, features: Mapping[str, Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """The targets of the ceiling a world's ceiling camera looks at (or of its one ceiling feature), from the map.
+
+    Raises:
+        ValueError: for a world without a ceiling feature, or with several and no camera naming one.
+    """
+    ceilings = [name for name, data in features.items() if data.get("type") == "ceiling"]
+    camera = world.sensor_of_type("ceiling_camera")
+    name = getattr(camera, "feature", None) if camera is not None else (ceilings[0] if len(ceilings) == 1 else None)
+    if name not in ceilings:
+        raise ValueError(
+            f"corridor_follower drives between ceiling targets: world {world.name!r} has "
+            + (f"ceiling features {', '.join(ceilings)} and no ceiling camera naming one" if ceilings else "no ceiling feature")
+        )
+    return list(features[name].get("targets", ()))
 
 
 FIXED_POLICIES: dict[str, Any] = {
@@ -465,4 +463,5 @@ FIXED_POLICIES: dict[str, Any] = {
     "patrol": PatrolPath,
     "landmark_seeking": LandmarkSeeking,
     "greedy_info_gain": GreedyInformationGain,
+    "corridor_follower": CorridorFollower,
 }

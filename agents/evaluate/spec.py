@@ -136,22 +136,14 @@ class EvalSpec:
             find_sensor(localizer_kind(name), have, f"localizer {name!r} in {where}")  # raises, naming what is missing
         for policy in self.policies:
             check_policy(policy)
-            needs = None if policy.startswith(PPO_PREFIX) else FIXED_POLICIES[policy].needs_sensor
-            if needs is not None and world.sensor_of_type(needs) is None:
-                usable = [
-                    p for p, cls in FIXED_POLICIES.items() if cls.needs_sensor is None or world.sensor_of_type(cls.needs_sensor)
-                ]
-                raise ConfigError(f"policy {policy!r} needs a {needs} sensor and {where} has none "
-                                  f"(its sensors: {', '.join(world.sensors)}); fixed policies it can run: {', '.join(usable)}")  # fmt: skip
+            unmet = None if policy.startswith(PPO_PREFIX) else FIXED_POLICIES[policy].unmet_need(world)
+            if unmet is not None:
+                raise ConfigError(f"policy {policy!r} needs {unmet[0]} and {where} has none ({unmet[1]}); "
+                                  f"fixed policies it can run: {', '.join(runnable_policies(world))}")  # fmt: skip
 
     def world(self) -> WorldConfig:
         """The world evaluated: the id's (or ``env_kwargs["world"]``) with the conditions applied."""
-        from envs import load_world
-        from envs.localization_env import apply_overrides
-
-        conditions = {k: v for k, v in self.env_kwargs.items() if k not in ("prior", "belief_spread", "world")}
-        name = self.env_kwargs.get("world") or gym.spec(self.env_id).kwargs["world"]
-        return apply_overrides(load_world(name), **conditions)
+        return world_of(self.env_id, self.env_kwargs)
 
     @property
     def metrics(self) -> tuple[MetricInfo, ...]:
@@ -201,6 +193,21 @@ class Cell:
     def stem(self, policy_label: str | None = None) -> str:
         """A file-name stem naming this episode (with the policy's short name, if given)."""
         return f"{slug(policy_label or self.policy)}__{self.localizer}__crowd{self.crowd_size}__seed{self.seed}"
+
+
+def runnable_policies(world: WorldConfig) -> list[str]:
+    """The fixed policies whose sensor and map feature ``world`` has, in registry order."""
+    return [name for name, cls in FIXED_POLICIES.items() if cls.unmet_need(world) is None]
+
+
+def world_of(env_id: str, env_kwargs: Mapping[str, Any]) -> WorldConfig:
+    """The world of ``env_id`` (or ``env_kwargs["world"]``) with the conditions ``env_kwargs`` applied."""
+    from envs import load_world
+    from envs.localization_env import apply_overrides
+
+    conditions = {k: v for k, v in env_kwargs.items() if k not in ("prior", "belief_spread", "world")}
+    name = env_kwargs.get("world") or gym.spec(env_id).kwargs["world"]
+    return apply_overrides(load_world(name), **conditions)
 
 
 def crowdloc_ids() -> list[str]:

@@ -193,7 +193,10 @@ def test_evaluate_runs_only_the_groups_asked_for_on_all_seeds() -> None:
         ({"env_kwargs": {"camera": {"fov_rad": 9.0}}}, "camera.fov_rad must be in (0, 2 pi], got 9.0"),
         ({"env_kwargs": {"kamera": {}}}, "unknown env keyword 'kamera'"),
         ({"env_kwargs": "fov=1"}, "env_kwargs must be a mapping, got 'fov=1'"),
-        ({"env_id": "crowdloc/Nowhere-v0"}, "unknown env id 'crowdloc/Nowhere-v0'; known: crowdloc/CrowdedRoom-v0, "),
+        (
+            {"env_id": "crowdloc/Nowhere-v0"},
+            "unknown env id 'crowdloc/Nowhere-v0'; known: crowdloc/CeilingCorridor-v0, crowdloc/CrowdedRoom-v0, ",
+        ),
         ({"env_kwargs": {"world": 3}}, "env_kwargs world must be a YAML path or a shipped world name, got 3"),
         # a localizer whose world lacks the sensor its measurement kind reads
         (
