@@ -362,7 +362,7 @@ def _find_end(
     ``mask_of(window)`` gives the colour's mask in an image window; the paper's square mask
     (``mask_px`` x ``mask_px``) slides over it and the best-filled place counts if at least
     ``mask_fill`` of the mask is of the colour; the centre is the centroid of the colour's
-    pixels under the mask there.
+    pixels around that place (the square's).
     """
     h, w = shape
     guess = at + outward * end_px / 2
@@ -377,7 +377,9 @@ def _find_end(
     _, best, _, (bu, bv) = cv2.minMaxLoc(fill)
     if best < settings.mask_fill:
         return None
-    r = k // 2
+    # the centroid of the colour's pixels around the best place: the whole square (it is a
+    # little larger than the mask, so the mask's own pixels would pull toward the mask's corner)
+    r = int(math.ceil(0.75 * end_px)) + 1
     sub = window[max(0, bv - r) : bv + r + 1, max(0, bu - r) : bu + r + 1]
     rows, cols = np.nonzero(sub)
     centre = np.array([cols.mean() + max(0, bu - r) + u0 + 0.5, rows.mean() + max(0, bv - r) + v0 + 0.5])

@@ -19,7 +19,9 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
+from agents.navigation import CorridorFollower
 from agents.policies import make_policy
+from envs.localization_env import LocalizationEnv
 
 ENV_ID = "crowdloc/CeilingCorridor-v0"
 
@@ -60,9 +62,11 @@ def drive(task: DriveTask) -> DriveResult:
         kwargs["camera"] = dict(task.camera)
     env = gym.make(ENV_ID, crowd_size=task.crowd, **kwargs)
     policy = make_policy("corridor_follower", env, seed=task.seed, **dict(task.policy))
+    assert isinstance(policy, CorridorFollower)
     obs, info = env.reset(seed=task.seed)
     base = env.unwrapped
-    localizer = base.localizer if hasattr(base, "localizer") else env.get_wrapper_attr("localizer")
+    assert isinstance(base, LocalizationEnv)
+    localizer = env.get_wrapper_attr("localizer")
     truths = [np.asarray(info["true_pose"], dtype=np.float64)]
     errors, travelled = [], []
     since_fix, fixes_seen, contacts = 0.0, localizer.fixes, 0

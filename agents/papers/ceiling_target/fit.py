@@ -67,7 +67,7 @@ def camera_of(env: LocalizationEnv) -> CeilingCamera:
     return camera
 
 
-def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDArray[np.uint8], NDArray[np.int64]]]:
+def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDArray[np.uint8], NDArray[np.uint8]]]:
     """``count`` rendered images and their pixel labels, without motion blur (labels are exact)."""
     env = LocalizationEnv(plan.world, camera={"exposure_s": 0.0})
     camera = camera_of(env)
