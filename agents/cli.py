@@ -19,9 +19,11 @@ DEFAULT_RESULTS = Path("results")
 def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     demo = sub.add_parser(
         "demo",
-        help="the worlds survey, the active-localization table and the verdict; writes results/demo/report.md",
-        description="Drive every registered world at several crowd densities with a random-walk policy (steps "
-        "per second, landmark / wall visibility, one frame per world); then evaluate the fixed policies and the "
+        help="the worlds survey, the ceiling corridor, the active-localization table and the verdict; writes "
+        "results/demo/report.md",
+        description="Drive the papers' first worlds at several crowd densities with a random-walk policy (steps "
+        "per second, landmark / wall visibility, one frame per world); drive the ceiling corridor among people with "
+        "the paper's navigation (errors at the targets, a camera frame with the pipeline's findings, a top view); then evaluate the fixed policies and the "
         "shipped PPO policies x 2 localizers x 3 crowd sizes on held-out test seeds (the active-localization "
         "table), and judge each trained policy against the table's best fixed policies on fresh test seeds "
         "(the verdict).",
@@ -332,7 +334,12 @@ def _run_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
         Path(args.out).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         parser.error(f"--out {args.out}: cannot create the output folder ({exc.strerror})")
-    report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
+    from localizers.schema import ConfigError
+
+    try:
+        report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
+    except ConfigError as exc:
+        parser.error(str(exc))
     print(f"wrote {report}")
     return 0
 

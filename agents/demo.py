@@ -5,6 +5,10 @@ drives the robot; the report gives the simulation speed and how the crowd cuts t
 from its references (the share of time each number of landmarks is visible, or the share of
 LIDAR beams that reach a wall rather than a person), with one rendered frame per world.
 
+Then the ceiling corridor: one drive of the corridor_follower among people, a camera frame
+with what the ceiling-target pipeline found drawn on it, and a top view
+(:mod:`agents.papers.ceiling_target.demo`).
+
 Part 2, active localization: the fixed policies and the shipped PPO policies (one per
 localizer, ``models/ppo_<localizer>.zip``) x two localizers x three crowd densities on
 ``RoboCupCrowded-v0`` in the conditions the policies were trained in (those of
@@ -233,11 +237,14 @@ def run_demo(
     workers: int | None = None,
     verdict_seeds: int = VERDICT_SEEDS,
 ) -> Path:
-    """Part 1 and part 2; writes ``out_dir/report.md`` and prints it.
+    """Part 1, the corridor and part 2; writes ``out_dir/report.md`` and prints it.
 
     ``models``: the PPO policy per localizer (default :data:`SHIPPED_MODELS`).
     """
     report = run_worlds(out_dir, steps=steps, seed=seed, densities=densities)
+    from agents.papers.ceiling_target.demo import corridor_section
+
+    report.write_text(report.read_text() + "\n" + corridor_section(out_dir / "corridor", seed))
     if active_seeds > 0:
         active = run_active(out_dir / "active", seeds=active_seeds, models=models, workers=workers,
                             verdict_seeds=verdict_seeds)  # fmt: skip

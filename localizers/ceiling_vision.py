@@ -280,6 +280,7 @@ class Sighting:
         ends: which squares were found: ``"AB"``, ``"A"`` or ``"B"``.
         line_px: pixels of the line; ``rotation_rad``: the line's direction A -> B in the robot frame.
         a_px, b_px: the squares' centres in the image (NaN when not found).
+        line_ends_px: the fitted line's extreme points in the image, ``((u0, v0), (u1, v1))``.
     """
 
     target: int
@@ -290,6 +291,7 @@ class Sighting:
     rotation_rad: float
     a_px: tuple[float, float]
     b_px: tuple[float, float]
+    line_ends_px: tuple[tuple[float, float], tuple[float, float]]
 
 
 @dataclass(frozen=True)
@@ -494,6 +496,7 @@ def _readings(
                     float(math.atan2(d[1], d[0])),
                     nan if a_px is None else (float(a_px[0]), float(a_px[1])),
                     nan if b_px is None else (float(b_px[0]), float(b_px[1])),
+                    ((float(blob.ends[0][0]), float(blob.ends[0][1])), (float(blob.ends[1][0]), float(blob.ends[1][1]))),
                 )
             )
     return out
