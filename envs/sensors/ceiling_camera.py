@@ -287,6 +287,10 @@ class CeilingCamera(SensorBase):
         self.head_depth = config.head_height_m - config.mount_height_m
         self.dt_s = world.dt_s
         self.texel_m = config.texel_m
+        # how far from the robot's centre a head can be and still show: the view's reach at the
+        # heads' height, the camera's offset and the head's radius
+        view = float(np.max(np.hypot(self.model.rays[..., 0], self.model.rays[..., 1])))
+        self._head_reach_m = view * self.head_depth + float(np.hypot(*config.offset_m)) + config.head_radius_m
         self._texture, self._labels = ceiling_texture(ceiling, world.arena_m, config.texel_m)
         self._texture_origin = world.arena_m[:2]
         rays = self.model.rays
@@ -405,8 +409,12 @@ class CeilingCamera(SensorBase):
     ) -> None:
         """Paint the heads in view, each tested only inside its projected box."""
         c, m = self.config, self.model
-        cos, sin = math.cos(pose[2]), math.sin(pose[2])
         rel = heads - pose[:2]
+        near = np.abs(rel).max(axis=1) <= self._head_reach_m  # most frames: nobody close enough
+        if not near.any():
+            return
+        heads, rel = heads[near], rel[near]
+        cos, sin = math.cos(pose[2]), math.sin(pose[2])
         forward = cos * rel[:, 0] + sin * rel[:, 1] - c.offset_m[0]
         left = -sin * rel[:, 0] + cos * rel[:, 1] - c.offset_m[1]
         # the head's centre and radius in normalized coordinates at its height, then its box in
