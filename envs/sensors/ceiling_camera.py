@@ -59,6 +59,17 @@ if TYPE_CHECKING:
 _NOISE_POOL = 1 << 20  # noise offsets drawn per frame (the pool holds this plus one frame)
 _HAIR_RGB = (45, 35, 30)
 
+#: overrides that switch the camera's imperfections off (no lens distortion, noise, light changes,
+#: vignetting or motion blur; heads still show): an ideal pinhole camera, for tests and studies
+IDEAL = {
+    "k1": 0.0,
+    "noise_std": 0.0,
+    "vignetting": 0.0,
+    "gain_along_amplitude": 0.0,
+    "gain_time_amplitude": 0.0,
+    "exposure_s": 0.0,
+}
+
 
 @dataclass(frozen=True)
 class CeilingCameraConfig(SensorConfig):

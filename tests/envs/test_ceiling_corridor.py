@@ -14,18 +14,11 @@ import envs  # noqa: F401  (registers the ids)
 from envs.config import load_world
 from envs.features.ceiling import LABEL_CEILING, LABEL_HEAD, CeilingConfig, CeilingTarget, colour_label
 from envs.localization_env import LocalizationEnv
-from envs.sensors.ceiling_camera import CeilingCamera, undistort
+from envs.sensors.ceiling_camera import IDEAL, CeilingCamera, undistort
 from localizers.schema import ConfigError, from_mapping
 
 ID = "crowdloc/CeilingCorridor-v0"
-CLEAN = {
-    "k1": 0.0,
-    "noise_std": 0.0,
-    "vignetting": 0.0,
-    "gain_along_amplitude": 0.0,
-    "gain_time_amplitude": 0.0,
-    "exposure_s": 0.0,
-}
+CLEAN = IDEAL  # every imperfection of the camera off
 
 
 def camera(**fields: object) -> CeilingCamera:

@@ -13,21 +13,14 @@ import envs  # noqa: F401  (registers the ids)
 from agents.papers.ceiling_target.fit import FitPlan, fit, inside, labelled_images
 from envs.features.ceiling import LABEL_SIGN, PALETTE, CeilingConfig, colour_label
 from envs.localization_env import LocalizationEnv
-from envs.sensors.ceiling_camera import CeilingCamera
+from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
 from localizers.base import MeasurementError, OdometryDelta
 from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
 from localizers.ceiling_vision import CameraIntrinsics, ColourRange, fit_colour_range, hsv8, paper_hsv
 from localizers.registry import load_params, make_localizer
 from localizers.schema import ConfigError
 
-CLEAN = {
-    "k1": 0.0,
-    "noise_std": 0.0,
-    "vignetting": 0.0,
-    "gain_along_amplitude": 0.0,
-    "gain_time_amplitude": 0.0,
-    "exposure_s": 0.0,
-}
+CLEAN = IDEAL  # every imperfection of the camera off
 
 
 def _setup(**camera: object) -> tuple[LocalizationEnv, CeilingCamera, CameraIntrinsics, CeilingTargetLocalizer]:

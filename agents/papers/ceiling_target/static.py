@@ -22,8 +22,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
+from envs.features.ceiling import CeilingTarget
 from envs.localization_env import LocalizationEnv
+from envs.sensors.ceiling_camera import CeilingCamera
 from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
 from localizers.ceiling_vision import CameraIntrinsics
 from localizers.registry import make_localizer
@@ -58,17 +61,65 @@ TABLES = {
 }
 
 
+@dataclass(frozen=True)
+class Rig:
+    """A camera in the corridor and a ``ceiling_target`` localizer reading it."""
+
+    camera: CeilingCamera
+    intrinsics: CameraIntrinsics
+    localizer: CeilingTargetLocalizer
+
+    @staticmethod
+    def make(
+        camera: Mapping[str, Any] | None = None, localizer: Mapping[str, Any] | None = None, one_constant: bool = False
+    ) -> Rig:
+        """``camera`` and ``localizer`` overrides; ``one_constant``: the paper's single calibration
+        constant, set from the image's width."""
+        env = LocalizationEnv(WORLD, camera=dict(camera) if camera else None)
+        cam = camera_of(env)
+        intrinsics = CameraIntrinsics.from_metadata(cam.metadata())
+        params = dict(localizer or {})
+        if one_constant:
+            params["metres_per_px"] = intrinsics.depth_m / intrinsics.fx_px
+        loc = make_localizer("ceiling_target", env.landmark_map, dt_s=env.config.dt_s, params=params)
+        assert isinstance(loc, CeilingTargetLocalizer)
+        return Rig(cam, intrinsics, loc)
+
+    @property
+    def target(self) -> CeilingTarget:
+        return self.camera.ceiling.targets[TARGET]
+
+    def sight(
+        self, pose: NDArray[np.float64], rng: np.random.Generator, gain: float = 1.0, previous: NDArray[np.float64] | None = None
+    ) -> NDArray[np.float64] | None:
+        """The pose the localizer reads from one image at ``pose`` (noise from ``rng``), or None without a fix."""
+        self.camera.seed_noise(rng)
+        image, _ = self.camera.render(pose, None, gain, int(rng.integers(1 << 30)), previous=previous)
+        self.localizer.reset(rng, None)
+        self.localizer.update(CeilingImage(image, self.intrinsics))
+        return None if self.localizer.last_fix is None else self.localizer.estimate.as_array()
+
+
+def errors(estimate: NDArray[np.float64], pose: NDArray[np.float64]) -> tuple[float, float]:
+    """Position [m] and absolute heading [rad] error of an estimate."""
+    d = estimate - pose
+    return math.hypot(d[0], d[1]), abs((d[2] + math.pi) % (2 * math.pi) - math.pi)
+
+
+def fix_row(found: list[tuple[float, float]], tries: int) -> dict[str, float]:
+    """Fix rate and mean (and worst) errors of ``found`` (position m, heading rad) over ``tries`` images."""
+    position = [p for p, _ in found]
+    heading = [h for _, h in found]
+    return {"fix_rate": len(found) / tries,
+            "position_cm": 100 * float(np.mean(position)) if found else math.nan,
+            "max_position_cm": 100 * float(np.max(position)) if found else math.nan,
+            "heading_deg": math.degrees(float(np.mean(heading))) if found else math.nan}  # fmt: skip
+
+
 def measure(condition: Condition, seeds: int, first_seed: int = 0) -> dict[str, list[dict[str, Any]]]:
     """Every table's settings measured ``seeds`` times: rows of set value, mean, sd, count."""
-    env = LocalizationEnv(WORLD, camera=dict(condition.camera) or None)
-    camera = camera_of(env)
-    intrinsics = CameraIntrinsics.from_metadata(camera.metadata())
-    params = dict(condition.localizer)
-    if condition.one_constant:
-        params["metres_per_px"] = intrinsics.depth_m / intrinsics.fx_px  # calibrated on the image's width
-    localizer = make_localizer("ceiling_target", env.landmark_map, dt_s=env.config.dt_s, params=params)
-    assert isinstance(localizer, CeilingTargetLocalizer)
-    target = camera.ceiling.targets[TARGET]
+    rig = Rig.make(condition.camera, condition.localizer, condition.one_constant)
+    camera, target = rig.camera, rig.target
     out: dict[str, list[dict[str, Any]]] = {}
     for table, (quantity, settings) in TABLES.items():
         rows = []
@@ -80,14 +131,10 @@ def measure(condition: Condition, seeds: int, first_seed: int = 0) -> dict[str, 
             measured = []
             for seed in range(first_seed, first_seed + seeds):
                 rng = np.random.default_rng([seed, k, len(table)])
-                camera.seed_noise(rng)
-                gain = camera.gain(pose, float(rng.uniform(0, 60)), float(rng.uniform(0, 2 * math.pi)))
-                image, _ = camera.render(pose[None, :], None, gain, int(rng.integers(1 << 30)))
-                localizer.reset(rng, None)
-                localizer.update(CeilingImage(image, intrinsics))
-                if localizer.last_fix is None:
+                # the lights at a random moment of their flicker
+                est = rig.sight(pose, rng, camera.gain(pose, float(rng.uniform(0, 60)), float(rng.uniform(0, 2 * math.pi))))
+                if est is None:
                     continue
-                est = localizer.estimate.as_array()
                 if table == "rotation":
                     # the measured rotation, unwrapped next to the set value
                     got = math.degrees(est[2] - math.pi / 2)
@@ -143,39 +190,23 @@ def illumination(
     seed and gain; rows per (space, gain): the share of images with a fix and the mean
     position and heading errors of those fixes.
     """
-    env = LocalizationEnv(WORLD)
-    camera = camera_of(env)
-    intrinsics = CameraIntrinsics.from_metadata(camera.metadata())
-    target = camera.ceiling.targets[TARGET]
     rows = []
     for space in ("hsv", "rgb"):
         params: dict[str, Any] = {"colour_space": space}
         if thresholds is not None:
             params["thresholds"] = {name: dataclasses.asdict(r) for name, r in thresholds.items()}
-        localizer = make_localizer("ceiling_target", env.landmark_map, dt_s=env.config.dt_s, params=params)
-        assert isinstance(localizer, CeilingTargetLocalizer)
+        rig = Rig.make(localizer=params)
+        target = rig.target
         for gain in gains:
-            position, heading = [], []
+            found = []
             for seed in range(seeds):
                 rng = np.random.default_rng([seed, 77])  # the same poses and noise for both spaces
-                camera.seed_noise(rng)
-                pose = np.array(
-                    [
-                        target.x_m + rng.uniform(-0.1, 0.1),
-                        target.y_m + rng.uniform(-0.1, 0.1),
-                        math.pi / 2 + rng.uniform(-0.35, 0.35),
-                    ]
-                )
-                image, _ = camera.render(pose[None, :], None, gain, int(rng.integers(1 << 30)))
-                localizer.reset(rng, None)
-                localizer.update(CeilingImage(image, intrinsics))
-                if localizer.last_fix is not None:
-                    d = localizer.estimate.as_array() - pose
-                    position.append(math.hypot(d[0], d[1]))
-                    heading.append(abs((d[2] + math.pi) % (2 * math.pi) - math.pi))
-            rows.append({"space": space, "gain": gain, "fix_rate": len(position) / seeds,
-                         "position_cm": 100 * float(np.mean(position)) if position else math.nan,
-                         "heading_deg": math.degrees(float(np.mean(heading))) if heading else math.nan})  # fmt: skip
+                offset = rng.uniform([-0.1, -0.1, -0.35], [0.1, 0.1, 0.35])
+                pose = np.array([target.x_m, target.y_m, math.pi / 2]) + offset
+                est = rig.sight(pose, rng, gain)
+                if est is not None:
+                    found.append(errors(est, pose))
+            rows.append({"space": space, "gain": gain, **fix_row(found, seeds)})
     return rows
 
 
@@ -190,29 +221,16 @@ def moving(seeds: int, speeds: tuple[float, ...] = SPEEDS) -> list[dict[str, Any
     earlier, as in the env); the robot is at a random offset within 15 cm of the
     target along the corridor, where one end and most of the line are in view.
     """
-    env = LocalizationEnv(WORLD)
-    camera = camera_of(env)
-    intrinsics = CameraIntrinsics.from_metadata(camera.metadata())
-    target = camera.ceiling.targets[TARGET]
-    localizer = make_localizer("ceiling_target", env.landmark_map, dt_s=env.config.dt_s)
-    assert isinstance(localizer, CeilingTargetLocalizer)
+    rig = Rig.make()
+    target, dt = rig.target, rig.camera.dt_s
     rows = []
     for speed in speeds:
-        position, heading = [], []
+        found = []
         for seed in range(seeds):
             rng = np.random.default_rng([seed, 91])
-            camera.seed_noise(rng)
             pose = np.array([target.x_m + rng.uniform(-0.05, 0.05), target.y_m + rng.uniform(-0.15, 0.15), math.pi / 2])
-            previous = pose - np.array([0.0, speed * env.config.dt_s, 0.0])
-            image, _ = camera.render(pose, None, 1.0, int(rng.integers(1 << 30)), previous=previous)
-            localizer.reset(rng, None)
-            localizer.update(CeilingImage(image, intrinsics))
-            if localizer.last_fix is not None:
-                d = localizer.estimate.as_array() - pose
-                position.append(math.hypot(d[0], d[1]))
-                heading.append(abs((d[2] + math.pi) % (2 * math.pi) - math.pi))
-        rows.append({"speed_mps": speed, "fix_rate": len(position) / seeds,
-                     "position_cm": 100 * float(np.mean(position)) if position else math.nan,
-                     "max_position_cm": 100 * float(np.max(position)) if position else math.nan,
-                     "heading_deg": math.degrees(float(np.mean(heading))) if heading else math.nan})  # fmt: skip
+            est = rig.sight(pose, rng, previous=pose - np.array([0.0, speed * dt, 0.0]))
+            if est is not None:
+                found.append(errors(est, pose))
+        rows.append({"speed_mps": speed, **fix_row(found, seeds)})
     return rows
