@@ -76,28 +76,34 @@ def check_data(checkout: Path) -> None:
 
 
 def check_envs() -> None:
-    """Every registered id makes with a localizer, resets and steps."""
+    """Every registered id makes with every localizer its sensors can feed, resets and steps."""
     import gymnasium as gym
 
     import envs
+    from localizers.measurements import readable_kinds
+    from localizers.registry import LOCALIZERS
 
     if not envs.ENV_WORLDS:
         fail("no env ids registered")
     for env_id, world in envs.ENV_WORLDS.items():
-        localizer = "candidate_sets" if envs.load_world(world).sensor_of_type("bearing_camera") is not None else "mcl_lidar"
-        try:
-            env = gym.make(env_id, localizer=localizer)
-            env.reset(seed=0)
-            for _ in range(STEPS):
-                _, _, terminated, truncated, info = env.step(env.action_space.sample())
-                if terminated or truncated:
-                    env.reset()
-            env.close()
-        except Exception as exc:
-            fail(f"gym.make({env_id!r}, localizer={localizer!r}) then reset and step: {type(exc).__name__}: {exc}")
-        if "estimate" not in info:
-            fail(f"{env_id}: no localizer estimate in info")
-        print(f"check_wheel: {env_id} ({world}) with {localizer}: reset and {STEPS} steps")
+        kinds = readable_kinds(gym.make(env_id).unwrapped.sensor_metadata)
+        names = [name for name, spec in LOCALIZERS.items() if spec.measurement in kinds]
+        if not names:
+            fail(f"{env_id}: no registered localizer reads its sensors")
+        for localizer in names:
+            try:
+                env = gym.make(env_id, localizer=localizer)
+                env.reset(seed=0)
+                for _ in range(STEPS):
+                    _, _, terminated, truncated, info = env.step(env.action_space.sample())
+                    if terminated or truncated:
+                        env.reset()
+                env.close()
+            except Exception as exc:
+                fail(f"gym.make({env_id!r}, localizer={localizer!r}) then reset and step: {type(exc).__name__}: {exc}")
+            if "estimate" not in info:
+                fail(f"{env_id}: no localizer estimate in info")
+        print(f"check_wheel: {env_id} ({world}) with {', '.join(names)}: reset and {STEPS} steps each")
 
 
 def check_models() -> None:
