@@ -1,9 +1,10 @@
 """An upward-looking colour camera: RGB images of the ceiling above the robot.
 
-The ceiling is the world's ``ceiling`` feature (:mod:`envs.features.ceiling`). Every pixel is
-a ray from the camera's centre through the lens; the renderer finds where it meets the
-ceiling (or a person's head on the way) and what colour the ceiling has there, then applies
-the camera's imperfections. One numba kernel does the whole image.
+The ceiling is the world's ``ceiling`` feature (:mod:`envs.features.ceiling`), rasterized once
+per process into a texture finer than a pixel's footprint. Every pixel is a ray from the
+camera's centre through the lens; where it meets the ceiling is an affine function of the
+robot's pose, so a frame is one ``cv2.remap`` of the texture. Heads of people in the view are
+painted over it, then the camera's imperfections are applied.
 
 **Camera frame.** The camera sits ``mount_height_m`` above the floor at ``offset_m``
 (forward, left) from the robot's centre and looks straight up, with the top of the image
@@ -300,8 +301,7 @@ class CeilingCamera(SensorBase):
         self.texel_m = config.texel_m
         # how far from the robot's centre a head can be and still show: the view's reach at the
         # heads' height, the camera's offset and the head's radius
-        view = float(np.max(np.hypot(self.model.rays[..., 0], self.model.rays[..., 1])))
-        self._head_reach_m = view * self.head_depth + float(np.hypot(*config.offset_m)) + config.head_radius_m
+        self._head_reach_m = self.model.max_ray * self.head_depth + float(np.hypot(*config.offset_m)) + config.head_radius_m
         self._texture, self._labels = ceiling_texture(ceiling, world.arena_m, config.texel_m)
         self._texture_origin = world.arena_m[:2]
         rays = self.model.rays
