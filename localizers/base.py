@@ -32,6 +32,11 @@ class LandmarkMap:
         walls_m: ``(S, 4)`` static wall segments ``(x1, y1, x2, y2)`` (what a LIDAR sees of the map).
         features: per world feature name, its map data as plain values (a ceiling's targets:
             their positions and colour codes); empty for worlds without features.
+        max_step_m: the longest translation one odometry increment may have, in metres; a
+            longer one is a :class:`MeasurementError` (see :func:`checked_increment`). ``None``
+            (the default) means the diagonal of ``bounds_m``: no single step can cross more than
+            the whole map. Recorded data whose steps are known to be shorter (a logged robot's top
+            speed times its period, with margin) may set a tighter, documented limit here.
     """
 
     positions_xy_m: NDArray[np.float64]
@@ -39,6 +44,7 @@ class LandmarkMap:
     bounds_m: tuple[float, float, float, float]
     walls_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
     features: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    max_step_m: float | None = None
 
     def __post_init__(self) -> None:
         pos = np.asarray(self.positions_xy_m, dtype=np.float64)
@@ -50,6 +56,8 @@ class LandmarkMap:
         if not (xmax > xmin and ymax > ymin):
             raise ValueError(f"LandmarkMap.bounds_m must be (xmin, ymin, xmax, ymax) with max > min, got {self.bounds_m}")
         walls = np.asarray(self.walls_m, dtype=np.float64).reshape(-1, 4)
+        if self.max_step_m is not None and not (math.isfinite(self.max_step_m) and self.max_step_m > 0.0):
+            raise ValueError(f"LandmarkMap.max_step_m must be a finite number of metres > 0 or None, got {self.max_step_m!r}")
         pos.setflags(write=False)
         walls.setflags(write=False)
         object.__setattr__(self, "positions_xy_m", pos)
@@ -58,6 +66,14 @@ class LandmarkMap:
     @property
     def count(self) -> int:
         return int(self.positions_xy_m.shape[0])
+
+    @property
+    def step_limit_m(self) -> float:
+        """The longest odometry translation a localizer on this map accepts: ``max_step_m``, else the diagonal of ``bounds_m``."""
+        if self.max_step_m is not None:
+            return float(self.max_step_m)
+        xmin, ymin, xmax, ymax = self.bounds_m
+        return math.hypot(xmax - xmin, ymax - ymin)
 
 
 @dataclass(frozen=True)
@@ -234,10 +250,14 @@ def checked_dt(owner: str, dt_s: float) -> float:
     return float(dt_s)
 
 
-def checked_increment(owner: str, odometry: OdometryDelta) -> tuple[float, float, float]:
-    """The increment ``(dx, dy, dtheta)`` as floats, or :class:`MeasurementError` when it is not finite.
+def checked_increment(owner: str, odometry: OdometryDelta, limit_m: float | None = None) -> tuple[float, float, float]:
+    """The increment ``(dx, dy, dtheta)`` as floats, or :class:`MeasurementError` when it is impossible.
 
-    Only NaN and infinities are rejected: an absurd but finite increment passes. Checked on
+    Rejected: NaN and infinities; a translation ``hypot(dx, dy)`` longer than ``limit_m`` (a
+    localizer passes its map's :attr:`LandmarkMap.step_limit_m`: by default the map's diagonal,
+    which no single step can exceed); a turn ``|dtheta|`` of more than a full turn (2 pi).
+    ``limit_m=None`` checks the turn only (a part without a map; its owner checks the
+    translation). Raised before anything is changed, so the estimate stays as it was. Checked on
     Python floats: it runs every step of every localizer.
     """
     if not isinstance(odometry, OdometryDelta):
@@ -245,12 +265,21 @@ def checked_increment(owner: str, odometry: OdometryDelta) -> tuple[float, float
     d = (float(odometry.dx_m), float(odometry.dy_m), float(odometry.dtheta_rad))
     if not (math.isfinite(d[0]) and math.isfinite(d[1]) and math.isfinite(d[2])):
         raise MeasurementError(f"{owner}: odometry increment {list(d)} is not finite")
+    if limit_m is not None:
+        step = math.hypot(d[0], d[1])
+        if step > limit_m:
+            raise MeasurementError(
+                f"{owner}: odometry increment {list(d)} translates {step!r} m, more than the bound of {limit_m!r} m"
+                " (LandmarkMap.max_step_m, by default the map's diagonal)"
+            )
+    if abs(d[2]) > 2.0 * math.pi:
+        raise MeasurementError(f"{owner}: odometry increment {list(d)} turns {d[2]!r} rad, more than a full turn (2 pi)")
     return d
 
 
-def checked_odometry(owner: str, odometry: OdometryDelta) -> NDArray[np.float64]:
+def checked_odometry(owner: str, odometry: OdometryDelta, limit_m: float | None = None) -> NDArray[np.float64]:
     """:func:`checked_increment` as a ``(3,)`` float64 array."""
-    return np.array(checked_increment(owner, odometry), dtype=np.float64)
+    return np.array(checked_increment(owner, odometry, limit_m), dtype=np.float64)
 
 
 def checked_bearings(owner: str, measurement: BearingMeasurement, landmark_count: int) -> BearingMeasurement:

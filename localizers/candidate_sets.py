@@ -239,6 +239,7 @@ class CandidateSetLocalizer:
     def __init__(self, landmarks: LandmarkMap, params: CandidateSetParams, *, dt_s: float) -> None:
         self._dt = checked_dt("CandidateSetLocalizer", dt_s)
         self._map = landmarks
+        self._step_limit_m = landmarks.step_limit_m
         self._params = params
         self._lx32 = landmarks.positions_xy_m[:, 0].astype(np.float32)
         self._ly32 = landmarks.positions_xy_m[:, 1].astype(np.float32)
@@ -292,7 +293,7 @@ class CandidateSetLocalizer:
     def predict(self, odometry: OdometryDelta) -> None:
         """Propagate every candidate by the increment (lazily: one SE(2) product)."""
         self._require_reset()
-        dx, dy, dth = checked_increment(self.name, odometry)
+        dx, dy, dth = checked_increment(self.name, odometry, self._step_limit_m)
         accumulate(self._odo, dx, dy, dth)
         self._path_m += math.hypot(dx, dy)
         self._turn_rad += abs(dth)

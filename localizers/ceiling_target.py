@@ -152,6 +152,7 @@ class CeilingTargetLocalizer:
     def __init__(self, landmarks: LandmarkMap, params: CeilingTargetParams, *, dt_s: float) -> None:
         self._dt = checked_dt("CeilingTargetLocalizer", dt_s)
         self._params = params
+        self._step_limit_m = landmarks.step_limit_m
         ceilings = {name: data for name, data in landmarks.features.items() if data.get("type") == "ceiling"}
         if not ceilings:
             raise ConfigError(
@@ -188,7 +189,7 @@ class CeilingTargetLocalizer:
 
     def predict(self, odometry: OdometryDelta) -> None:
         require_reset("CeilingTargetLocalizer", self._ready)
-        d = checked_odometry(self.name, odometry)
+        d = checked_odometry(self.name, odometry, self._step_limit_m)
         if self._pose is None:
             return
         p = self._params

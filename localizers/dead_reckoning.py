@@ -96,6 +96,7 @@ class DeadReckoningLocalizer:
     def __init__(self, landmarks: LandmarkMap, params: DeadReckoningParams, *, dt_s: float) -> None:
         self._dt = checked_dt("DeadReckoningLocalizer", dt_s)
         self._map = landmarks
+        self._step_limit_m = landmarks.step_limit_m
         self._params = params
         self._pose: NDArray[np.float64] | None = None
         self._cov = np.zeros((3, 3))
@@ -129,7 +130,7 @@ class DeadReckoningLocalizer:
     def predict(self, odometry: OdometryDelta) -> None:
         """Compose the increment and propagate the covariance (:func:`dead_reckon`)."""
         pose = self._require_reset()
-        d = checked_odometry(self.name, odometry)
+        d = checked_odometry(self.name, odometry, self._step_limit_m)
         p = self._params
         self._pose, self._cov = dead_reckon(
             pose, self._cov, d, p.position_var_m2_per_m, p.heading_var_rad2_per_m, p.heading_var_rad2_per_rad

@@ -226,6 +226,7 @@ class KalmanLocalizer:
     def __init__(self, landmarks: LandmarkMap, params: KalmanParams, *, dt_s: float) -> None:
         self._dt = checked_dt("KalmanLocalizer", dt_s)
         self._map = landmarks
+        self._step_limit_m = landmarks.step_limit_m
         self._params = params
         self._F, self._Q = constant_acceleration_model(
             self._dt,
@@ -275,7 +276,7 @@ class KalmanLocalizer:
     def predict(self, odometry: OdometryDelta) -> None:
         """Time update by ``dt_s``, then the dead-reckoning velocity update (eq. A.4)."""
         self._require_reset()
-        d = checked_odometry(self.name, odometry)
+        d = checked_odometry(self.name, odometry, self._step_limit_m)
         if self._x is None or self._P is None:
             return
         heading = self._x[2, 0] + 0.5 * d[2]  # mid-step heading, rotates the increment into the world

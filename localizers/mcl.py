@@ -133,6 +133,7 @@ class _ParticleLocalizer:
     def __init__(self, landmarks: LandmarkMap, *, dt_s: float, alphas: ArrayLike, floors: tuple[float, float]) -> None:
         self._dt = checked_dt(type(self).__name__, dt_s)
         self._map = landmarks
+        self._step_limit_m = landmarks.step_limit_m
         self._alphas = np.asarray(alphas, dtype=np.float64)
         self._floor_m, self._floor_rad = floors
         self._rng: np.random.Generator | None = None
@@ -296,7 +297,7 @@ class PaperBearingMCL(_ParticleLocalizer):
     def predict(self, odometry: OdometryDelta) -> None:
         """Move every particle, and the dead-reckoned pose while MCL yields none."""
         self._generator()
-        d = checked_odometry(self.name, odometry)
+        d = checked_odometry(self.name, odometry, self._step_limit_m)
         if not self._has_pose and self._fallback is not None:
             self._fallback = (compose(self._fallback[0], d), self._fallback[1])
         self._propagate(d)
@@ -496,7 +497,7 @@ class BearingMCL(_ParticleLocalizer):
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Sample the odometry motion model for every particle."""
-        self._propagate(checked_odometry(self.name, odometry))
+        self._propagate(checked_odometry(self.name, odometry, self._step_limit_m))
 
     def update(self, measurement: BearingMeasurement) -> None:
         """Weight by the bearing likelihood; resample (with injection) when needed."""

@@ -439,6 +439,7 @@ class ResectionLocalizer:
     def __init__(self, landmarks: LandmarkMap, params: ResectionParams, *, dt_s: float) -> None:
         self._dt = checked_dt("ResectionLocalizer", dt_s)
         self._map = landmarks
+        self._step_limit_m = landmarks.step_limit_m
         self._params = params
         self._started = False
         self._estimate = PoseEstimate.invalid()
@@ -457,7 +458,7 @@ class ResectionLocalizer:
     def predict(self, odometry: OdometryDelta) -> None:
         """Check the increment and drop the estimate (no motion model in this baseline)."""
         self._require_reset()
-        checked_odometry(self.name, odometry)
+        checked_odometry(self.name, odometry, self._step_limit_m)
         self._estimate = PoseEstimate.invalid()
         self._last = None
 

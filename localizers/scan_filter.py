@@ -340,6 +340,7 @@ class FarPointMCL:
 
     def __init__(self, landmarks: LandmarkMap, params: FarPointMCLParams, *, dt_s: float) -> None:
         self.params = params
+        self._step_limit_m = landmarks.step_limit_m
         self.mcl = LidarMCL(landmarks, params.mcl, dt_s=checked_dt(type(self).__name__, dt_s))
         self.filter = ScanFilter(params.filter)
         self._ready = False
@@ -355,7 +356,7 @@ class FarPointMCL:
 
     def predict(self, odometry: OdometryDelta) -> None:
         require_reset(type(self).__name__, self._ready)
-        checked_odometry(self.name, odometry)  # named for this localizer (the parts check again)
+        checked_odometry(self.name, odometry, self._step_limit_m)  # named for this localizer (the parts check again)
         self.mcl.predict(odometry)
         self.filter.predict(odometry)
 

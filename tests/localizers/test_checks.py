@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 
 import numpy as np
@@ -15,6 +16,7 @@ from localizers.base import (
     OdometryDelta,
     PoseEstimate,
     checked_dt,
+    checked_increment,
     checked_odometry,
     require_reset,
 )
@@ -68,6 +70,46 @@ def test_non_finite_odometry_raises_and_leaves_the_estimate(name: str, bad: tupl
 
 
 @pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize(
+    "bad",
+    [(1e20, 0.0, 0.0), (0.0, -1e20, 0.0), (1e300, 1e300, 0.0), (10.0, 8.5, 0.0), (0.0, 0.0, 1e20), (0.0, 0.0, -6.3)],
+)
+def test_absurd_odometry_raises_naming_the_bound_and_leaves_the_estimate(name: str, bad: tuple[float, float, float]) -> None:
+    # the map is 10 m x 8 m: no step can translate more than its diagonal, or turn more than 2 pi
+    loc = _ready(name)
+    loc.predict(OdometryDelta(0.05, 0.0, 0.01))
+    before = loc.estimate
+    bound = math.hypot(10.0, 8.0)
+    if np.hypot(bad[0], bad[1]) > bound:
+        text = re.escape(
+            f"{name}: odometry increment {list(bad)} translates {math.hypot(bad[0], bad[1])!r} m, more than the bound of {bound!r} m"
+        )
+    else:
+        text = re.escape(f"{name}: odometry increment {list(bad)} turns {bad[2]!r} rad, more than a full turn (2 pi)")
+    with pytest.raises(MeasurementError, match=text):
+        loc.predict(OdometryDelta(*bad))
+    assert loc.estimate == before
+    loc.predict(OdometryDelta(0.05, 0.0, 0.01))  # and it goes on, with a finite pose where it has one
+    assert not loc.estimate.valid or np.isfinite(loc.estimate.as_array()).all()
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_a_configured_step_bound_is_used(name: str) -> None:
+    tight = LandmarkMap(MAP.positions_xy_m, MAP.names, MAP.bounds_m, MAP.walls_m, MAP.features, max_step_m=0.5)
+    loc = make_localizer(name, tight, dt_s=0.1, params={"n_particles": 50} if "bearing" in name else None)
+    loc.reset(np.random.default_rng(0), START)
+    loc.predict(OdometryDelta(0.3, 0.4, 0.0))  # exactly on the bound: accepted
+    with pytest.raises(MeasurementError, match=re.escape(f"{name}: odometry increment [0.3, 0.5, 0.0] translates")):
+        loc.predict(OdometryDelta(0.3, 0.5, 0.0))
+
+
+@pytest.mark.parametrize("max_step_m", [0.0, -1.0, float("nan"), float("inf")])
+def test_a_bad_step_bound_is_refused(max_step_m: float) -> None:
+    with pytest.raises(ValueError, match=rf"LandmarkMap.max_step_m must be .* got {max_step_m!r}"):
+        LandmarkMap(MAP.positions_xy_m, MAP.names, MAP.bounds_m, max_step_m=max_step_m)
+
+
+@pytest.mark.parametrize("name", NAMES)
 def test_odometry_of_the_wrong_type_raises(name: str) -> None:
     with pytest.raises(MeasurementError, match=rf"{name}: expected an OdometryDelta, got ndarray"):
         _ready(name).predict(np.zeros(3))  # type: ignore[arg-type]
@@ -78,5 +120,11 @@ def test_the_helpers() -> None:
     with pytest.raises(RuntimeError, match=r"^X: call reset\(\)"):
         require_reset("X", False)
     assert checked_dt("X", 1) == 1.0 and isinstance(checked_dt("X", 1), float)
-    d = checked_odometry("X", OdometryDelta(1e20, -2.0, 3.0))  # absurd but finite: passes
+    d = checked_odometry("X", OdometryDelta(1e20, -2.0, 3.0))  # no bound given (a part without a map): passes
     assert d.dtype == np.float64 and d.tolist() == [1e20, -2.0, 3.0]
+    assert checked_increment("X", OdometryDelta(3.0, 4.0, -2 * np.pi), 5.0) == (3.0, 4.0, -2 * np.pi)  # on the bounds
+    with pytest.raises(
+        MeasurementError, match=r"^X: odometry increment \[1e\+20, -2.0, 3.0\] translates 1e\+20 m, more than the bound of 5.0 m"
+    ):
+        checked_odometry("X", OdometryDelta(1e20, -2.0, 3.0), 5.0)
+    assert MAP.step_limit_m == float(np.hypot(10.0, 8.0))
