@@ -237,17 +237,22 @@ class World:
     def robot_placement_problem(self, x: float, y: float) -> str | None:
         """Why our robot's disc cannot be placed at ``(x, y)``, or None where it fits.
 
-        The disc (``robot.radius_m``) must lie inside the field (:attr:`WorldConfig.field_m`)
+        The disc (``robot.radius_m``) must lie inside the boundary walls, that is the field
+        (:attr:`WorldConfig.field_m`) and its ``boundary_margin_m`` (:attr:`WorldConfig.arena_m`,
+        the field itself where the margin is 0: the soccer robot may stand on the touch line),
         and clear every interior wall's thickness; a disc placed over a wall would be pushed
         out on either side, or trapped in it.
         """
-        r = self.config.robot.radius_m
-        xmin, ymin, xmax, ymax = self.config.field_m
+        config = self.config
+        r = config.robot.radius_m
+        xmin, ymin, xmax, ymax = config.arena_m
         if not (xmin + r <= x <= xmax - r and ymin + r <= y <= ymax - r):
+            fx0, fy0, fx1, fy1 = config.field_m
+            margin = f" and its {config.boundary_margin_m:g} m margin" if config.boundary_margin_m else ""
             return (
-                f"the robot (radius {r:g} m) must fit inside the field of world {self.config.name!r}, x in [{xmin:g}, {xmax:g}] "
-                f"and y in [{ymin:g}, {ymax:g}] m: its centre must be in x [{xmin + r:g}, {xmax - r:g}], "
-                f"y [{ymin + r:g}, {ymax - r:g}]"
+                f"the robot (radius {r:g} m) must fit inside world {config.name!r}'s field (x in [{fx0:g}, {fx1:g}], "
+                f"y in [{fy0:g}, {fy1:g}] m){margin}, x in [{xmin:g}, {xmax:g}] and y in [{ymin:g}, {ymax:g}] m: "
+                f"its centre must be in x [{xmin + r:g}, {xmax - r:g}], y [{ymin + r:g}, {ymax - r:g}]"
             )
         a, b = self.seg_a[self._boundary_count :], self.seg_b[self._boundary_count :]
         if a.shape[0]:

@@ -22,12 +22,12 @@ from localizers.schema import ConfigError
 @pytest.mark.parametrize(
     ("pose", "fragments"),
     [
-        ([100.0, 100.0, 0.0], ["[100.0, 100.0, 0.0]", "x in [0, 5]", "y in [0, 10]"]),
-        ([-1.0, 5.0, 0.0], ["[-1.0, 5.0, 0.0]", "x in [0, 5]"]),
-        ([2.5, 10.5, 0.0], ["[2.5, 10.5, 0.0]", "y in [0, 10]"]),
-        # inside the field, but the robot's disc (radius 0.23 m) would cross its edge
-        ([0.1, 5.0, 0.0], ["[0.1, 5.0, 0.0]", "radius 0.23 m", "x [0.23, 4.77]"]),
-        ([2.5, 9.9, 1.0], ["[2.5, 9.9, 1.0]", "radius 0.23 m", "y [0.23, 9.77]"]),
+        ([100.0, 100.0, 0.0], ["[100.0, 100.0, 0.0]", "x in [0, 5]", "y in [0, 10]", "0.5 m margin", "x in [-0.5, 5.5]"]),
+        ([-1.0, 5.0, 0.0], ["[-1.0, 5.0, 0.0]", "x in [-0.5, 5.5]"]),
+        ([2.5, 10.6, 0.0], ["[2.5, 10.6, 0.0]", "y in [-0.5, 10.5]"]),
+        # inside the boundary walls, but the robot's disc (radius 0.23 m) would cross them
+        ([-0.4, 5.0, 0.0], ["[-0.4, 5.0, 0.0]", "radius 0.23 m", "x [-0.27, 5.27]"]),
+        ([2.5, 10.4, 1.0], ["[2.5, 10.4, 1.0]", "radius 0.23 m", "y [-0.27, 10.27]"]),
     ],
     ids=["far-outside", "left", "above", "disc-over-left-edge", "disc-over-top-edge"],
 )
@@ -49,11 +49,18 @@ def test_reset_refuses_a_bad_pose_through_gym_make_and_keeps_refusing_unknown_ke
 
 
 def test_reset_accepts_a_disc_that_just_fits() -> None:
-    env = LocalizationEnv("robocup_static")
+    env = LocalizationEnv("robocup_static")  # boundary walls 0.5 m outside the field
     r = env.config.robot.radius_m
-    for pose in ([r, r, 0.0], [5.0 - r, 10.0 - r, 3.0]):
+    for pose in ([-0.5 + r, -0.5 + r, 0.0], [5.5 - r, 10.5 - r, 3.0], [5.0, 5.5, 0.0]):
         _, info = env.reset(seed=0, options={"robot_pose": pose})
         np.testing.assert_allclose(info["true_pose"][:2], pose[:2], atol=1e-12)
+
+
+def test_reset_bounds_are_the_field_where_there_is_no_margin() -> None:
+    env = LocalizationEnv("crowded_room", crowd_size=0)  # 7 m x 7 m, no margin
+    with pytest.raises(ValueError, match=r"x \[0\.25, 6\.75\]") as exc:
+        env.reset(seed=0, options={"robot_pose": [6.9, 3.0, 0.0]})
+    assert "margin" not in str(exc.value)
 
 
 def test_reset_refuses_a_robot_disc_over_an_interior_wall() -> None:
