@@ -125,6 +125,7 @@ class WorldConfig:
         w, h = self.size_m
         check(w > 0 and h > 0, f"world {self.name!r}: size_m must be positive, got {self.size_m}")
         check(self.dt_s > 0, f"world {self.name!r}: dt_s must be > 0, got {self.dt_s}")
+        check(math.isfinite(self.dt_s), f"world {self.name!r}: dt_s must be finite, got {self.dt_s}")
         check(self.max_episode_steps >= 1, f"world {self.name!r}: max_episode_steps must be >= 1, got {self.max_episode_steps}")
         check(self.boundary_margin_m >= 0, f"world {self.name!r}: boundary_margin_m must be >= 0, got {self.boundary_margin_m}")
         names = [lm.name for lm in self.landmarks]
@@ -146,6 +147,7 @@ class WorldConfig:
         clash = sorted(set(self.crowds) & set(self.sensors))
         check(not clash, f"world {self.name!r}: {clash} name both a sensor and a crowd (env kwargs address them by name)")
         object.__setattr__(self, "crowds", dict(self.crowds))
+        self._check_dt_resolves_motion()
         for name, feature in self.features.items():
             check(
                 isinstance(feature, FeatureConfig), f"world {self.name!r}: feature {name!r} is not a feature config: {feature!r}"
@@ -154,6 +156,31 @@ class WorldConfig:
         clash = sorted(set(self.features) & (set(self.crowds) | set(self.sensors)))
         check(not clash, f"world {self.name!r}: {clash} name a feature and a sensor or crowd")
         object.__setattr__(self, "features", dict(self.features))
+
+    def _check_dt_resolves_motion(self) -> None:
+        """Refuse a ``dt_s`` in which a body travels more than its own radius in one step.
+
+        The physics moves every body by its velocity times ``dt_s``, then pushes overlaps
+        apart. A body that travels at most its radius per step cannot carry its centre past
+        a wall's centre line (or another body's) in one step, so the push-out always sends it
+        back the way it came; beyond that, a fast body can end a step past a thin interior
+        wall (0.02 m) and be pushed out on the far side, or skip over it entirely, with no
+        contact reported. The bound is checked for the robot (``robot.max_speed_mps``) and for
+        every kind of body of every crowd at its top speed (:meth:`CrowdConfig.top_speeds`:
+        e.g. the soccer ball at its kick speed, 3 m/s with radius 0.11 m, bounds dt to
+        0.0367 s). Shipped worlds run at 0.025-0.05 s.
+        """
+        bodies = [("the robot (robot.max_speed_mps, robot.radius_m)", self.robot.max_speed_mps, self.robot.radius_m)]
+        for name, crowd in self.crowds.items():
+            bodies += [(f"crowd {name!r}: {body}", speed, radius) for body, speed, radius in crowd.top_speeds()]
+        for body, speed, radius in bodies:
+            limit = radius / speed
+            check(
+                self.dt_s <= limit,
+                f"world {self.name!r}: dt_s = {self.dt_s} is too long for {body}: at {speed:g} m/s it would travel "
+                f"{speed * self.dt_s:.3g} m per step, more than its radius {radius:g} m, and could pass through walls; "
+                f"dt_s must be <= {limit:.4g} s (radius / top speed)",
+            )
 
     @property
     def crowd(self) -> CrowdConfig | None:

@@ -118,6 +118,9 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
                 pose = np.full(0, np.nan)
             if pose.shape != (3,) or not np.all(np.isfinite(pose)):
                 raise ValueError(f"options['robot_pose'] must be three finite numbers (x_m, y_m, theta_rad), got {given!r}")
+            problem = self.world.robot_placement_problem(float(pose[0]), float(pose[1]))
+            if problem:
+                raise ValueError(f"options['robot_pose'] = {given!r}: {problem}")
             self.world.set_robot_pose(pose)
         for sensor in self.sensors.values():
             sensor.reset()
@@ -144,10 +147,9 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
             slip = 1.0 - self._world_rng.uniform(0.0, rc.slip_max_fraction)
         heading = theta + half
         velocity = np.array([v * slip * math.cos(heading), v * slip * math.sin(heading)])
-        n_contacts = len(self.world.contacts)
         self.world.step(velocity, omega * slip, self._world_rng)
         obs, info = self._observe()
-        info["contacts"] = self.world.contacts[n_contacts:]
+        info["contacts"] = list(self.world.contacts)  # the world keeps this step's events only
         terminated = self._at_goal(a_v, a_w)
         if self.render_mode == "human":
             self.render()

@@ -79,13 +79,18 @@ class World:
         angles: ``(B,)``; ``velocities``: ``(B, 2)``.
         member_rows, ball_rows: rows of every crowd member (robots, people) and of the balls.
         occluder_rows: rows of ``positions`` whose circles block sight.
+        contacts: the :class:`ContactEvent` s of the last step only; ``contact_count``: how
+            many the episode has had.
     """
 
     def __init__(self, config: WorldConfig) -> None:
         self.config = config
         self.time_s = 0.0
         self.step_count = 0
+        #: the contacts our robot started during the last step only (a fresh list every step,
+        #: so memory stays bounded over any episode); ``contact_count`` counts the episode's
         self.contacts: list[ContactEvent] = []
+        self.contact_count = 0
         self._wall_segments()
         lms = config.landmarks
         self.landmark_names = tuple(lm.name for lm in lms)
@@ -206,6 +211,7 @@ class World:
         self.time_s = 0.0
         self.step_count = 0
         self.contacts = []
+        self.contact_count = 0
         self._build_space()
         rc = self.config.robot
         if rc.start_pose is not None:
@@ -227,6 +233,41 @@ class World:
         for body in self.space.bodies:
             self.space.reindex_shapes_for_body(body)
         self.read_state()
+
+    def robot_placement_problem(self, x: float, y: float) -> str | None:
+        """Why our robot's disc cannot be placed at ``(x, y)``, or None where it fits.
+
+        The disc (``robot.radius_m``) must lie inside the boundary walls, that is the field
+        (:attr:`WorldConfig.field_m`) and its ``boundary_margin_m`` (:attr:`WorldConfig.arena_m`,
+        the field itself where the margin is 0: the soccer robot may stand on the touch line),
+        and clear every interior wall's thickness; a disc placed over a wall would be pushed
+        out on either side, or trapped in it.
+        """
+        config = self.config
+        r = config.robot.radius_m
+        xmin, ymin, xmax, ymax = config.arena_m
+        if not (xmin + r <= x <= xmax - r and ymin + r <= y <= ymax - r):
+            fx0, fy0, fx1, fy1 = config.field_m
+            margin = f" and its {config.boundary_margin_m:g} m margin" if config.boundary_margin_m else ""
+            return (
+                f"the robot (radius {r:g} m) must fit inside world {config.name!r}'s field (x in [{fx0:g}, {fx1:g}], "
+                f"y in [{fy0:g}, {fy1:g}] m){margin}, x in [{xmin:g}, {xmax:g}] and y in [{ymin:g}, {ymax:g}] m: "
+                f"its centre must be in x [{xmin + r:g}, {xmax - r:g}], y [{ymin + r:g}, {ymax - r:g}]"
+            )
+        a, b = self.seg_a[self._boundary_count :], self.seg_b[self._boundary_count :]
+        if a.shape[0]:
+            d = b - a
+            length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+            t = np.clip(np.einsum("ij,ij->i", np.array([x, y]) - a, d) / length2, 0.0, 1.0)
+            gap = np.hypot(*(a + t[:, None] * d - (x, y)).T)
+            i = int(np.argmin(gap))
+            if gap[i] < r + _WALL_RADIUS_M:
+                return (
+                    f"the robot (radius {r:g} m) would overlap wall {tuple(float(v) for v in (*a[i], *b[i]))} "
+                    f"(thickness {2 * _WALL_RADIUS_M:g} m): its centre is {gap[i]:.3g} m from the wall's line, "
+                    f"it must be at least {r + _WALL_RADIUS_M:g} m"
+                )
+        return None
 
     def set_robot_pose(self, pose: tuple[float, float, float] | NDArray[np.float64]) -> None:
         """Teleport our robot (tests and scripted set-ups only; odometry does not see it)."""
@@ -343,6 +384,7 @@ class World:
                 cmd[row, 0:2] = 0.0
                 self.space.reindex_shapes_for_body(body)
         pbatch.set_space_bodies(self.space, _FIELDS_COMMAND, self._command_buffer)
+        self.contacts = []  # a new list: one handed out for the last step is never changed
         self.space.step(dt)
         self.time_s += dt
         self.step_count += 1
@@ -354,6 +396,7 @@ class World:
         index = int(getattr(other, "crowd_index", -1))
         point = arbiter.contact_point_set.points[0].point_a if arbiter.contact_point_set.points else self.robot_body.position
         self.contacts.append(ContactEvent(self.step_count + 1, kind, index, (float(point[0]), float(point[1]))))
+        self.contact_count += 1
 
 
 def _as_slice(rows: NDArray[np.int64]) -> Rows:

@@ -63,6 +63,15 @@ class CrowdConfig:
         check(self.mass_kg > 0, f"crowd.mass_kg must be > 0, got {self.mass_kg}")
         check(self.speed_mps > 0, f"crowd.speed_mps must be > 0, got {self.speed_mps}")
 
+    def top_speeds(self) -> tuple[tuple[str, float, float], ...]:
+        """``(body, top speed m/s, radius m)`` of each kind of body this crowd moves.
+
+        The world bounds its ``dt_s`` by these (:class:`~envs.config.WorldConfig`): no body may
+        travel more than its own radius in one step. The base crowd's members seek at up to
+        ``speed_mps``; a crowd type whose bodies move by other fields overrides this.
+        """
+        return (("members", self.speed_mps, self.radius_m),)
+
 
 @dataclass(frozen=True)
 class BodySpec:

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from envs.crowds.base import Commands, Crowd, CrowdConfig, Taken, register_crowd
 from envs.crowds.queues import PEOPLE_FILL
 from envs.crowds.steering import seek
-from envs.crowds.walkers import social_force_velocities
+from envs.crowds.walkers import SPEED_CAP, social_force_velocities
 from envs.state import Rows, WorldState
 from localizers.raycast import cast_rays
 from localizers.schema import ConfigError, check
@@ -163,6 +163,13 @@ class CorridorConfig(CrowdConfig):
         )
         lo, hi = self.fidget_period_s
         check(0 < lo <= hi, f"corridor.fidget_period_s must be (low, high) with 0 < low <= high, got {self.fidget_period_s}")
+
+    def top_speeds(self) -> tuple[tuple[str, float, float], ...]:
+        """The walkers (the social force's cap times the top of ``walk_speed_mps``) and the standing people (``speed_mps``)."""
+        return (
+            ("walkers", SPEED_CAP * self.walk_speed_mps[1], self.radius_m),
+            ("standing people", self.speed_mps, self.radius_m),
+        )
 
     @property
     def sizes(self) -> tuple[int, ...]:

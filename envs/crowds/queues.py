@@ -40,6 +40,10 @@ class QueuesConfig(CrowdConfig):
         check(self.step_period_s > 0, f"queues.step_period_s must be > 0, got {self.step_period_s}")
         check(self.walk_speed_mps > 0, f"queues.walk_speed_mps must be > 0, got {self.walk_speed_mps}")
 
+    def top_speeds(self) -> tuple[tuple[str, float, float], ...]:
+        """The people: every member seeks its place at up to ``walk_speed_mps`` (``speed_mps`` is unused)."""
+        return (("people", self.walk_speed_mps, self.radius_m),)
+
 
 @register_crowd("queues", QueuesConfig)
 class QueueCrowd(Crowd):

@@ -50,6 +50,12 @@ class SoccerConfig(CrowdConfig):
         check(0 <= self.chaser_fraction <= 1, f"soccer.chaser_fraction must be in [0, 1], got {self.chaser_fraction}")
         check(self.ball_radius_m > 0, f"soccer.ball_radius_m must be > 0, got {self.ball_radius_m}")
         check(0 <= self.ball_decay_per_s < 1, f"soccer.ball_decay_per_s must be in [0, 1), got {self.ball_decay_per_s}")
+        check(self.kick_speed_mps > 0, f"soccer.kick_speed_mps must be > 0, got {self.kick_speed_mps}")
+
+    def top_speeds(self) -> tuple[tuple[str, float, float], ...]:
+        """The robots (``speed_mps``) and, with ``ball``, the ball: a kick sets it to ``kick_speed_mps``, then it slows."""
+        robots = ("robots", self.speed_mps, self.radius_m)
+        return (robots, ("ball", self.kick_speed_mps, self.ball_radius_m)) if self.ball else (robots,)
 
 
 @numba.njit(cache=True)

@@ -23,6 +23,10 @@ if TYPE_CHECKING:
     from envs.config import WorldConfig
 
 
+#: the social force caps a walker's speed at this multiple of its desired speed
+SPEED_CAP = 1.3
+
+
 @dataclass(frozen=True)
 class WalkersConfig(CrowdConfig):
     """Free walkers: ``count`` people with social-force avoidance."""
@@ -37,6 +41,10 @@ class WalkersConfig(CrowdConfig):
         check(self.desired_speed_mps > 0, f"walkers.desired_speed_mps must be > 0, got {self.desired_speed_mps}")
         check(self.relaxation_s > 0, f"walkers.relaxation_s must be > 0, got {self.relaxation_s}")
         check(self.repulsion_range_m > 0, f"walkers.repulsion_range_m must be > 0, got {self.repulsion_range_m}")
+
+    def top_speeds(self) -> tuple[tuple[str, float, float], ...]:
+        """The walkers: the social force caps their speed at ``SPEED_CAP`` times ``desired_speed_mps``."""
+        return (("walkers", SPEED_CAP * self.desired_speed_mps, self.radius_m),)
 
 
 @numba.njit(cache=True)
@@ -111,7 +119,7 @@ def social_force_velocities(
         vx = vel[i, 0] + dt * fx
         vy = vel[i, 1] + dt * fy
         speed = math.sqrt(vx * vx + vy * vy)
-        cap = 1.3 * desired_speed[i]
+        cap = SPEED_CAP * desired_speed[i]
         if speed > cap:
             vx *= cap / speed
             vy *= cap / speed
