@@ -108,6 +108,10 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
 }
 
 
+#: the localizers crowdloc ships (plug-ins registered later are not among them)
+BUILTIN_LOCALIZERS: tuple[str, ...] = tuple(LOCALIZERS)
+
+
 def register_localizer(name: str, entry: LocalizerSpec) -> LocalizerSpec:
     """Add a localizer to the registry (a plug-in: its module, classes and measurement kind).
 
