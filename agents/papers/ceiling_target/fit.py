@@ -97,7 +97,7 @@ def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDAr
         yield image, labels
 
 
-def _pixels(images: Any, count: int, desc: str) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+def _pixels(images: Any, count: int, desc: str) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.uint8]]:
     """HSV (paper units), RGB and labels of every pixel of ``images``, flattened."""
     hsv, rgb, lab = [], [], []
     for image, labels in tqdm(images, total=count, desc=desc, unit="image", leave=False):
