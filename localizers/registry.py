@@ -22,14 +22,26 @@ LOCALIZER_CONFIG_DIR = crowdloc_configs.path("localizers")  # package data (conf
 
 @dataclass(frozen=True)
 class LocalizerSpec:
-    """Where a localizer lives and what it consumes."""
+    """Where a localizer lives and what it consumes.
+
+    Attributes:
+        module, cls, params_cls: where its class and its parameters' class live.
+        measurement: a registered measurement kind (:mod:`localizers.measurements`): "bearings", "scan", ...
+        needs_prior: needs the start pose (dead reckoning and the Kalman filter of the paper).
+        summary: one line for listings.
+        covariance: whether ``PoseEstimate.covariance`` is the localizer's own measure of its
+            uncertainty (a filter's covariance, a particle or candidate set's sample covariance,
+            however heuristic), so that ``crowdloc eval`` scores its consistency (NEES); false for
+            one that reports none (NaN) or a placeholder: its tables say "no covariance".
+    """
 
     module: str
     cls: str
     params_cls: str
-    measurement: str  # a registered measurement kind (localizers.measurements): "bearings", "scan", ...
-    needs_prior: bool  # needs the start pose (dead reckoning and the Kalman filter of the paper)
+    measurement: str
+    needs_prior: bool
     summary: str
+    covariance: bool = True
 
 
 LOCALIZERS: dict[str, LocalizerSpec] = {

@@ -30,11 +30,14 @@ from agents.evaluate.bearings import BEARING_METRICS, bearing_metrics, bound_rms
 from agents.evaluate.cli import parse_gif_cell, run_cli, spec_from_args
 from agents.evaluate.episode import Episode, Rollout, episode_metrics, rollout, run_episode
 from agents.evaluate.outputs import (
+    NO_COVARIANCE,
     format_stat,
+    plot_error_vs_spread,
     plot_summary,
     quaternion_to_yaw,
     read_tum,
     render_gif,
+    reports_covariance,
     summary_markdown,
     write_outputs,
     write_tables,
@@ -74,6 +77,7 @@ METRIC_KEYS = tuple(m.key for m in METRICS)
 __all__ = [
     "BEARING_METRICS",
     "CORE_METRICS",
+    "NO_COVARIANCE",
     "METRICS",
     "METRIC_KEYS",
     "PPO_PREFIX",
@@ -102,12 +106,14 @@ __all__ = [
     "metric_infos",
     "metric_plugins",
     "parse_gif_cell",
+    "plot_error_vs_spread",
     "plot_summary",
     "policy_seed",
     "quaternion_to_yaw",
     "read_tum",
     "register_metrics",
     "render_gif",
+    "reports_covariance",
     "rollout",
     "run_cli",
     "run_episode",

@@ -9,6 +9,15 @@ The core metrics of every episode (``t0`` = the first step with a valid estimate
 - ``position_error_mean_m`` / ``_rms_m``, ``heading_error_mean_deg`` / ``_rms_deg``: over the
   valid steps from ``t0`` on;
 - ``failure_rate``: share of those steps with a position error >= 1 m;
+- ``nees_mean`` / ``nees_median``: the normalized estimation error squared ``e^T P^-1 e`` of the
+  pose error ``e`` (heading wrapped) against the reported covariance ``P`` of (x, y, theta), over
+  the valid steps with a usable ``P`` (finite, positive definite); 3 for a consistent
+  localizer (median 2.37), more for an overconfident one;
+- ``inside_95``: share of those steps whose error lies inside the reported 95 % region
+  (NEES <= 7.815, the chi-square 0.95 quantile for 3 dof; about 0.95 for a consistent localizer);
+- ``covariance_missing``: share of the valid steps without a usable covariance (excluded from
+  the two above). A localizer registered with ``covariance=False`` (``LocalizerSpec``) reports
+  none: these are NaN and the tables say "no covariance";
 - ``availability``: share of all steps with a valid estimate;
 - ``fixed``: 1 if the localizer ever had a pose, else 0;
 - ``first_fix_s`` / ``first_fix_distance_m``: time since reset and distance travelled until
@@ -35,6 +44,7 @@ from agents import metrics
 from agents.evaluate.plugins import EpisodeContext, MetricPlugin, Track, localizer_kind, metric_plugins
 from agents.evaluate.spec import PPO_PREFIX, Cell, EvalSpec, load_ppo, policy_seed
 from agents.rewards import ActiveLocalizationReward
+from localizers.registry import spec as localizer_spec
 
 
 @dataclass(frozen=True)
@@ -108,12 +118,17 @@ def _odometry_key(sensors: Mapping[str, Mapping[str, Any]]) -> str:
     return keys[0]
 
 
+_NO_COVARIANCE = np.full((3, 3), np.nan)
+
+
 class _Recorder:
     """The rows of one rollout: the core ones and what each plug-in collects."""
 
-    def __init__(self, plugins: tuple[MetricPlugin, ...], context: EpisodeContext) -> None:
-        self.plugins, self.context = plugins, context
-        self.rows: dict[str, list[Any]] = {k: [] for k in ("time_s", "true_pose", "estimates", "valid", "contacts")}
+    def __init__(self, plugins: tuple[MetricPlugin, ...], context: EpisodeContext, covariance: bool = True) -> None:
+        self.plugins, self.context, self.covariance = plugins, context, covariance
+        self.rows: dict[str, list[Any]] = {
+            k: [] for k in ("time_s", "true_pose", "estimates", "valid", "contacts", "covariances")
+        }
         self.collected: dict[str, list[Any]] = {}
         self.odometry: list[NDArray[np.float64]] = []
         self.rewards: list[float] = []
@@ -124,6 +139,8 @@ class _Recorder:
         self.rows["true_pose"].append(np.asarray(info["true_pose"], dtype=np.float64).copy())
         self.rows["estimates"].append((est.x_m, est.y_m, est.theta_rad) if est.valid else (np.nan, np.nan, np.nan))
         self.rows["valid"].append(bool(est.valid))
+        kept = self.covariance and est.valid and np.shape(est.covariance) == (3, 3)
+        self.rows["covariances"].append(np.array(est.covariance, dtype=np.float64) if kept else _NO_COVARIANCE)
         self.rows["contacts"].append(len(info["contacts"]))
         for plugin in self.plugins:
             for name, value in plugin.collect(info, self.context).items():
@@ -139,6 +156,7 @@ class _Recorder:
             contacts=np.array(r["contacts"], dtype=np.int64),
             odometry=np.array(self.odometry, dtype=np.float64).reshape(-1, 3),
             rewards=np.array(self.rewards, dtype=np.float64),
+            covariances=np.array(r["covariances"], dtype=np.float64).reshape(-1, 3, 3),
         )
 
 
@@ -151,7 +169,7 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
     sensors = base.sensor_metadata  # type: ignore[attr-defined]
     context = EpisodeContext(sensors, base.landmark_map, float(base.config.dt_s), spec.known_start(cell.localizer))  # type: ignore[attr-defined]
     odometry_key = _odometry_key(sensors)
-    recorder = _Recorder(metric_plugins(localizer_kind(cell.localizer)), context)
+    recorder = _Recorder(metric_plugins(localizer_kind(cell.localizer)), context, localizer_spec(cell.localizer).covariance)
     frames: list[NDArray[np.uint8]] = []
 
     def keep(step: int, info: Mapping[str, Any]) -> None:
@@ -176,11 +194,16 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
 def episode_metrics(track: Track) -> dict[str, float]:
     """The core metrics of one episode (see the module docstring), keyed by ``CORE_METRICS``."""
     t0, pos, head = track.fix_index, track.position_errors, track.heading_errors_deg
+    fit = metrics.consistency(track.nees, dof=3, mask=track.valid)
     return {
         "position_error_mean_m": metrics.mean_sd(pos, t0)[0],
         "position_error_rms_m": metrics.rms(pos, t0),
         "heading_error_mean_deg": metrics.mean_sd(head, t0)[0],
         "heading_error_rms_deg": metrics.rms(head, t0),
+        "nees_mean": fit.nees_mean,
+        "nees_median": fit.nees_median,
+        "inside_95": fit.inside_95,
+        "covariance_missing": fit.excluded / (fit.steps + fit.excluded) if fit.steps + fit.excluded else float("nan"),
         "failure_rate": metrics.failure_rate(pos, t0, threshold=1.0),
         "availability": metrics.availability(track.valid),
         "fixed": float(t0 is not None),

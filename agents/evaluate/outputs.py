@@ -1,9 +1,12 @@
 """What ``crowdloc eval`` writes (:func:`write_outputs`): ``episodes.csv``, ``summary.csv``,
-``summary.md``, ``plots/<metric>.png``, ``tum/<episode>_{estimate,groundtruth}.tum`` (``evo``
+``summary.md``, ``plots/<metric>.png``, ``plots/error_vs_spread.png`` (each valid step's position error against
+the reported spread, per localizer), ``tum/<episode>_{estimate,groundtruth}.tum`` (``evo``
 reads them; estimate rows only where valid) and ``episode.gif``.
 
 The metric columns are the grid's (:attr:`EvalSpec.metrics`): the core ones and those of the
-plug-ins of its localizers' measurement kinds; an episode of another kind has NaN there.
+plug-ins of its localizers' measurement kinds; an episode of another kind has NaN there. The
+consistency metrics (NEES, inside the 95 % region) of a localizer that reports no covariance
+(``LocalizerSpec.covariance`` false) read ``no covariance`` in every table.
 """
 
 from __future__ import annotations
@@ -61,6 +64,22 @@ def read_tum(path: Path) -> tuple[Array, Array]:
 
 
 # --------------------------------------------------------------------------- tables
+#: what the tables show for a consistency metric of a localizer that reports no covariance
+NO_COVARIANCE = "no covariance"
+
+
+def reports_covariance(localizer: str) -> bool:
+    """Whether ``localizer``'s covariance is its own measure of uncertainty (``LocalizerSpec.covariance``)."""
+    from localizers.registry import spec
+
+    return spec(localizer).covariance
+
+
+def _cell_value(info: MetricInfo, localizer: str, value: Any) -> Any:
+    """``value``, or :data:`NO_COVARIANCE` for a consistency metric of a localizer without one."""
+    return NO_COVARIANCE if info.covariance and not reports_covariance(localizer) else value
+
+
 def format_stat(info: MetricInfo, stat: Stat, episodes: int) -> str:
     """``mean [low, high]`` in the metric's format, ``(n/episodes)`` when some episodes had no value."""
     if not math.isfinite(stat.mean):
@@ -76,7 +95,7 @@ def summary_markdown(result: EvalResult) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     nothing = Stat(math.nan, math.nan, math.nan, 0)
     for row in result.summary:
-        values = [format_stat(m, row.stats.get(m.key, nothing), row.episodes) for m in shown]
+        values = [_cell_value(m, row.localizer, format_stat(m, row.stats.get(m.key, nothing), row.episodes)) for m in shown]
         label = result.spec.policy_label(row.policy)
         lines.append("| " + " | ".join([label, row.localizer, str(row.crowd_size), *values]) + " |")
     return "\n".join(lines)
@@ -95,16 +114,19 @@ def write_tables(result: EvalResult, out_dir: Path) -> dict[str, Path]:
     metric and group) and ``run.json`` (the resolved conditions and grid, the command line,
     versions and git commit) under ``out_dir`` (created if missing); any subset of a grid will do."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    keys = [m.key for m in result.metrics]
+    infos = result.metrics
+    keys = [m.key for m in infos]
     out: dict[str, Path] = {}
     label = result.spec.policy_label
     ep_rows = [[label(e.cell.policy), e.cell.localizer, e.cell.crowd_size, e.cell.seed, len(e.time_s) - 1,
-                *[e.metrics.get(k, math.nan) for k in keys]] for e in result.episodes]  # fmt: skip
+                *[_cell_value(m, e.cell.localizer, e.metrics.get(m.key, math.nan)) for m in infos]]
+               for e in result.episodes]  # fmt: skip
     ep_cols = ["policy", "localizer", "crowd_size", "seed", "steps", *keys]
     out["episodes"] = _write_csv(out_dir / "episodes.csv", ep_cols, ep_rows)
     stat_cols = [f"{k}{suffix}" for k in keys for suffix in ("", "_ci_low", "_ci_high", "_n")]
     sum_rows = [[label(r.policy), r.localizer, r.crowd_size, r.episodes,
-                 *[x for k in keys for x in (r.stats[k].mean, r.stats[k].low, r.stats[k].high, r.stats[k].n)]]
+                 *[_cell_value(m, r.localizer, x) for m in infos
+                   for x in (r.stats[m.key].mean, r.stats[m.key].low, r.stats[m.key].high, r.stats[m.key].n)]]
                 for r in result.summary]  # fmt: skip
     sum_cols = ["policy", "localizer", "crowd_size", "episodes", *stat_cols]
     out["summary_csv"] = _write_csv(out_dir / "summary.csv", sum_cols, sum_rows)
@@ -145,7 +167,10 @@ def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
             "Mean over seeds [95% percentile-bootstrap CI, "
             f"{s.bootstrap_resamples} resamples]; (k/N): only k of N episodes had a value (the others never had a fix); "
             "–: no value. Errors and failure rate are over the valid steps from the first fix on; failure: error >= 1 m; "
-            "availability: share of all steps with a pose; first fix: time and distance travelled from the reset; "
+            "NEES: pose error squared over the reported covariance (x, y, heading), 3 for a consistent localizer; "
+            "inside 95% region: share of steps with NEES <= 7.815 (about 0.95 if consistent), both over the steps "
+            f"with a usable covariance; {NO_COVARIANCE}: the localizer reports none; `plots/error_vs_spread.png`: error "
+            "against reported spread; availability: share of all steps with a pose; first fix: time and distance travelled from the reset; "
             f"collisions: contact events. {notes}Trajectories (TUM format, for evo): `tum/`. {animated}",
             "",
         ]
@@ -180,6 +205,8 @@ def plot_summary(result: EvalResult, directory: Path) -> list[Path]:
             ax.set_xlabel("crowd size")
             ax.set_title(loc, fontsize=9)
             ax.grid(alpha=0.3)
+            if info.covariance and not reports_covariance(loc):
+                ax.text(0.5, 0.5, NO_COVARIANCE, transform=ax.transAxes, ha="center", va="center", color="0.4")
         axes[0, 0].set_ylabel(info.label)
         axes[0, -1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
         fig.suptitle(f"{info.label}: mean and 95% bootstrap CI over {s.seeds} seeds", fontsize=10)
@@ -189,6 +216,56 @@ def plot_summary(result: EvalResult, directory: Path) -> list[Path]:
         plt.close(fig)
         paths.append(path)
     return paths
+
+
+def plot_error_vs_spread(result: EvalResult, path: Path, max_points: int = 4000) -> Path:
+    """Each valid step's position error against the reported position spread (sqrt of the trace of
+    the position covariance), a panel per localizer, every policy, crowd size and seed pooled.
+
+    The lines ``error = spread`` and ``error = 2 spread`` are the 1 and 2 sd lines of a consistent
+    localizer (the trace is the expected squared position error): most of its points lie below
+    the second, an overconfident one's above. At most ``max_points`` evenly spaced steps per
+    localizer are drawn, the x axis spanning the 1 % quantile to the largest spread; a localizer
+    that reports no covariance gets an empty panel saying so.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from agents.plots import save_figure
+
+    s = result.spec
+    fig, axes = plt.subplots(1, len(s.localizers), figsize=(4.2 * len(s.localizers), 3.9), squeeze=False)
+    for ax, loc in zip(axes[0], s.localizers):
+        ax.set_title(loc, fontsize=9)
+        ax.set_xlabel("reported spread [m]")
+        ax.grid(alpha=0.3)
+        if not reports_covariance(loc):
+            ax.text(0.5, 0.5, NO_COVARIANCE, transform=ax.transAxes, ha="center", va="center", color="0.4")
+            continue
+        eps = [e for e in result.episodes if e.cell.localizer == loc]
+        spread = np.concatenate([e.position_spreads_m for e in eps]) if eps else np.zeros(0)
+        error = np.concatenate([e.position_errors for e in eps]) if eps else np.zeros(0)
+        keep = np.isfinite(spread) & np.isfinite(error) & (spread > 0)
+        spread, error = spread[keep], error[keep]
+        if spread.size == 0:
+            ax.text(0.5, 0.5, "no step with a reported spread", transform=ax.transAxes, ha="center", va="center", color="0.4")
+            continue
+        if spread.size > max_points:
+            pick = np.linspace(0, spread.size - 1, max_points).astype(int)
+            spread, error = spread[pick], error[pick]
+        ax.scatter(spread, np.maximum(error, 1e-4), s=4, alpha=0.3, lw=0, label="steps")
+        lo, hi = float(np.quantile(spread, 0.01)), float(spread.max())  # a degenerate step or two would stretch the axis
+        line = np.geomspace(lo, hi, 50) if hi > lo else np.array([lo, hi])
+        ax.set_xlim(0.8 * lo, 1.25 * hi)
+        ax.plot(line, line, "k-", lw=1, label="error = spread (1 sd)")
+        ax.plot(line, 2 * line, "k--", lw=1, label="error = 2 x spread (2 sd)")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.legend(fontsize=7, loc="upper left")
+    axes[0, 0].set_ylabel("position error [m]")
+    return save_figure(fig, path, "position error against reported spread, every valid step")
 
 
 def render_gif(spec: EvalSpec, cell: Cell, path: Path, max_frames: int = 150, every: int = 3) -> Path:
@@ -220,7 +297,7 @@ def write_outputs(result: EvalResult, out_dir: Path, *, gif_cell: Cell | None = 
 
     Returns:
         Name -> path of what was written (``episodes``, ``summary_csv``, ``run``, ``summary_md``,
-        ``plots``, ``tum``, and ``gif``: ``episode.gif``).
+        ``plots`` (with ``error_vs_spread.png``), ``tum``, and ``gif``: ``episode.gif``).
     """
     if gif:
         gif_cell = gif_cell or result.episodes[0].cell
@@ -229,6 +306,7 @@ def write_outputs(result: EvalResult, out_dir: Path, *, gif_cell: Cell | None = 
     out["summary_md"].write_text(_summary_page(result, gif_cell if gif else None))
     out["plots"] = out_dir / "plots"
     plot_summary(result, out["plots"])
+    plot_error_vs_spread(result, out["plots"] / "error_vs_spread.png")
     out["tum"] = out_dir / "tum"
     out["tum"].mkdir(exist_ok=True)
     for e in result.episodes:

@@ -41,13 +41,20 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class MetricInfo:
-    """How a per-episode metric is labelled and printed (``after``: the row it follows in the tables)."""
+    """How a per-episode metric is labelled and printed.
+
+    Attributes:
+        after: the row it follows in the tables.
+        covariance: the metric measures the reported covariance; the tables say "no covariance"
+            for a localizer that reports none (``LocalizerSpec.covariance`` false).
+    """
 
     key: str
     label: str
     fmt: str
     in_table: bool = True
     after: str | None = None
+    covariance: bool = False
 
 
 #: the metrics of every localizer, in table order (plug-in rows are placed among them)
@@ -56,6 +63,10 @@ CORE_METRICS: tuple[MetricInfo, ...] = (
     MetricInfo("position_error_rms_m", "pos. error RMS [m]", "{:.3f}"),
     MetricInfo("heading_error_mean_deg", "heading error mean [deg]", "{:.2f}"),
     MetricInfo("heading_error_rms_deg", "heading error RMS [deg]", "{:.2f}"),
+    MetricInfo("nees_mean", "NEES mean (consistent: 3)", "{:.2f}", covariance=True),
+    MetricInfo("nees_median", "NEES median (consistent: 2.37)", "{:.2f}", in_table=False, covariance=True),
+    MetricInfo("inside_95", "inside 95% region (consistent: 0.95)", "{:.3f}", covariance=True),
+    MetricInfo("covariance_missing", "valid steps without a usable covariance", "{:.3f}", in_table=False, covariance=True),
     MetricInfo("failure_rate", "failure rate (>= 1 m)", "{:.3f}"),
     MetricInfo("availability", "availability", "{:.3f}"),
     MetricInfo("fixed", "share of episodes with a fix", "{:.2f}", in_table=False),
@@ -78,6 +89,8 @@ class Track:
         contacts: ``(T,)`` contact events of our robot that began in each step.
         odometry: ``(T - 1, 3)`` odometry increments of steps 1..T-1.
         rewards: ``(T - 1,)`` active-localization rewards.
+        covariances: ``(T, 3, 3)`` the covariances the localizer reported with its poses, NaN
+            where it had none (default: NaN throughout, no covariance reported).
     """
 
     time_s: Array
@@ -87,12 +100,18 @@ class Track:
     contacts: NDArray[np.int64]
     odometry: Array
     rewards: Array
+    covariances: Array | None = None
 
     def __post_init__(self) -> None:  # lists from Python callers become arrays of the documented types
         for name, dtype in (("time_s", np.float64), ("true_pose", np.float64), ("estimates", np.float64),
                             ("valid", np.bool_), ("contacts", np.int64), ("rewards", np.float64)):  # fmt: skip
             object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=dtype))
         object.__setattr__(self, "odometry", np.asarray(self.odometry, dtype=np.float64).reshape(-1, 3))
+        steps = self.time_s.shape[0]
+        cov = np.full((steps, 3, 3), np.nan) if self.covariances is None else np.asarray(self.covariances, dtype=np.float64)
+        if cov.shape != (steps, 3, 3):
+            raise ValueError(f"Track.covariances must have shape ({steps}, 3, 3), one per step, got {cov.shape}")
+        object.__setattr__(self, "covariances", cov)
 
     @functools.cached_property
     def fix_index(self) -> int | None:
@@ -116,6 +135,22 @@ class Track:
         """``(T,)`` heading errors in degrees, NaN where the estimate is not valid."""
         est = np.where(self.valid[:, None], self.estimates, np.nan)
         return np.degrees(metrics.heading_errors(est, self.true_pose))
+
+    @functools.cached_property
+    def nees(self) -> Array:
+        """``(T,)`` NEES of the pose (3 dof) against the reported covariance; NaN where the
+        estimate is not valid or its covariance not usable (:func:`agents.metrics.pose_nees`)."""
+        est = np.where(self.valid[:, None], self.estimates, np.nan)
+        assert self.covariances is not None  # set in __post_init__
+        return metrics.pose_nees(est, self.true_pose, self.covariances)
+
+    @functools.cached_property
+    def position_spreads_m(self) -> Array:
+        """``(T,)`` reported position spread, sqrt of the trace of the position covariance (NaN where not valid)."""
+        cov = self.covariances
+        assert cov is not None  # set in __post_init__
+        spread = np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1], 0.0))  # NaN stays NaN
+        return np.where(self.valid, spread, np.nan)
 
 
 @dataclass(frozen=True)

@@ -79,22 +79,26 @@ def summarize(
 
     Args:
         episodes: :class:`Episode`\\ s (anything with a ``cell`` and ``metrics``).
-        resamples, seed: of the bootstrap; metric ``m`` of group ``g`` draws from ``[seed, g, m]``.
+        resamples, seed: of the bootstrap; metric ``m`` of group ``g`` draws from ``[seed, g, m]``,
+            ``m`` counting the rows with the consistency ones (``MetricInfo.covariance``) last.
         metrics: the rows to aggregate (default: those of the episodes' localizers); a metric
             an episode has not got (another kind's) counts as no value.
     """
     rows_of = localizer_metrics(dict.fromkeys(ep.cell.localizer for ep in episodes)) if metrics is None else metrics
     keys = [m.key for m in rows_of]
+    # the bootstrap stream of each metric: its index among the rows with the consistency rows moved
+    # last, so that adding those rows left every other metric's interval as it was
+    stream = {m.key: i for i, m in enumerate([m for m in rows_of if not m.covariance] + [m for m in rows_of if m.covariance])}
     groups: dict[tuple[str, str, int], list[Any]] = {}
     for ep in episodes:
         groups.setdefault(ep.cell.group, []).append(ep)
     rows = []
     for g, (key, eps) in enumerate(groups.items()):
         stats = {}
-        for m, name in enumerate(keys):
+        for name in keys:
             v = np.array([ep.metrics.get(name, math.nan) for ep in eps], dtype=np.float64)
             finite = v[np.isfinite(v)]
-            lo, hi = bootstrap_ci(finite, resamples, rng=np.random.default_rng([seed, g, m]))
+            lo, hi = bootstrap_ci(finite, resamples, rng=np.random.default_rng([seed, g, stream[name]]))
             stats[name] = Stat(float(finite.mean()) if finite.size else math.nan, lo, hi, int(finite.size))
         rows.append(SummaryRow(*key, episodes=len(eps), stats=stats))
     return tuple(rows)

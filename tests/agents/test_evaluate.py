@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +24,7 @@ from agents.evaluate import (
     evaluate,
     read_tum,
     run_episode,
+    write_outputs,
     write_tum,
 )
 from agents.train import EVAL_SEED_BASE, load_train_config, train
@@ -50,9 +53,18 @@ def test_cli_eval_writes_tables_plots_trajectories_and_a_gif(tmp_path: Path, cap
         assert float(r["availability_ci_low"]) <= float(r["availability"]) <= float(r["availability_ci_high"])
     md = (out / "summary.md").read_text()
     assert "| policy | localizer | crowd |" in md and "| spin | candidate_sets | 3 |" in md
+    # the consistency columns, right after the error columns
+    assert "| heading error RMS [deg] | NEES mean (consistent: 3) | inside 95% region (consistent: 0.95) | failure rate" in md
+    for r in rows:
+        assert float(r["nees_mean"]) >= 0.0 and 0.0 <= float(r["inside_95"]) <= 1.0 and float(r["nees_median"]) >= 0.0
+    assert all(0.0 <= float(r["covariance_missing"]) <= 1.0 for r in rows)
+    for r in summary:
+        assert float(r["inside_95_ci_low"]) <= float(r["inside_95"]) <= float(r["inside_95_ci_high"])
+        assert "no covariance" not in r.values()  # candidate_sets reports one
 
     pngs = list((out / "plots").glob("*.png"))
     assert len(pngs) >= 1 and all(p.stat().st_size > 1000 for p in pngs)
+    assert (out / "plots" / "error_vs_spread.png").stat().st_size > 1000
 
     tum = sorted((out / "tum").glob("*.tum"))
     assert len(tum) == 8  # an estimate and a ground truth per episode
@@ -101,6 +113,53 @@ def test_metrics_of_a_hand_made_episode() -> None:
     assert m["error_bound_ratio"] == pytest.approx(rms_pos / 0.25)
 
 
+def test_consistency_metrics_of_a_hand_made_episode() -> None:
+    truth = np.zeros((4, 3))
+    est = np.array([[0.0, 0.0, 0.0], [0.2, 0.3, 0.1], [9.0, 9.0, 0.0], [0.0, 0.0, 0.0]])
+    cov = np.diag([0.04, 0.09, 0.01])
+    covs = np.stack([cov, cov, cov, np.full((3, 3), np.nan)])  # step 2: far outside; step 3: no covariance
+    track = Track(np.arange(4.0), truth, est, np.array([False, True, True, True]), [0] * 4, np.zeros((3, 3)), [0.0] * 3, covs)
+    m = episode_metrics(track)
+    far = 81 / 0.04 + 81 / 0.09
+    assert m["nees_mean"] == pytest.approx((3.0 + far) / 2)  # step 0 is not valid, step 3 has no covariance
+    assert m["nees_median"] == pytest.approx((3.0 + far) / 2)
+    assert m["inside_95"] == 0.5 and m["covariance_missing"] == pytest.approx(1 / 3)
+    np.testing.assert_allclose(track.position_spreads_m, [np.nan, math.sqrt(0.13), math.sqrt(0.13), np.nan])
+    with pytest.raises(ValueError, match=r"Track.covariances must have shape \(4, 3, 3\)"):
+        Track(np.arange(4.0), truth, est, np.ones(4, bool), [0] * 4, np.zeros((3, 3)), [0.0] * 3, covs[:3])
+
+
+@pytest.fixture
+def resection_without_covariance() -> Iterator[str]:
+    from localizers.registry import LOCALIZERS, register_localizer, spec
+
+    name = "resection_no_covariance"
+    register_localizer(name, dataclasses.replace(spec("resection"), covariance=False))
+    yield name
+    LOCALIZERS.pop(name, None)
+
+
+def test_a_localizer_without_covariance_says_so(resection_without_covariance: str, tmp_path: Path) -> None:
+    spec = EvalSpec(policies=("spin",), localizers=("resection", resection_without_covariance), crowd_sizes=(0,), seeds=1,
+                    episode_steps=20)  # fmt: skip
+    result = evaluate(spec, workers=1, progress=False)
+    plain, marked = result.episodes
+    assert plain.metrics["position_error_mean_m"] == marked.metrics["position_error_mean_m"]  # the same localizer
+    assert np.isfinite(plain.metrics["nees_mean"]) and np.isfinite(plain.covariances[1:]).all()
+    assert math.isnan(marked.metrics["nees_mean"]) and np.isnan(marked.covariances).all()
+    write_outputs(result, tmp_path, gif=False)
+    md = (tmp_path / "summary.md").read_text()
+    row = next(line for line in md.splitlines() if f"| {resection_without_covariance} |" in line)
+    assert row.split(" | ").count("no covariance") == 2 and "nan" not in row  # NEES mean and inside 95%
+    with open(tmp_path / "summary.csv") as f:
+        by_name = {r["localizer"]: r for r in csv.DictReader(f)}
+    assert by_name[resection_without_covariance]["nees_mean"] == "no covariance"
+    assert float(by_name["resection"]["nees_mean"]) >= 0.0
+    with open(tmp_path / "episodes.csv") as f:
+        assert [r["inside_95"] == "no covariance" for r in csv.DictReader(f)] == [False, True]
+    assert (tmp_path / "plots" / "error_vs_spread.png").is_file()
+
+
 def test_an_episode_without_a_fix_has_nan_errors_and_first_fix() -> None:
     truth = np.zeros((4, 3))
     visible = np.ones((4, 8), bool)
@@ -110,6 +169,8 @@ def test_an_episode_without_a_fix_has_nan_errors_and_first_fix() -> None:
     assert m["fixed"] == 0.0 and m["availability"] == 0.0 and m["episode_return"] == -3.0
     for key in ("position_error_mean_m", "heading_error_rms_deg", "failure_rate", "first_fix_s", "first_fix_distance_m",
                 "fix_after_third_s", "error_bound_ratio"):  # fmt: skip
+        assert math.isnan(m[key]), key
+    for key in ("nees_mean", "nees_median", "inside_95", "covariance_missing"):  # no valid step at all
         assert math.isnan(m[key]), key
 
 

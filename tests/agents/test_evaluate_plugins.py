@@ -112,7 +112,8 @@ def scan_plugin() -> Iterator[MetricPlugin]:
 
 def test_a_plugin_registered_for_a_kind_shows_its_metrics(scan_plugin: MetricPlugin, tmp_path: Path) -> None:
     keys = [m.key for m in metric_infos(["scan"])]
-    assert keys == [*CORE_KEYS[:8], "x_span_m", *CORE_KEYS[8:], "beam_count"]  # placed after first_fix_s; the other at the end
+    after = CORE_KEYS.index("first_fix_s") + 1
+    assert keys == [*CORE_KEYS[:after], "x_span_m", *CORE_KEYS[after:], "beam_count"]  # after first_fix_s; the other at the end
     assert "x_span_m" not in [m.key for m in metric_infos(["bearings"])]
     assert register_metrics("scan", scan_plugin) is scan_plugin  # again the same: fine
     spec = EvalSpec(env_id="crowdloc/CrowdedRoom-v0", policies=("random_walk",), localizers=("mcl_lidar",),

@@ -106,3 +106,62 @@ def test_over_seeds_ignores_missing_values() -> None:
     assert s.sd == pytest.approx(math.sqrt(2.0))
     empty = metrics.over_seeds([np.nan])
     assert empty.n == 0 and math.isnan(empty.mean)
+
+
+# --------------------------------------------------------------------------- consistency (NEES)
+def test_chi2_quantiles_equal_scipys() -> None:
+    from scipy import stats
+
+    for dof in (1, 2, 3):
+        for p in (0.05, 0.5, 0.95, 0.99):
+            assert metrics.chi2_quantile(p, dof) == pytest.approx(stats.chi2.ppf(p, dof), rel=1e-11)
+            assert metrics.chi2_cdf(stats.chi2.ppf(p, dof), dof) == pytest.approx(p, abs=1e-12)
+    assert metrics.chi2_quantile(0.95, 3) == pytest.approx(7.815, abs=5e-4)
+    with pytest.raises(ValueError, match="dof must be 1, 2 or 3"):
+        metrics.chi2_quantile(0.95, 4)
+    with pytest.raises(ValueError, match=r"p must be in \(0, 1\)"):
+        metrics.chi2_quantile(1.0, 3)
+
+
+def test_nees_of_hand_made_errors() -> None:
+    cov = np.diag([0.04, 0.09, 0.01])  # sd 0.2 m, 0.3 m, 0.1 rad
+    truth = np.array([[1.0, 2.0, 3.1], [1.0, 2.0, 0.0], [1.0, 2.0, 3.1], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    est = np.array([[1.0, 2.0, 3.1], [1.2, 1.7, 0.1], [1.0, 2.0, 3.1 + 0.1 - 2 * np.pi], [0.1, 0.0, 0.0], [np.nan] * 3])
+    covs = np.stack([cov, cov, cov, np.full((3, 3), np.nan), cov])
+    nees = metrics.pose_nees(est, truth, covs)
+    assert nees[0] == 0.0  # no error
+    assert nees[1] == pytest.approx(3.0)  # one sd on each axis
+    assert nees[2] == pytest.approx(1.0)  # the heading error wraps to 0.1 rad
+    assert np.isnan(nees[3]) and np.isnan(nees[4])  # no covariance; no estimate
+    assert metrics.pose_nees(est, truth, covs, dof=2)[1] == pytest.approx(2.0)  # position only
+    singular = np.diag([0.04, 0.0, 0.01])
+    assert np.isnan(metrics.pose_nees(est[:1], truth[:1], singular[None])[0])
+    correlated = np.array([[1.0, 0.8, 0.0], [0.8, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    e = np.array([0.3, -0.2, 0.1])
+    assert metrics.pose_nees(e[None], np.zeros((1, 3)), correlated[None])[0] == pytest.approx(e @ np.linalg.solve(correlated, e))
+    fit = metrics.consistency(nees, mask=[True, True, True, True, False])
+    assert (fit.steps, fit.excluded) == (3, 1)
+    assert fit.nees_mean == pytest.approx(4.0 / 3) and fit.inside_95 == 1.0
+    assert math.isnan(metrics.consistency([np.nan, np.nan]).nees_mean)
+    with pytest.raises(ValueError, match=r"\(T, 3, 3\) covariances"):
+        metrics.pose_nees(est, truth, cov)
+
+
+def _synthetic_filter(scale: float, n: int = 20_000) -> metrics.Consistency:
+    """Errors drawn from N(0, P), a different P per step; the filter reports ``scale * P``."""
+    rng = np.random.default_rng(19)
+    a = rng.normal(size=(n, 3, 3)) * np.array([0.3, 0.3, 0.05])[:, None]
+    cov = a @ np.swapaxes(a, 1, 2) + np.diag([1e-3, 1e-3, 1e-4])
+    err = np.einsum("nij,nj->ni", np.linalg.cholesky(cov), rng.normal(size=(n, 3)))
+    truth = np.column_stack([rng.uniform(-5, 5, (n, 2)), rng.uniform(-np.pi, np.pi, n)])
+    est = truth + err
+    est[:, 2] = np.mod(est[:, 2] + np.pi, 2 * np.pi) - np.pi  # reported headings are wrapped
+    return metrics.consistency(metrics.pose_nees(est, truth, scale * cov))
+
+
+def test_a_consistent_filter_is_inside_its_95_region_on_95_percent_of_steps() -> None:
+    fit = _synthetic_filter(1.0)
+    assert fit.inside_95 == pytest.approx(0.95, abs=0.02)
+    assert fit.nees_mean == pytest.approx(3.0, abs=0.1)
+    overconfident = _synthetic_filter(0.25)  # covariance 4x too small
+    assert overconfident.inside_95 < 0.6 and overconfident.nees_mean == pytest.approx(12.0, rel=0.05)
