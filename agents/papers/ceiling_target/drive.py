@@ -19,6 +19,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
+from agents.metrics import chi2_quantile, pose_nees
 from agents.navigation import CorridorFollower
 from agents.policies import make_policy
 from envs.localization_env import LocalizationEnv
@@ -53,6 +54,8 @@ class DriveResult:
     max_error_between_m: float  # the largest true-vs-estimate position error along the drive
     errors_m: list[float]  # true-vs-estimate position error per step (for the spacing study)
     travelled_m: list[float]  # the true distance driven since the last fix, per step
+    nees_median: float  # of the pose against the reported covariance, over the steps with an estimate
+    inside_95: float  # share of those steps inside the reported 95 % region
 
 
 def drive(task: DriveTask) -> DriveResult:
@@ -69,6 +72,7 @@ def drive(task: DriveTask) -> DriveResult:
     localizer = env.get_wrapper_attr("localizer")
     truths = [np.asarray(info["true_pose"], dtype=np.float64)]
     errors, travelled = [], []
+    estimates, covariances = [], []
     since_fix, fixes_seen, contacts = 0.0, localizer.fixes, 0
     terminated = truncated = False
     steps = 0
@@ -84,6 +88,8 @@ def drive(task: DriveTask) -> DriveResult:
             fixes_seen, since_fix = localizer.fixes, 0.0
         est = info["estimate"]
         errors.append(float(math.hypot(est.x_m - truth[0], est.y_m - truth[1])) if est.valid else math.nan)
+        estimates.append(est.as_array() if est.valid else np.full(3, np.nan))
+        covariances.append(np.asarray(est.covariance, dtype=np.float64))
         travelled.append(since_fix)
     targets = {t["name"]: t for t in base.landmark_map.features["ceiling"]["targets"]}
     stops = []
@@ -94,9 +100,15 @@ def drive(task: DriveTask) -> DriveResult:
                       "x_cm": 100 * (truth[0] - target["x_m"]), "y_cm": 100 * (truth[1] - target["y_m"])})  # fmt: skip
     env.close()
     finite = [e for e in errors if math.isfinite(e)]
+    nees = pose_nees(
+        np.array(estimates).reshape(-1, 3), np.array(truths[1:]).reshape(-1, 3), np.array(covariances).reshape(-1, 3, 3)
+    )
+    nees = nees[np.isfinite(nees)]
     return DriveResult(
         task, stops, steps * base.config.dt_s, bool(terminated), policy.remeasures, policy.missed, contacts,
         localizer.fixes, max(finite) if finite else math.nan, errors, travelled,
+        float(np.median(nees)) if nees.size else math.nan,
+        float(np.mean(nees <= chi2_quantile(0.95, 3))) if nees.size else math.nan,
     )  # fmt: skip
 
 

@@ -69,7 +69,8 @@ def run_parts(seeds: int, densities: Sequence[int], workers: int) -> dict[str, A
 
 def _drive_record(d: DriveResult) -> dict[str, Any]:
     return {"seed": d.task.seed, "crowd": d.task.crowd, "stops": d.stops, "time_s": d.time_s, "reached_goal": d.reached_goal,
-            "remeasures": d.remeasures, "missed": d.missed, "contacts": d.contacts, "fixes": d.fixes}  # fmt: skip
+            "remeasures": d.remeasures, "missed": d.missed, "contacts": d.contacts, "fixes": d.fixes,
+            "nees_median": d.nees_median, "inside_95": d.inside_95}  # fmt: skip
 
 
 def spacing(uncorrected: Sequence[DriveResult], bound_m: float = 0.05) -> dict[str, Any]:
@@ -169,6 +170,24 @@ def density_section(results: dict[str, Any]) -> Lines:
               "re-measures", "missed", "contacts"]  # fmt: skip
     lines += markdown_table(header, rows) + [""]
     return lines
+
+
+def consistency_section(results: dict[str, Any]) -> Lines:
+    """NEES of ``ceiling_target``'s reported covariance on the drives (a consistent filter: median
+    about 2.37, 95 % of steps inside the 95 % region)."""
+    rows = []
+    for label, drives in results["drives"].items():
+        rows.append([label, fmt(float(np.median([d["nees_median"] for d in drives])), "{:.3g}"),
+                     fmt(float(np.mean([d["inside_95"] for d in drives])), "{:.2f}")])  # fmt: skip
+    return [
+        "## Consistency: is the reported covariance honest?",
+        "",
+        "NEES of the pose against `ceiling_target`'s covariance over the steps with an estimate (3 dof: a consistent "
+        "filter has a median of 2.37 and 95 % of steps inside the 95 % region, NEES <= 7.81).",
+        "",
+        *markdown_table(["drives", "NEES median (median over drives)", "inside 95 % (mean over drives)"], rows),
+        "",
+    ]
 
 
 def illumination_section(results: dict[str, Any]) -> Lines:
@@ -273,7 +292,7 @@ def run_and_report(out: Path, seeds: int, densities: Sequence[int], workers: int
     del drives
     lines = ["# Ceiling colour targets (Fukaya et al.): reproduction", ""]
     lines += [f"`crowdloc reproduce ceiling-target`, {seeds} seeds, {time.perf_counter() - start:.0f} s.", ""]
-    lines += static_section(results) + drive_section(results) + density_section(results)
+    lines += static_section(results) + drive_section(results) + density_section(results) + consistency_section(results)
     lines += illumination_section(results) + moving_section(results) + spacing_section(results)
     lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figs] + [""]
     report.write_text("\n".join(lines))

@@ -29,7 +29,15 @@ def quick(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
 def test_quick_run_writes_report_results_and_figures(quick: tuple[Path, str]) -> None:
     out, printed = quick
     report = (out / "report.md").read_text()
-    for section in ("Tables 2-4", "Tables 5-6", "among people", "illumination", "without stopping", "how far apart"):
+    for section in (
+        "Tables 2-4",
+        "Tables 5-6",
+        "among people",
+        "Consistency",
+        "illumination",
+        "without stopping",
+        "how far apart",
+    ):
         assert section in report, section
     assert (out / "tables_2_4.png").stat().st_size > 0 and (out / "run.json").is_file()
     tables = printed_tables(printed)
@@ -58,6 +66,14 @@ def test_drives_without_and_with_correction(quick: tuple[Path, str]) -> None:
     for y in paper.DRIVE_TARGETS_M:
         corrected = summary["corrected crowd 0"][str(y)]
         assert corrected["n"] >= 1 and abs(corrected["y_mean"]) < 3 and abs(corrected["x_mean"]) < 3
+
+
+def test_dead_reckoning_alone_is_overconfident_and_the_fixes_keep_it_honest(quick: tuple[Path, str]) -> None:
+    # the drift model is a random walk and knows nothing of the odometry's 2.2 % scale error
+    drives = json.loads((quick[0] / "results.json").read_text())["drives"]
+    uncorrected = [d["inside_95"] for d in drives["table5"]]
+    corrected = [d["inside_95"] for d in drives["corrected crowd 0"]]
+    assert max(uncorrected) < 0.5 < min(corrected)
 
 
 def test_a_second_run_into_the_same_folder_is_refused(quick: tuple[Path, str], capsys: pytest.CaptureFixture[str]) -> None:
