@@ -269,60 +269,43 @@ def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
         parser.error("--resume continues a run and --overwrite starts it again: give one")
     if (args.workers or args.ray_address) and not args.seeds:
         parser.error("--workers and --ray-address spread several runs: give --seeds")
-    try:
-        overrides = parse_overrides(args.overrides)
-        for key, value in (("total_timesteps", args.total_timesteps), ("seed", args.seed), ("n_envs", args.n_envs)):
-            if value is not None:
-                overrides[key] = value
-        config = load_train_config(args.config, overrides)
-        resume = None
-        if args.resume == "latest":
-            resume = latest_checkpoint(config, args.out)
-            if resume is None:
-                raise ConfigError(f"--resume latest: no checkpoint under {args.out / config.name}")
-        elif args.resume:
-            resume = Path(args.resume)
-            if not resume.is_file():
-                raise ConfigError(f"--resume {args.resume}: no such checkpoint file (or give 'latest')")
-    except ConfigError as exc:
-        parser.error(str(exc))
+    overrides = parse_overrides(args.overrides)
+    for key, value in (("total_timesteps", args.total_timesteps), ("seed", args.seed), ("n_envs", args.n_envs)):
+        if value is not None:
+            overrides[key] = value
+    config = load_train_config(args.config, overrides)
+    resume = None
+    if args.resume == "latest":
+        resume = latest_checkpoint(config, args.out)
+        if resume is None:
+            raise ConfigError(f"--resume latest: no checkpoint under {args.out / config.name}")
+    elif args.resume:
+        resume = Path(args.resume)
+        if not resume.is_file():
+            raise ConfigError(f"--resume {args.resume}: no such checkpoint file (or give 'latest')")
     if args.seeds:
         from agents.train import train_seeds
 
-        try:
-            models = train_seeds(config, args.out, args.seeds, workers=args.workers, ray_address=args.ray_address,
-                                 progress=not args.no_progress, overwrite=args.overwrite)  # fmt: skip
-        except ConfigError as exc:
-            parser.error(str(exc))
+        models = train_seeds(config, args.out, args.seeds, workers=args.workers, ray_address=args.ray_address,
+                             progress=not args.no_progress, overwrite=args.overwrite)  # fmt: skip
         print("\n".join(f"wrote {m}" for m in models))
         return 0
-    try:
-        model = train(config, args.out, resume=resume, progress_bar=not args.no_progress, overwrite=args.overwrite)
-    except ConfigError as exc:
-        parser.error(str(exc))
+    model = train(config, args.out, resume=resume, progress_bar=not args.no_progress, overwrite=args.overwrite)
     print(f"wrote {model}")
     return 0
 
 
 def _run_eval(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.evaluate import run_cli as run_eval
-    from localizers.schema import ConfigError
 
-    try:
-        run_eval(args)
-    except ConfigError as exc:
-        parser.error(str(exc))
+    run_eval(args)
     return 0
 
 
 def _run_tune(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.tune import run_cli
-    from localizers.schema import ConfigError
 
-    try:
-        result = run_cli(args)
-    except ConfigError as exc:
-        parser.error(str(exc))
+    result = run_cli(args)
     print(f"wrote {result.report} ({result.n_trials} trials in study {result.study_name!r})")
     return 0
 
@@ -334,23 +317,13 @@ def _run_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
         Path(args.out).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         parser.error(f"--out {args.out}: cannot create the output folder ({exc.strerror})")
-    from localizers.schema import ConfigError
-
-    try:
-        report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
-    except ConfigError as exc:
-        parser.error(str(exc))
+    report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
     print(f"wrote {report}")
     return 0
 
 
 def _run_fit(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from localizers.schema import ConfigError
-
-    try:
-        path = importlib.import_module(FITTERS[args.localizer]).run_cli(args)
-    except ConfigError as exc:
-        parser.error(str(exc))
+    path = importlib.import_module(FITTERS[args.localizer]).run_cli(args)
     print(f"wrote {path}")
     return 0
 
@@ -381,11 +354,18 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(argv)
     args = parser.parse_args(argv)
+    from localizers.schema import ConfigError
+
     runner = _RUNNERS.get(args.command)
     if runner is None:
         parser.error(f"unknown command {args.command!r}")
         return 2
-    return runner(args, getattr(args, "command_parser", parser))
+    command_parser = getattr(args, "command_parser", parser)
+    try:
+        return runner(args, command_parser)
+    except ConfigError as exc:  # bad input found after parsing: one line under the command's usage
+        command_parser.error(str(exc))
+        return 2
 
 
 if __name__ == "__main__":
