@@ -181,6 +181,16 @@ def fit_colour_range(
     )
 
 
+def undistort(xd: NDArray[np.float64], yd: NDArray[np.float64], k1: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Invert the radial lens model ``x_d = x_u (1 + k1 r_u^2)`` (normalized coordinates) by
+    fixed-point iteration: the camera's renderer and the pipeline share this one inverse."""
+    xu, yu = np.array(xd, dtype=np.float64), np.array(yd, dtype=np.float64)
+    for _ in range(20):
+        scale = 1.0 + k1 * (xu * xu + yu * yu)
+        xu, yu = xd / scale, yd / scale
+    return xu, yu
+
+
 @dataclass(frozen=True)
 class CameraIntrinsics:
     """What the pipeline needs of the camera (its metadata, plain numbers)."""
@@ -214,13 +224,13 @@ class CameraIntrinsics:
             raise MeasurementError(f"ceiling camera metadata lacks {exc.args[0]!r} (has {', '.join(meta)})") from None
 
     def to_robot(
-        self, points_px: NDArray[np.floating[Any]], undistort: bool = False, metres_per_px: float = 0.0
+        self, points_px: NDArray[np.floating[Any]], undistort_points: bool = False, metres_per_px: float = 0.0
     ) -> NDArray[np.float64]:
         """``(n, 2)`` pixel points ``(u, v)`` -> ceiling points ``(forward, left)`` in the robot frame.
 
         ``metres_per_px > 0``: the paper's single calibration constant (pixels times a
         proportionality constant), no lens model; else the intrinsics, with the lens
-        distortion removed when ``undistort``.
+        distortion removed (:func:`undistort`) when ``undistort_points``.
         """
         p = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
         if metres_per_px > 0:
@@ -229,11 +239,8 @@ class CameraIntrinsics:
         else:
             xn = (p[:, 0] - self.cx_px) / self.fx_px
             yn = (p[:, 1] - self.cy_px) / self.fy_px
-            if undistort and self.k1 != 0.0:
-                xd, yd = xn, yn
-                for _ in range(20):  # invert x_d = x_u (1 + k1 r_u^2)
-                    scale = 1.0 + self.k1 * (xn * xn + yn * yn)
-                    xn, yn = xd / scale, yd / scale
+            if undistort_points and self.k1 != 0.0:
+                xn, yn = undistort(xn, yn, self.k1)
             left = xn * self.depth_m
             forward = -yn * self.depth_m
         return np.stack([forward + self.offset_m[0], left + self.offset_m[1]], axis=1)

@@ -52,6 +52,7 @@ from numpy.typing import NDArray
 from envs.features.ceiling import LABEL_CEILING, LABEL_HEAD, LABEL_JOINT, CeilingConfig
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.state import WorldState
+from localizers.ceiling_vision import undistort
 from localizers.schema import ConfigError, check
 
 if TYPE_CHECKING:
@@ -154,15 +155,6 @@ class CameraModel:
         r2 = ((u - self.cx) / self.cx) ** 2 + ((v - self.cy) / self.cy) ** 2
         self.vignette = 1.0 - config.vignetting * r2 / 2.0  # 1 - vignetting at the corners (r2 = 2)
         self.max_ray = float(np.max(np.hypot(self.rays[..., 0], self.rays[..., 1])))
-
-
-def undistort(xd: NDArray[np.float64], yd: NDArray[np.float64], k1: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Invert ``x_d = x_u (1 + k1 r_u^2)`` (normalized coordinates) by fixed-point iteration."""
-    xu, yu = np.array(xd, dtype=np.float64), np.array(yd, dtype=np.float64)
-    for _ in range(20):
-        scale = 1.0 + k1 * (xu * xu + yu * yu)
-        xu, yu = xd / scale, yd / scale
-    return xu, yu
 
 
 @functools.lru_cache(maxsize=4)
