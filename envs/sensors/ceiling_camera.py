@@ -239,10 +239,13 @@ def draw_heads(
 
 
 @numba.njit(cache=True, error_model="numpy", boundscheck=False)
-def expose(image: NDArray[np.uint8], gain: NDArray[np.float32], noise: NDArray[np.float32], out: NDArray[np.uint8]) -> None:
-    """``out = saturate(round(image * gain + noise))``, all flat and of one length."""
+def expose(
+    image: NDArray[np.uint8], vignette: NDArray[np.float32], gain: float, noise: NDArray[np.float32], out: NDArray[np.uint8]
+) -> None:
+    """``out = saturate(round(image * (vignette * gain) + noise))``, the arrays flat and of one length."""
+    g = np.float32(gain)
     for i in range(image.shape[0]):
-        value = np.float32(image[i]) * gain[i] + noise[i] + np.float32(0.5)
+        value = np.float32(image[i]) * (vignette[i] * g) + noise[i] + np.float32(0.5)
         out[i] = 0 if value <= 0.0 else (255 if value >= 255.0 else np.uint8(value))
 
 
@@ -404,7 +407,7 @@ class CeilingCamera(SensorBase):
         else:
             start = int(noise_offset) % _NOISE_POOL
             noise = self._noise[start : start + image.size]
-        expose(image.reshape(-1), self._vignette * np.float32(gain), noise, out.reshape(-1))
+        expose(image.reshape(-1), self._vignette, gain, noise, out.reshape(-1))
         return out, (label_image if labels else None)
 
     def _draw_heads(

@@ -63,7 +63,6 @@ def run_parts(seeds: int, densities: Sequence[int], workers: int) -> dict[str, A
         label: {str(k): v for k, v in summarize(ds, paper.DRIVE_TARGETS_M).items()} for label, ds in by_label.items()
     }
     results["spacing"] = spacing(by_label["table5"])
-    results["_drives"] = by_label
     return results
 
 
@@ -288,8 +287,6 @@ def run_and_report(out: Path, seeds: int, densities: Sequence[int], workers: int
     results = run_parts(seeds, densities, workers)
     out.mkdir(parents=True, exist_ok=True)
     figs = figures(out, results)
-    drives = results.pop("_drives")
-    del drives
     lines = ["# Ceiling colour targets (Fukaya et al.): reproduction", ""]
     lines += [f"`crowdloc reproduce ceiling-target`, {seeds} seeds, {time.perf_counter() - start:.0f} s.", ""]
     lines += static_section(results) + drive_section(results) + density_section(results) + consistency_section(results)
