@@ -238,9 +238,9 @@ class CeilingTargetLocalizer:
                 if len(readings) == 1:  # without an estimate only an unambiguous reading counts
                     chosen.append(readings[0])
                 continue
-            best = min(readings, key=self._distance)
+            distance, best = min(((self._distance(r), r) for r in readings), key=lambda pair: pair[0])
             gate = self._params.max_gate
-            if gate == 0 or self._distance(best) <= gate * gate:
+            if gate == 0 or distance <= gate * gate:
                 chosen.append(best)
         if not chosen:
             return None
