@@ -113,6 +113,7 @@ class WorldConfig:
     robot: RobotConfig
     walls: tuple[tuple[float, float, float, float], ...] = ()  # extra segments (x1, y1, x2, y2)
     boundary_margin_m: float = 0.0  # boundary walls this far outside the field
+    wall_height_m: float = math.inf  # every wall's height (a sensor above it sees over it)
     landmarks: tuple[LandmarkConfig, ...] = ()
     sensors: Mapping[str, SensorConfig] = field(default_factory=dict)  # name -> config tagged by type
     crowds: Mapping[str, CrowdConfig] = field(default_factory=dict)  # name -> config tagged by type; bodies in this order
@@ -127,6 +128,7 @@ class WorldConfig:
         check(self.dt_s > 0, f"world {self.name!r}: dt_s must be > 0, got {self.dt_s}")
         check(math.isfinite(self.dt_s), f"world {self.name!r}: dt_s must be finite, got {self.dt_s}")
         check(self.max_episode_steps >= 1, f"world {self.name!r}: max_episode_steps must be >= 1, got {self.max_episode_steps}")
+        check(self.wall_height_m > 0, f"world {self.name!r}: wall_height_m must be > 0, got {self.wall_height_m}")
         check(self.boundary_margin_m >= 0, f"world {self.name!r}: boundary_margin_m must be >= 0, got {self.boundary_margin_m}")
         names = [lm.name for lm in self.landmarks]
         check(len(set(names)) == len(names), f"world {self.name!r}: landmark names repeat: {names}")

@@ -14,6 +14,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from envs.bodies import Figures, Section
+
 #: body rows: a slice where they are consecutive (views), else an index array
 Rows = slice | NDArray[np.int64]
 
@@ -36,7 +38,9 @@ class WorldState(NamedTuple):
         crowd_rows: rows of the crowd's members (robots, people).
         ball_row: the ball's row, or -1 without a ball.
         occluder_rows: rows whose discs block a camera's sight lines; ``occluder_radius_m`` their radii.
-        seg_a, seg_b: ``(S, 2)`` wall segments (static; they occlude and collide).
+        seg_a, seg_b: ``(S, 2)`` wall segments (static; they occlude and collide);
+            ``seg_top_m``: ``(S,)`` their heights.
+        figures: every body's parts by height (:mod:`envs.bodies`); :meth:`section` cuts them.
         landmark_xy: ``(L, 2)``, ``landmark_radius_m`` and ``landmark_max_range_m``: ``(L,)``;
             ``landmark_names``: ``L`` names.
     """
@@ -53,6 +57,8 @@ class WorldState(NamedTuple):
     occluder_radius_m: NDArray[np.float64]
     seg_a: NDArray[np.float64]
     seg_b: NDArray[np.float64]
+    seg_top_m: NDArray[np.float64]
+    figures: Figures
     landmark_xy: NDArray[np.float64]
     landmark_radius_m: NDArray[np.float64]
     landmark_max_range_m: NDArray[np.float64]
@@ -80,6 +86,18 @@ class WorldState(NamedTuple):
     @property
     def robot_radius_m(self) -> float:
         return float(self.radii_m[0])
+
+    def section(self, height_m: float) -> Section:
+        """The discs of every body (not our robot) cut by the horizontal plane at ``height_m``."""
+        return self.figures.section(height_m)
+
+    def occluders(self, height_m: float) -> Section:
+        """The discs at ``height_m`` that block a camera's sight lines."""
+        return self.figures.occluders(height_m)
+
+    def walls_above(self, height_m: float) -> NDArray[np.bool_]:
+        """``(S,)`` the wall segments that reach above ``height_m`` (a sensor there sees them)."""
+        return self.seg_top_m > height_m
 
     @property
     def occluder_xy(self) -> NDArray[np.float64]:

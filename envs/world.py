@@ -23,6 +23,7 @@ import pymunk
 import pymunk.batch as pbatch
 from numpy.typing import NDArray
 
+from envs.bodies import FigureModel, Figures
 from envs.config import BOUNDARY_SEGMENTS, WorldConfig
 from envs.crowds import BodySpec, Crowd, build_crowd
 from envs.state import Rows, WorldState, robot_pose
@@ -116,10 +117,20 @@ class World:
         self.ball_rows = np.flatnonzero(kinds == "ball")
         self.ball_row = int(self.ball_rows[0]) if self.ball_rows.size else -1
         self.radii_m = np.asarray([config.robot.radius_m] + [b.radius_m for b in self._specs], dtype=np.float64)
+        #: every body's vertical profile (:mod:`envs.bodies`): what the sensors see at their heights
+        self.figure_model = FigureModel([(b.shape, b.radius_m, b.height_m, b.occludes, b.person) for b in self._specs])
         self.occluder_rows = _as_slice(np.flatnonzero([False] + [b.occludes for b in self._specs]))
         self._occluder_radius_m = self.radii_m[self.occluder_rows].copy()
         self._others = _as_slice(np.concatenate([[0], self.member_rows]).astype(np.int64))  # the robot and every member
-        statics = (self.seg_a, self.seg_b, self.landmark_xy, self.landmark_radius_m, self.landmark_max_range_m, self.radii_m)
+        statics = (
+            self.seg_a,
+            self.seg_b,
+            self.seg_top_m,
+            self.landmark_xy,
+            self.landmark_radius_m,
+            self.landmark_max_range_m,
+            self.radii_m,
+        )
         for static in (*statics, self._occluder_radius_m):
             static.setflags(write=False)  # shared by every snapshot
         self._state_buffer = pbatch.Buffer()
@@ -135,6 +146,8 @@ class World:
         """The arena boundary (counter-clockwise) and extra walls, as the sensors see them."""
         self._boundary_count = BOUNDARY_SEGMENTS
         self.seg_a, self.seg_b = self.config.wall_segments()
+        #: ``(S,)`` each segment's top: a sensor above it sees over it
+        self.seg_top_m = np.full(self.seg_a.shape[0], self.config.wall_height_m)
 
     def _build_space(self) -> None:
         """A fresh pymunk space with every body; called on construction and on every reset.
@@ -233,6 +246,7 @@ class World:
         for body in self.space.bodies:
             self.space.reindex_shapes_for_body(body)
         self.read_state()
+        self.figure_model.reset(rng, self.velocities)
 
     def robot_placement_problem(self, x: float, y: float) -> str | None:
         """Why our robot's disc cannot be placed at ``(x, y)``, or None where it fits.
@@ -325,6 +339,14 @@ class World:
         self.angles = self._state[:, 2]
         self.velocities = self._state[:, 3:5]
         self._snapshot: WorldState | None = None
+        self._figures: Figures | None = None
+
+    @property
+    def figures(self) -> Figures:
+        """Every body's parts at the current step (made once per step, on first use)."""
+        if self._figures is None:
+            self._figures = self.figure_model.pose(self.positions)
+        return self._figures
 
     def snapshot(self) -> WorldState:
         """The frozen :class:`~envs.state.WorldState` of the current step (made once per step)."""
@@ -342,6 +364,8 @@ class World:
                 occluder_radius_m=self._occluder_radius_m,
                 seg_a=self.seg_a,
                 seg_b=self.seg_b,
+                seg_top_m=self.seg_top_m,
+                figures=self.figures,
                 landmark_xy=self.landmark_xy,
                 landmark_radius_m=self.landmark_radius_m,
                 landmark_max_range_m=self.landmark_max_range_m,
@@ -389,6 +413,7 @@ class World:
         self.time_s += dt
         self.step_count += 1
         self.read_state()
+        self.figure_model.advance(self.velocities, dt)
 
     def _on_robot_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
         other = arbiter.shapes[1] if arbiter.shapes[0].collision_type == ROBOT else arbiter.shapes[0]

@@ -16,13 +16,15 @@ sets the count of the world's first crowd (its density). Built in: ``soccer``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from envs.bodies import PersonConfig
 from envs.plugins import Entry, Registry
 from envs.state import Rows, WorldState
 from localizers.schema import check
@@ -31,6 +33,9 @@ if TYPE_CHECKING:
     from envs.config import WorldConfig
 
 ConfigT = TypeVar("ConfigT", bound="CrowdConfig")
+
+#: the vertical profiles a crowd's members may have (:mod:`envs.bodies`)
+MEMBER_SHAPES = ("column", "person")
 
 #: a member's body as the crowd sees it: (x, y, radius) already taken at placement time
 Taken = list[tuple[float, float, float]]
@@ -42,6 +47,10 @@ class CrowdConfig:
 
     Loaded from a mapping whose ``type`` names a registered crowd type; the other entries
     are that type's fields, checked by the strict loader.
+
+    ``shape`` is the members' vertical profile (:mod:`envs.bodies`): ``"column"``, a disc of
+    ``radius_m`` up to ``height_m`` (a robot), or ``"person"``, legs, torso and head sized by
+    ``person``; the footprint disc of ``radius_m`` is what collides either way.
     """
 
     type_name: ClassVar[str] = ""
@@ -50,6 +59,9 @@ class CrowdConfig:
     radius_m: float = 0.25
     mass_kg: float = 30.0
     speed_mps: float = 1.75
+    shape: str = "column"
+    height_m: float = math.inf  # a column's height (inf: taller than any sensor)
+    person: PersonConfig = field(default_factory=PersonConfig)  # body sizes and gait when shape is "person"
 
     @classmethod
     def __from_config__(cls, value: Any, where: str) -> CrowdConfig:
@@ -62,6 +74,8 @@ class CrowdConfig:
         check(self.radius_m > 0, f"crowd.radius_m must be > 0, got {self.radius_m}")
         check(self.mass_kg > 0, f"crowd.mass_kg must be > 0, got {self.mass_kg}")
         check(self.speed_mps > 0, f"crowd.speed_mps must be > 0, got {self.speed_mps}")
+        check(self.shape in MEMBER_SHAPES, f"crowd.shape must be one of {', '.join(MEMBER_SHAPES)}, got {self.shape!r}")
+        check(self.height_m > 0, f"crowd.height_m must be > 0, got {self.height_m}")
 
     def top_speeds(self) -> tuple[tuple[str, float, float], ...]:
         """``(body, top speed m/s, radius m)`` of each kind of body this crowd moves.
@@ -83,6 +97,8 @@ class BodySpec:
         radius_m, mass_kg: the footprint disc and its mass.
         occludes: whether it blocks a camera's sight lines.
         friction, elasticity: pymunk shape settings.
+        shape: its vertical profile (:data:`envs.bodies.SHAPES`): ``"column"`` up to
+            ``height_m``, ``"ball"`` (a sphere of ``radius_m``) or ``"person"`` sized by ``person``.
     """
 
     kind: str
@@ -91,6 +107,9 @@ class BodySpec:
     occludes: bool = True
     friction: float = 0.5
     elasticity: float = 0.0
+    shape: str = "column"
+    height_m: float = math.inf
+    person: PersonConfig | None = None
 
 
 class Commands(NamedTuple):
@@ -134,7 +153,9 @@ class Crowd:
 
     def bodies(self) -> list[BodySpec]:
         """The crowd's bodies, members first (override to add a ball or other bodies)."""
-        return [BodySpec("crowd", float(r), self.config.mass_kg) for r in self.radii_m]
+        c = self.config
+        person = c.person if c.shape == "person" else None
+        return [BodySpec("crowd", float(r), c.mass_kg, shape=c.shape, height_m=c.height_m, person=person) for r in self.radii_m]
 
     def attach(self, rows: NDArray[np.int64]) -> None:
         """Called by the world with the rows of :meth:`bodies`."""

@@ -180,7 +180,7 @@ class SoccerCrowd(Crowd):
         if not self.has_ball:
             return members
         sc = self.soccer
-        return [*members, BodySpec("ball", sc.ball_radius_m, sc.ball_mass_kg, sc.ball_occludes, 0.3, 0.7)]
+        return [*members, BodySpec("ball", sc.ball_radius_m, sc.ball_mass_kg, sc.ball_occludes, 0.3, 0.7, shape="column")]
 
     def attach(self, rows: NDArray[np.int64]) -> None:
         super().attach(rows)

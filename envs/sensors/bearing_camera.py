@@ -39,6 +39,7 @@ class BearingCameraConfig(SensorConfig):
     fov_rad: float = 2 * math.pi  # horizontal field of view centred on the robot's heading
     dropout_probability: float = 0.0  # a visible landmark is missed in a frame
     false_detection_probability: float = 0.0  # per slot and frame: a wrong bearing is reported
+    height_m: float = 0.6  # the lens's height: bodies block a sight line where they reach above it
 
     def __post_init__(self) -> None:
         check(self.noise_std_rad >= 0, f"camera.noise_std_rad must be >= 0, got {self.noise_std_rad}")
@@ -48,6 +49,9 @@ class BearingCameraConfig(SensorConfig):
         check(
             0 <= self.false_detection_probability <= 1,
             f"camera.false_detection_probability must be in [0, 1], got {self.false_detection_probability}",
+        )
+        check(
+            math.isfinite(self.height_m) and self.height_m >= 0, f"camera.height_m must be finite and >= 0, got {self.height_m}"
         )
 
     def check_world(self, world: WorldConfig, name: str) -> None:
@@ -75,6 +79,8 @@ class BearingCamera(SensorBase):
         self.config = config
         self.count = state.landmark_xy.shape[0]
         self.max_range_m = np.minimum(state.landmark_max_range_m, config.max_range_m)
+        seen = state.walls_above(config.height_m)
+        self._seg_a, self._seg_b = state.seg_a[seen], state.seg_b[seen]
 
     def space(self) -> spaces.Box:
         return spaces.Box(-1.0, 1.0, shape=(3 * self.count,), dtype=np.float32)
@@ -83,16 +89,21 @@ class BearingCamera(SensorBase):
         return {"landmark_count": self.count, "noise_std_rad": self.config.noise_std_rad, "fov_rad": self.config.fov_rad}
 
     def true_visibility(self, state: WorldState) -> NDArray[np.bool_]:
-        """``(L,)`` landmarks in the field of view whose line of sight is clear and within range (no dropout)."""
+        """``(L,)`` landmarks in the field of view whose line of sight is clear and within range (no dropout).
+
+        A sight line is blocked by the walls and by the bodies' sections at the camera's
+        height (a person's torso, a robot's body; not a ball below the lens).
+        """
+        occluders = state.occluders(self.config.height_m)
         clear = sight_lines_clear(
             state.positions[0],
             state.landmark_xy,
             state.landmark_radius_m,
             self.max_range_m,
-            state.seg_a,
-            state.seg_b,
-            state.occluder_xy,
-            state.occluder_radius_m,
+            self._seg_a,
+            self._seg_b,
+            occluders.centres,
+            occluders.radii,
         )
         if self.config.fov_rad < 2 * math.pi:
             clear &= in_field_of_view(state.positions[0], state.angles[0], state.landmark_xy, self.config.fov_rad)

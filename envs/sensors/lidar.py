@@ -26,12 +26,14 @@ class LidarConfig(SensorConfig):
     beams: int = 1081
     max_range_m: float = 30.0
     range_std_m: float = 0.01
+    height_m: float = 0.2  # the scan plane's height above the floor
 
     def __post_init__(self) -> None:
         check(0 < self.fov_rad <= 2 * math.pi, f"lidar.fov_rad must be in (0, 2 pi], got {self.fov_rad}")
         check(self.beams >= 1, f"lidar.beams must be >= 1, got {self.beams}")
         check(self.max_range_m > 0, f"lidar.max_range_m must be > 0, got {self.max_range_m}")
         check(self.range_std_m >= 0, f"lidar.range_std_m must be >= 0, got {self.range_std_m}")
+        check(math.isfinite(self.height_m) and self.height_m >= 0, f"lidar.height_m must be finite and >= 0, got {self.height_m}")
 
     @property
     def relative_angles_rad(self) -> tuple[float, float]:

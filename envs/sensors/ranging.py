@@ -31,10 +31,15 @@ class RangeConfig(Protocol):
     @property
     def range_std_m(self) -> float: ...
 
+    @property
+    def height_m(self) -> float: ...
+
 
 class RangeSensor(SensorBase):
-    """Rays cast from the robot's centre; they hit walls and everything that moves, the ball
-    too (not landmark poles). Subclasses say where the rays go and how they become readings.
+    """Rays cast from the robot's centre in the horizontal plane at the sensor's ``height_m``;
+    they hit the walls that reach above it and the sections of everything that moves there
+    (:meth:`envs.state.WorldState.section`: a person's legs, torso or head, the ball), not
+    landmark poles. Subclasses say where the rays go and how they become readings.
 
     Attributes:
         relative_angles: ``(R,)`` ray directions relative to the heading, ascending, spanning less than a turn.
@@ -57,7 +62,8 @@ class RangeSensor(SensorBase):
         self.config = config
         self.relative_angles = ray_angles
         self.reading_angles = reading_angles
-        self.rows = np.arange(1, state.body_count)
+        seen = state.walls_above(config.height_m)
+        self._seg_a, self._seg_b = state.seg_a[seen], state.seg_b[seen]
 
     def space(self) -> spaces.Box:
         return spaces.Box(0.0, self.config.max_range_m, shape=(self.reading_angles.shape[0],), dtype=np.float32)
@@ -71,14 +77,15 @@ class RangeSensor(SensorBase):
 
     def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
         cfg = self.config
+        section = state.section(cfg.height_m)
         rays = cast_rays(
             state.positions[0],
             self.relative_angles + state.robot_pose[2],
             cfg.max_range_m,
-            state.seg_a,
-            state.seg_b,
-            state.positions[self.rows],
-            state.radii_m[self.rows],
+            self._seg_a,
+            self._seg_b,
+            section.centres,
+            section.radii,
         )
         ranges = self.readings(rays)
         hit = ranges < cfg.max_range_m

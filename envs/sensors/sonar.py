@@ -36,6 +36,7 @@ class SonarConfig(SensorConfig):
     rays_per_cone: int = 5
     max_range_m: float = 2.0
     range_std_m: float = 0.02
+    height_m: float = 0.3  # the transducers' height above the floor
 
     def __post_init__(self) -> None:
         check(self.sensors >= 1, f"sonar.sensors must be >= 1, got {self.sensors}")
@@ -47,6 +48,7 @@ class SonarConfig(SensorConfig):
         check(self.rays_per_cone >= 1, f"sonar.rays_per_cone must be >= 1, got {self.rays_per_cone}")
         check(self.max_range_m > 0, f"sonar.max_range_m must be > 0, got {self.max_range_m}")
         check(self.range_std_m >= 0, f"sonar.range_std_m must be >= 0, got {self.range_std_m}")
+        check(math.isfinite(self.height_m) and self.height_m >= 0, f"sonar.height_m must be finite and >= 0, got {self.height_m}")
 
 
 @register_sensor("sonar", SonarConfig)

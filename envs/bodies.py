@@ -1,0 +1,352 @@
+"""What stands where, by height: the 2.5-D description of every moving body and static object.
+
+Physics stays 2-D (pymunk collides footprint discs and wall segments), but every body also
+has a vertical profile, and every sensor a mounting height at which it sees the world's
+horizontal cross-section. This module is the one description of that profile; the range
+sensors, the cameras and the renderer read it, none of them keeps its own.
+
+**Parts.** A body is made of upright parts, each a disc of a radius over a height interval
+``[z_lo, z_hi)``:
+
+- ``column``: one disc of the footprint radius from the floor to ``height_m`` (a soccer
+  robot's body, a pole; ``inf``: as tall as anything a sensor looks at);
+- ``ball``: a sphere of the footprint radius resting on the floor: its section at height
+  ``z`` is the disc of radius ``sqrt(r^2 - (z - r)^2)``;
+- ``person``: two legs, a torso and a head (:class:`PersonConfig`), sizes drawn per person
+  at every reset. A leg is a tilted cylinder hanging from its hip joint, swinging forward
+  and back with the gait while the person walks and still (upright, beside the other) while
+  the person stands: at height ``z`` its centre lies ``(z_hip - z) tan(alpha)`` ahead of the
+  hip, ``alpha`` the leg's swing angle. So a LIDAR at 0.2 m sees two leg discs whose gap
+  changes with the gait phase, one at 1.2 m sees the torso and one above the head nothing.
+
+Each part is stored as a reference point ``xy`` at height ``z_ref`` and a ``slope`` (the
+horizontal shift of its centre per metre up), so its centre at height ``z`` is
+``xy + slope (z - z_ref)``; a column and a ball have zero slope.
+
+**Sections.** :meth:`Figures.section` gives the discs cut at one height: centres, radii, the
+body row each belongs to and whether it blocks a camera's view. The world makes one
+:class:`Figures` per step (lazily, when a sensor asks) and caches each height's section.
+
+**Gait.** A walking person (speed above :data:`STAND_SPEED_MPS`) faces its direction of
+travel, its gait phase advancing at ``pi cadence`` rad/s (one step per ``1 / cadence`` s);
+its step length is ``speed / cadence`` up to ``max_step_m``, so the legs' swing amplitude
+``alpha_max = asin(step / (2 z_hip))`` grows with speed. Below :data:`STAND_SPEED_MPS` the
+phase and heading freeze and the legs stand together.
+
+Anthropometry (proportions of the stature ``H``, after Drillis and Contini's segment
+table): the hip joints at 0.53 H, the legs up to the crotch at 0.47 H, the torso from there
+to the shoulders at 0.82 H, the head (with the neck) from 0.82 H to H.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from localizers.schema import check
+
+#: a person moving slower than this stands: legs together, heading and gait phase frozen
+STAND_SPEED_MPS = 0.05
+#: proportions of the stature: hip joint (leg pivot), crotch (top of the legs), shoulders (top of the torso)
+HIP_FRACTION, CROTCH_FRACTION, SHOULDER_FRACTION = 0.53, 0.47, 0.82
+#: the shapes a body can have (``BodySpec.shape``)
+SHAPES = ("column", "ball", "person")
+#: part kinds
+LEG, TORSO, HEAD, COLUMN, BALL = 0, 1, 2, 3, 4
+
+
+def _check_range(name: str, value: tuple[float, float], lo: float, hi: float) -> None:
+    a, b = value
+    check(
+        math.isfinite(a) and math.isfinite(b) and lo <= a <= b <= hi,
+        f"person.{name} must be a range (low, high) with {lo} <= low <= high <= {hi}, got {value}",
+    )
+
+
+@dataclass(frozen=True)
+class PersonConfig:
+    """Adult body sizes, each drawn uniformly from its range per person at every reset, and the gait.
+
+    The defaults span adults from about the 5th to the 95th percentile (stature 1.55-1.90 m).
+    """
+
+    height_m: tuple[float, float] = (1.55, 1.90)  # stature H
+    leg_radius_m: tuple[float, float] = (0.05, 0.07)  # a leg's section (thigh and calf alike)
+    hip_half_width_m: tuple[float, float] = (0.08, 0.11)  # from the body's centre to each hip joint, sideways
+    torso_radius_m: tuple[float, float] = (0.15, 0.20)  # the torso's section, as a disc
+    head_radius_m: tuple[float, float] = (0.08, 0.10)  # the head's section with the hair
+    cadence_hz: float = 1.8  # steps per second while walking
+    max_step_m: float = 0.8  # the longest step, heel to heel
+
+    def __post_init__(self) -> None:
+        _check_range("height_m", self.height_m, 0.5, 2.5)
+        for name in ("leg_radius_m", "hip_half_width_m", "torso_radius_m", "head_radius_m"):
+            _check_range(name, getattr(self, name), 0.005, 0.5)
+        check(
+            math.isfinite(self.cadence_hz) and 0 < self.cadence_hz <= 5,
+            f"person.cadence_hz must be in (0, 5], got {self.cadence_hz}",
+        )
+        check(
+            math.isfinite(self.max_step_m) and 0 < self.max_step_m <= 1.5,
+            f"person.max_step_m must be in (0, 1.5], got {self.max_step_m}",
+        )
+        check(
+            self.hip_half_width_m[0] >= self.leg_radius_m[1],
+            f"person.hip_half_width_m {self.hip_half_width_m} must be at least the widest leg radius "
+            f"{self.leg_radius_m[1]} (the legs would overlap)",
+        )
+
+
+class Section(NamedTuple):
+    """The discs a horizontal plane cuts through the bodies (and static columns) at one height.
+
+    Attributes:
+        centres: ``(K, 2)``; ``radii``: ``(K,)``.
+        rows: ``(K,)`` the body row each disc belongs to (-1: static scenery).
+        occludes: ``(K,)`` whether the disc blocks a camera's sight line.
+    """
+
+    centres: NDArray[np.float64]
+    radii: NDArray[np.float64]
+    rows: NDArray[np.int64]
+    occludes: NDArray[np.bool_]
+
+
+@numba.njit(cache=True)
+def _cut(
+    height: float,
+    xy: NDArray[np.float64],
+    slope: NDArray[np.float64],
+    z_ref: NDArray[np.float64],
+    z_lo: NDArray[np.float64],
+    z_hi: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    kind: NDArray[np.int64],
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Indices, centres and radii of the parts that span ``height``, in part order."""
+    n = xy.shape[0]
+    index = np.empty(n, dtype=np.int64)
+    centres = np.empty((n, 2))
+    radii = np.empty(n)
+    k = 0
+    for p in range(n):
+        if not (z_lo[p] <= height < z_hi[p]):
+            continue
+        r = radius[p]
+        if kind[p] == BALL:
+            dz = height - z_ref[p]
+            r = math.sqrt(max(r * r - dz * dz, 0.0))
+            if r <= 0.0:
+                continue
+        index[k] = p
+        if slope[p, 0] == 0.0 and slope[p, 1] == 0.0:
+            centres[k, 0] = xy[p, 0]
+            centres[k, 1] = xy[p, 1]
+        else:
+            centres[k, 0] = xy[p, 0] + slope[p, 0] * (height - z_ref[p])
+            centres[k, 1] = xy[p, 1] + slope[p, 1] * (height - z_ref[p])
+        radii[k] = r
+        k += 1
+    return index[:k], centres[:k], radii[:k]
+
+
+@numba.njit(cache=True)
+def _pose_parts(
+    positions: NDArray[np.float64],
+    row: NDArray[np.int64],
+    kind: NDArray[np.int64],
+    lateral: NDArray[np.float64],
+    swing_sign: NDArray[np.float64],
+    heading: NDArray[np.float64],
+    swing_tan: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Reference points ``(P, 2)`` and slopes ``(P, 2)`` of every part for the bodies' poses.
+
+    A part sits ``lateral`` to the left of its body's centre (a hip joint); a leg's centre
+    moves ``-swing_sign tan(alpha)`` per metre up along the body's heading (forward below the hip
+    for the leg that swings forward).
+    """
+    n = row.shape[0]
+    xy = np.empty((n, 2))
+    slope = np.zeros((n, 2))
+    for p in range(n):
+        b = row[p]
+        x = positions[b, 0]
+        y = positions[b, 1]
+        if kind[p] == LEG:
+            c = math.cos(heading[b])
+            s = math.sin(heading[b])
+            x -= lateral[p] * s
+            y += lateral[p] * c
+            t = -swing_sign[p] * swing_tan[b]
+            slope[p, 0] = t * c
+            slope[p, 1] = t * s
+        xy[p, 0] = x
+        xy[p, 1] = y
+    return xy, slope
+
+
+class Layout(NamedTuple):
+    """Every part's static facts (``(P,)`` each, in body-row order), fixed between resets."""
+
+    row: NDArray[np.int64]  # the body row it belongs to
+    kind: NDArray[np.int64]  # LEG, TORSO, HEAD, COLUMN or BALL
+    lateral: NDArray[np.float64]  # its offset to the left of the body's centre (a hip joint)
+    swing_sign: NDArray[np.float64]  # +1 / -1 for the legs (they swing in opposition), 0 otherwise
+    z_ref: NDArray[np.float64]  # the height of its reference point (a leg's hip joint; a ball's centre)
+    z_lo: NDArray[np.float64]
+    z_hi: NDArray[np.float64]
+    radius: NDArray[np.float64]
+    occludes: NDArray[np.bool_]
+
+
+class Figures:
+    """The parts of every body at one step, and their cached sections by height (read-only).
+
+    Made by :meth:`FigureModel.pose`; a snapshot of the world holds one.
+    """
+
+    def __init__(self, layout: Layout, xy: NDArray[np.float64], slope: NDArray[np.float64]) -> None:
+        self.layout = layout
+        self.xy = xy
+        self.slope = slope
+        self._sections: dict[float, Section] = {}
+        self._occluders: dict[float, Section] = {}
+
+    def section(self, height_m: float) -> Section:
+        """The discs cut at ``height_m`` (cached per height), in part order: body rows ascending."""
+        found = self._sections.get(height_m)
+        if found is None:
+            m = self.layout
+            index, centres, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind)
+            found = Section(centres, radii, m.row[index], m.occludes[index])
+            for array in found:
+                array.setflags(write=False)
+            self._sections[height_m] = found
+        return found
+
+    def occluders(self, height_m: float) -> Section:
+        """The discs at ``height_m`` that block a camera's sight lines (cached per height)."""
+        found = self._occluders.get(height_m)
+        if found is None:
+            s = self.section(height_m)
+            if s.occludes.all():
+                found = s
+            else:
+                keep = s.occludes
+                found = Section(s.centres[keep], s.radii[keep], s.rows[keep], s.occludes[keep])
+            self._occluders[height_m] = found
+        return found
+
+
+class FigureModel:
+    """Every body's parts, their sizes (drawn per reset) and the people's gait state.
+
+    Args:
+        shapes: per body row after our robot (row 1 on), ``(shape, footprint radius,
+            height_m, occludes, person config or None)``.
+
+    The robot (row 0) has no parts: its own sensors sit on it.
+    """
+
+    def __init__(self, shapes: list[tuple[str, float, float, bool, PersonConfig | None]]) -> None:
+        self.shapes = shapes
+        self.body_count = 1 + len(shapes)
+        self.person_rows = np.array([i + 1 for i, s in enumerate(shapes) if s[0] == "person"], dtype=np.int64)
+        self._persons = [s[4] for s in shapes if s[0] == "person"]
+        self.heading = np.zeros(self.body_count)
+        self.phase = np.zeros(self.body_count)
+        self.swing_tan = np.zeros(self.body_count)
+        self._hip_m = np.zeros(self.body_count)
+        self._cadence = np.zeros(self.body_count)
+        self._max_step = np.zeros(self.body_count)
+        self._build(None)
+
+    @property
+    def has_people(self) -> bool:
+        return self.person_rows.size > 0
+
+    def _build(self, rng: np.random.Generator | None) -> None:
+        """Lay out the parts; people get sizes from ``rng`` (mid-range sizes without one)."""
+        # one tuple per part: (row, kind, lateral, swing sign, z_ref, z_lo, z_hi, radius, occludes)
+        parts: list[tuple[int, int, float, float, float, float, float, float, bool]] = []
+        for i, (shape, r, height, occ, person) in enumerate(self.shapes):
+            b = i + 1
+            if shape == "column":
+                parts.append((b, COLUMN, 0.0, 0.0, 0.0, -math.inf, height, r, occ))
+            elif shape == "ball":
+                parts.append((b, BALL, 0.0, 0.0, r, 0.0, 2.0 * r, r, occ))
+            else:
+                assert person is not None
+
+                def draw(lo_hi: tuple[float, float]) -> float:
+                    return float(rng.uniform(*lo_hi)) if rng is not None else 0.5 * (lo_hi[0] + lo_hi[1])
+
+                stature = draw(person.height_m)
+                leg_r, hip_w = draw(person.leg_radius_m), draw(person.hip_half_width_m)
+                torso_r, head_r = draw(person.torso_radius_m), draw(person.head_radius_m)
+                hip, crotch, shoulder = HIP_FRACTION * stature, CROTCH_FRACTION * stature, SHOULDER_FRACTION * stature
+                parts += [
+                    (b, LEG, hip_w, 1.0, hip, -math.inf, crotch, leg_r, occ),  # the left leg swings forward first
+                    (b, LEG, -hip_w, -1.0, hip, -math.inf, crotch, leg_r, occ),
+                    (b, TORSO, 0.0, 0.0, 0.0, crotch, shoulder, torso_r, occ),
+                    (b, HEAD, 0.0, 0.0, 0.0, shoulder, stature, head_r, occ),
+                ]
+                self._hip_m[b] = hip
+                self._cadence[b] = person.cadence_hz
+                self._max_step[b] = person.max_step_m
+        columns = list(zip(*parts)) if parts else [()] * 9
+        lateral, sign, z_ref, z_lo, z_hi, radius = (np.asarray(c, dtype=np.float64) for c in columns[2:8])
+        self.layout = Layout(
+            np.asarray(columns[0], dtype=np.int64),
+            np.asarray(columns[1], dtype=np.int64),
+            lateral,
+            sign,
+            z_ref,
+            z_lo,
+            z_hi,
+            radius,
+            np.asarray(columns[8], dtype=np.bool_),
+        )
+        for array in self.layout:
+            array.setflags(write=False)
+
+    def reset(self, rng: np.random.Generator, velocities: NDArray[np.float64]) -> None:
+        """New sizes for every person (drawn from ``rng`` only when there are people), standing still.
+
+        A person starts facing a random direction with a random gait phase.
+        """
+        self.swing_tan[:] = 0.0
+        if not self.has_people:
+            return
+        self._build(rng)
+        rows = self.person_rows
+        self.heading[rows] = rng.uniform(-math.pi, math.pi, rows.size)
+        self.phase[rows] = rng.uniform(0.0, 2.0 * math.pi, rows.size)
+        self.advance(velocities, 0.0)
+
+    def advance(self, velocities: NDArray[np.float64], dt: float) -> None:
+        """Move the people's gait on by ``dt`` at their current ``velocities`` ``(B, 2)``."""
+        if not self.has_people:
+            return
+        rows = self.person_rows
+        v = velocities[rows]
+        speed = np.hypot(v[:, 0], v[:, 1])
+        walking = speed > STAND_SPEED_MPS
+        cadence = self._cadence[rows]
+        self.heading[rows] = np.where(walking, np.arctan2(v[:, 1], v[:, 0]), self.heading[rows])
+        self.phase[rows] = (self.phase[rows] + np.where(walking, math.pi * cadence * dt, 0.0)) % (2.0 * math.pi)
+        step = np.minimum(speed / cadence, self._max_step[rows])
+        amplitude = np.where(walking, np.arcsin(np.minimum(step / (2.0 * self._hip_m[rows]), 1.0)), 0.0)
+        self.swing_tan[rows] = np.tan(amplitude * np.sin(self.phase[rows]))
+
+    def pose(self, positions: NDArray[np.float64]) -> Figures:
+        """The :class:`Figures` of the bodies at ``positions`` ``(B, 2)`` in their current gait."""
+        m = self.layout
+        xy, slope = _pose_parts(positions, m.row, m.kind, m.lateral, m.swing_sign, self.heading, self.swing_tan)
+        return Figures(m, xy, slope)
