@@ -95,6 +95,8 @@ class CorridorConfig(CrowdConfig):
         fidget_period_s: ``(low, high)``: ... every this many seconds (drawn each time).
     """
 
+    shape: str = "person"  # legs, a torso and a head (envs.bodies); the footprint disc collides
+
     count: int = 0
     max_count: int = 40
     radius_m: float = 0.2

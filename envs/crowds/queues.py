@@ -27,6 +27,8 @@ PEOPLE_FILL = (200, 120, 60)
 class QueuesConfig(CrowdConfig):
     """Two queues of ``count`` people (split evenly) along the left and right walls."""
 
+    shape: str = "person"  # legs, a torso and a head (envs.bodies); the footprint disc collides
+
     left_x_m: float = 0.6  # x of the left queue's line
     right_x_m: float = 6.4  # x of the right queue's line
     head_y_m: float = 6.2  # y of the queue heads (queues extend toward smaller y)

@@ -33,6 +33,7 @@ BALL_COLOR = (255, 120, 0)
 class SoccerConfig(CrowdConfig):
     """Other soccer robots and a ball (candidate-set paper, Exp 2)."""
 
+    height_m: float = 0.8  # RoboCup middle-size robots are at most 80 cm tall
     ball: bool = True
     ball_radius_m: float = 0.11
     ball_mass_kg: float = 0.45
@@ -180,7 +181,7 @@ class SoccerCrowd(Crowd):
         if not self.has_ball:
             return members
         sc = self.soccer
-        return [*members, BodySpec("ball", sc.ball_radius_m, sc.ball_mass_kg, sc.ball_occludes, 0.3, 0.7, shape="column")]
+        return [*members, BodySpec("ball", sc.ball_radius_m, sc.ball_mass_kg, sc.ball_occludes, 0.3, 0.7, shape="ball")]
 
     def attach(self, rows: NDArray[np.int64]) -> None:
         super().attach(rows)

@@ -31,6 +31,8 @@ SPEED_CAP = 1.3
 class WalkersConfig(CrowdConfig):
     """Free walkers: ``count`` people with social-force avoidance."""
 
+    shape: str = "person"  # legs, a torso and a head (envs.bodies); the footprint disc collides
+
     desired_speed_mps: float = 1.0
     relaxation_s: float = 0.5  # time to reach the desired velocity
     repulsion_strength_mps2: float = 2.0  # magnitude of the exponential repulsion

@@ -203,8 +203,9 @@ def test_lidar_in_the_empty_room_reads_the_wall_distances(pose: tuple[float, flo
     env.close()
 
 
-def test_lidar_sees_a_person_in_front() -> None:
-    env = gym.make("crowdloc/CrowdedRoom-v0", crowd_size=2, lidar={"range_std_m": 0.0})
+def test_lidar_sees_a_column_in_front() -> None:
+    """People as columns of their footprint (legs, torso and head: tests/envs/test_bodies.py)."""
+    env = gym.make("crowdloc/CrowdedRoom-v0", crowd_size=2, lidar={"range_std_m": 0.0}, crowd={"queues": {"shape": "column"}})
     obs, _ = env.reset(seed=0, options={"robot_pose": [2.0, 3.0, 0.0]})
     world = env.unwrapped.world
     world.place_crowd_member(0, (4.0, 3.0))

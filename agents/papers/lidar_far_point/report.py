@@ -232,8 +232,9 @@ def world_item() -> str:
         f"- World `{experiment.ENV_ID}` ({width:g} m x {height:g} m room), {experiment.CROWD_SIZE} people in two queues at x = "
         f"{q.left_x_m:g} m and {q.right_x_m:g} m ({q.spacing_m:g} m apart, each stepping forward every {q.step_period_s:g} s, "
         f"the head walking to the end of the other queue), a UTM-30LX-like LIDAR ({math.degrees(lidar.fov_rad):g} deg, "
-        f"{lidar.beams} beams, {lidar.max_range_m:g} m, {100 * lidar.range_std_m:g} cm noise) at {1 / r.dt_s:g} Hz; the people "
-        f"are {q.radius_m:g} m circles (legs at the paper's LIDAR height, {paper.LIDAR_HEIGHT_M:g} m)."
+        f"{lidar.beams} beams, {lidar.max_range_m:g} m, {100 * lidar.range_std_m:g} cm noise) at {1 / r.dt_s:g} Hz and "
+        f"{lidar.height_m:g} m (the paper's {paper.LIDAR_HEIGHT_M:g} m); the people have two legs, a torso and a head "
+        f"(`envs/bodies.py`), so the scan plane cuts their legs: {world.legs_text()}."
     )
 
 
@@ -443,15 +444,13 @@ def accuracy_notes(narrow: NarrowHit | None, empty: EmptyRoom | None) -> Lines:
 
 def people_item(c: Context) -> str:
     """The differences' item on the queued people (sizes from the world config)."""
-    diameter, spacing = 2 * world.people_radius_m(), world.queues().spacing_m
+    spacing = world.queues().spacing_m
     raw, far = c.facts.beam_pct["raw"], c.facts.beam_pct["far"]
     return (
-        f"- People: ours are {diameter:g} m discs queued {spacing:g} m apart, so a queue is an almost closed fence "
-        f"{world.queue_wall_offset_m():g} m in front of its wall ({100 * (spacing - diameter):.0f} cm gaps) and the wall "
-        f"behind it is seen from nowhere on the path. The far-point scan therefore still holds the queue where a wall "
-        f"should be: {far[1]:.0f} % of its beams fall short of the wall against {raw[1]:.0f} % of the raw scan's (walking "
-        "people and the people near the robot are removed; the queues stay). The paper's LIDAR at "
-        f"{paper.LIDAR_HEIGHT_M:g} m saw legs with gaps between them, so more wall reached its accumulation."
+        f"- People: the scan plane cuts their legs ({world.legs_text()}), queued {spacing:g} m apart "
+        f"{world.queue_wall_offset_m():g} m in front of the side walls, so the wall behind a queue shows between legs and "
+        f"between people. {far[1]:.0f} % of the far-point scan's beams fall short of the wall against {raw[1]:.0f} % of the "
+        "raw scan's (walking people and the people near the robot are removed; the standing queues' legs stay)."
     )
 
 

@@ -53,8 +53,22 @@ def queues() -> QueuesConfig:
 
 
 def people_radius_m() -> float:
-    """Radius of the queued people's circles."""
+    """Radius of the queued people's footprint discs (what collides)."""
     return float(queues().radius_m)
+
+
+def legs_text() -> str:
+    """The queued people's legs as the LIDAR sees them, from the world config's size ranges."""
+    p = queues().person
+
+    def cm(lo_hi: tuple[float, ...]) -> str:
+        lo, hi = (round(100 * v) for v in lo_hi)
+        return f"{lo}-{hi} cm" if lo != hi else f"{lo} cm"
+
+    return (
+        f"two leg discs of radius {cm(p.leg_radius_m)}, {cm(tuple(2 * v for v in p.hip_half_width_m))} apart at the hips "
+        f"(statures {cm(p.height_m)}), swinging while a person walks"
+    )
 
 
 def crowd_positions(env: Any) -> NDArray[np.float64]:
