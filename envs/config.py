@@ -56,7 +56,29 @@ class LandmarkConfig:
 
 @dataclass(frozen=True)
 class RobotConfig:
-    """Our differential-drive robot (a pymunk circle)."""
+    """Our differential-drive robot (a pymunk circle), and how its wheels slip.
+
+    Slip: the body moves, and turns, less than commanded; odometry reads the command, so a
+    slip is an unobserved shortening of the motion. The fraction of a step's commanded
+    motion that is lost (the body's velocity and turn rate are multiplied by one minus it)
+    is :meth:`slip_fraction`, the sum of
+
+    - a random slip: with probability ``slip_probability`` per step, U(0, ``slip_max_fraction``);
+    - an acceleration term: ``slip_per_accel_s2`` times the commanded linear acceleration
+      ``|v(t) - v(t-1)| / dt`` (m/s^2, the forward speed command; the robot starts each
+      episode at rest) plus ``slip_per_angular_accel_s2`` times the commanded angular
+      acceleration ``|omega(t) - omega(t-1)| / dt`` (rad/s^2). Real tyres lose grip in
+      proportion to the traction force they transmit (the linear part of the slip curve),
+      and that force is the mass times the acceleration. The term is deterministic: the
+      same command sequence slips the same way;
+    - a contact term: ``slip_in_contact`` in a step that starts with the robot touching
+      something (a wall, a pole, a crowd member, the ball: the physics' last step left a
+      contact on the robot body): a robot pushing or pushed spins its wheels;
+
+    capped at ``slip_max_total`` (< 1: the robot always keeps part of its motion). The
+    defaults (0 for the three new terms, cap 0.9) leave every shipped world as it was, and
+    the deterministic terms draw nothing from the world's random stream.
+    """
 
     radius_m: float = 0.25
     mass_kg: float = 30.0
@@ -67,6 +89,10 @@ class RobotConfig:
     start_region_m: tuple[float, float, float, float] | None = None  # (xmin, ymin, xmax, ymax)
     slip_probability: float = 0.0  # per step: the wheels slip and the body moves less than commanded
     slip_max_fraction: float = 0.5  # a slipping step loses U(0, this) of the commanded motion
+    slip_per_accel_s2: float = 0.0  # fraction lost per m/s^2 of commanded linear acceleration (s^2/m), in [0, 1]
+    slip_per_angular_accel_s2: float = 0.0  # fraction lost per rad/s^2 of commanded angular acceleration (s^2/rad), in [0, 1]
+    slip_in_contact: float = 0.0  # fraction lost in a step that starts in contact with anything, in [0, 1]
+    slip_max_total: float = 0.9  # the cap on the summed lost fraction, in [0, 1); at least slip_max_fraction
 
     def __post_init__(self) -> None:
         check(self.radius_m > 0, f"robot.radius_m must be > 0, got {self.radius_m}")
@@ -79,6 +105,36 @@ class RobotConfig:
         )
         check(0 <= self.slip_probability <= 1, f"robot.slip_probability must be in [0, 1], got {self.slip_probability}")
         check(0 <= self.slip_max_fraction <= 1, f"robot.slip_max_fraction must be in [0, 1], got {self.slip_max_fraction}")
+        for name, unit in (("slip_per_accel_s2", " s^2/m"), ("slip_per_angular_accel_s2", " s^2/rad"), ("slip_in_contact", "")):
+            value = getattr(self, name)
+            check(math.isfinite(value) and 0 <= value <= 1, f"robot.{name} must be finite and in [0, 1]{unit}, got {value}")
+        check(
+            math.isfinite(self.slip_max_total) and 0 <= self.slip_max_total < 1,
+            f"robot.slip_max_total must be finite and in [0, 1) (the robot keeps part of its motion), got {self.slip_max_total}",
+        )
+        check(
+            self.slip_max_fraction <= self.slip_max_total,
+            f"robot.slip_max_fraction ({self.slip_max_fraction}) must not exceed robot.slip_max_total "
+            f"({self.slip_max_total}), the cap on the lost fraction: raise the cap or lower the random slip",
+        )
+
+    def slip_fraction(self, accel_mps2: float, angular_accel_rps2: float, in_contact: bool, rng: np.random.Generator) -> float:
+        """The fraction in ``[0, slip_max_total]`` of this step's commanded motion the wheels lose.
+
+        Args:
+            accel_mps2: the commanded linear acceleration magnitude, ``|v(t) - v(t-1)| / dt``.
+            angular_accel_rps2: the commanded angular acceleration magnitude, ``|omega(t) - omega(t-1)| / dt``.
+            in_contact: whether the robot touches something as the step starts.
+            rng: the world's random stream; drawn from only when ``slip_probability > 0``
+                (one draw, and a second for the size of a slip), as before the other terms existed.
+        """
+        lost = 0.0
+        if self.slip_probability > 0 and rng.random() < self.slip_probability:
+            lost = rng.uniform(0.0, self.slip_max_fraction)
+        lost += self.slip_per_accel_s2 * accel_mps2 + self.slip_per_angular_accel_s2 * angular_accel_rps2
+        if in_contact:
+            lost += self.slip_in_contact
+        return min(self.slip_max_total, lost)
 
 
 @dataclass(frozen=True)

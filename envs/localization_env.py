@@ -7,11 +7,12 @@ either ``landmarks`` ``(3 L,)`` (a bearing camera's ``(visible, cos, sin)`` per 
 flattened) or ``lidar`` ``(B,)``; ``sonar={}`` adds a sonar ring (``sonar`` ``(S,)``).
 
 Action: ``Box(-1, 1, (2,))``, scaled to the world's forward speed and turn rate limits.
-Ground truth (``true_pose``, ``contacts``, the sensors' facts such as ``visible_landmarks``
-and ``false_detections``, one flag per landmark) is in ``info`` only; every entry but the
-``contacts`` list has a fixed shape, so ``gym.make_vec`` can stack them. An episode
-terminates when the world has a ``goal`` and the robot has stood still there (else it only
-times out). The base environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``agents.tasks``).
+Ground truth (``true_pose``, ``contacts``, ``slip_fraction``: the fraction of the step's
+commanded motion the wheels lost, :meth:`envs.config.RobotConfig.slip_fraction`; the sensors'
+facts such as ``visible_landmarks`` and ``false_detections``, one flag per landmark) is in
+``info`` only; every entry but the ``contacts`` list has a fixed shape, so ``gym.make_vec``
+can stack them. An episode terminates when the world has a ``goal`` and the robot has stood
+still there (else it only times out). The base environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``agents.tasks``).
 """
 
 from __future__ import annotations
@@ -98,6 +99,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         self._last_obs: dict[str, NDArray[np.float32]] = {}
         self._last_info: dict[str, Any] = {}
         self._still_s = 0.0
+        self._last_command = (0.0, 0.0)  # the last step's commanded (speed m/s, turn rate rad/s)
 
     # ------------------------------------------------------------------ gym API
     def reset(
@@ -125,6 +127,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         for sensor in self.sensors.values():
             sensor.reset()
         self._still_s = 0.0
+        self._last_command = (0.0, 0.0)  # the robot starts at rest: a first command is an acceleration
         obs, info = self._observe()
         if self.render_mode == "human":
             self.render()
@@ -141,15 +144,19 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         commanded = np.array([v * dt * math.cos(half), v * dt * math.sin(half), omega * dt])
         for sensor in self._commanded:
             sensor.command(commanded, self._sensor_rng)
-        slip = 1.0
+        # wheel slip (RobotConfig.slip_fraction): the body moves and turns less than commanded
         rc = self.config.robot
-        if rc.slip_probability > 0 and self._world_rng.random() < rc.slip_probability:
-            slip = 1.0 - self._world_rng.uniform(0.0, rc.slip_max_fraction)
+        last_v, last_omega = self._last_command
+        self._last_command = (v, omega)
+        in_contact = rc.slip_in_contact > 0 and self.world.robot_touching()
+        lost = rc.slip_fraction(abs(v - last_v) / dt, abs(omega - last_omega) / dt, in_contact, self._world_rng)
+        slip = 1.0 - lost
         heading = theta + half
         velocity = np.array([v * slip * math.cos(heading), v * slip * math.sin(heading)])
         self.world.step(velocity, omega * slip, self._world_rng)
         obs, info = self._observe()
         info["contacts"] = list(self.world.contacts)  # the world keeps this step's events only
+        info["slip_fraction"] = lost
         terminated = self._at_goal(a_v, a_w)
         if self.render_mode == "human":
             self.render()
@@ -232,7 +239,12 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
 
     def _observe(self) -> tuple[dict[str, NDArray[np.float32]], dict[str, Any]]:
         obs: dict[str, NDArray[np.float32]] = {}
-        info: dict[str, Any] = {"true_pose": self.world.robot_pose, "time_s": self.world.time_s, "contacts": []}
+        info: dict[str, Any] = {
+            "true_pose": self.world.robot_pose,
+            "time_s": self.world.time_s,
+            "contacts": [],
+            "slip_fraction": 0.0,
+        }
         state = self.world.snapshot()
         for sensor in self.sensors.values():
             value, extra = sensor.observe(state, self._sensor_rng)

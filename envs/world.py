@@ -415,6 +415,22 @@ class World:
         self.read_state()
         self.figure_model.advance(self.velocities, dt)
 
+    def robot_touching(self) -> bool:
+        """Whether our robot is in contact with anything (a wall, a pole, a crowd member, the
+        ball) after the last physics step: its body holds an arbiter with contact points.
+
+        Unlike :attr:`contacts` (the contacts that *began* in the last step) this stays true
+        for as long as the robot presses on, or is pressed by, something.
+        """
+        touching = False
+
+        def see(arbiter: pymunk.Arbiter) -> None:
+            nonlocal touching
+            touching = touching or bool(arbiter.contact_point_set.points)
+
+        self.robot_body.each_arbiter(see)
+        return touching
+
     def _on_robot_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
         other = arbiter.shapes[1] if arbiter.shapes[0].collision_type == ROBOT else arbiter.shapes[0]
         kind = KIND_NAMES.get(other.collision_type, "other")
