@@ -7,8 +7,8 @@ either ``landmarks`` ``(3 L,)`` (a bearing camera's ``(visible, cos, sin)`` per 
 flattened) or ``lidar`` ``(B,)``; ``sonar={}`` adds a sonar ring (``sonar`` ``(S,)``).
 
 Action: ``Box(-1, 1, (2,))``, scaled to the world's forward speed and turn rate limits.
-Ground truth (``true_pose``, ``contacts``, the sensors' facts such as ``visible_landmarks``
-and ``false_detections``, one flag per landmark) is in ``info`` only; every entry but the
+Ground truth (``true_pose``, ``contacts``, the sensors' facts such as ``visible_landmarks``,
+``false_detections`` and ``distractor_detections``, one flag per landmark) is in ``info`` only; every entry but the
 ``contacts`` list has a fixed shape, so ``gym.make_vec`` can stack them. An episode
 terminates when the world has a ``goal`` and the robot has stood still there (else it only
 times out). The base environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``agents.tasks``).

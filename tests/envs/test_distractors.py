@@ -287,3 +287,17 @@ def test_the_renderer_draws_distractors_as_rings_in_their_landmark_colour() -> N
     assert not (window(env, without, spot, 7) == colour).all(axis=-1).any()
     assert with_ring.shape == without.shape
     env.close()
+
+
+def test_a_recording_keeps_the_distractor_flags() -> None:
+    from agents.replay import record
+    from agents.scenarios import exp1_driver
+
+    kwargs = {"camera": {"distractors": [FAKE_L5]}}
+    rec = record("crowdloc/RoboCupStatic-v0", exp1_driver, seed=4, max_steps=300, env_kwargs=kwargs)
+    assert rec.distractor_detections.shape == rec.false_detections.shape == (rec.steps, 3)
+    flags = rec.distractor_detections[:, 0]
+    assert flags.any() and not rec.distractor_detections[:, 1:].any()
+    assert not (flags & rec.visible[:, 0]).any()  # never while L5 itself is in view
+    plain = record("crowdloc/RoboCupStatic-v0", exp1_driver, seed=4, max_steps=300)
+    assert not plain.distractor_detections.any()
