@@ -50,7 +50,9 @@ class Recording:
         true_pose: ``(T, 3)`` ground truth.
         time_s: ``(T,)`` simulated time.
         visible: ``(T, L)`` landmarks truly in sight (before dropout).
-        false_detections: ``(T, L)`` slots holding a false detection.
+        false_detections: ``(T, L)`` slots holding a random false detection.
+        distractor_detections: ``(T, L)`` slots holding a distractor's bearing (a persistent
+            false detection; the bearing camera's ``distractors``).
         contacts: ``(T,)`` contacts of our robot that began in each step.
         commanded: ``(T - 1, 3)`` the motion commanded in steps 1..T-1 (what the odometry
             measures before noise; contacts move the body beyond it).
@@ -66,6 +68,7 @@ class Recording:
     time_s: NDArray[np.float64]
     visible: NDArray[np.bool_]
     false_detections: NDArray[np.bool_]
+    distractor_detections: NDArray[np.bool_]
     contacts: NDArray[np.int64]
     commanded: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
 
@@ -200,7 +203,8 @@ def record(
             observed[key].append(o[key].copy())
         vis = np.array(i.get("visible_landmarks", no_landmarks), dtype=bool)
         false = np.array(i.get("false_detections", no_landmarks), dtype=bool)
-        truth.append((np.asarray(i["true_pose"]).copy(), float(i["time_s"]), vis, false, len(i["contacts"])))
+        fooled = np.array(i.get("distractor_detections", no_landmarks), dtype=bool)
+        truth.append((np.asarray(i["true_pose"]).copy(), float(i["time_s"]), vis, false, len(i["contacts"]), fooled))
 
     keep(obs, info)
     commanded = []
@@ -224,6 +228,7 @@ def record(
         time_s=np.array([r[1] for r in truth]),
         visible=np.stack([r[2] for r in truth]),
         false_detections=np.stack([r[3] for r in truth]),
+        distractor_detections=np.stack([r[5] for r in truth]),
         contacts=np.array([r[4] for r in truth], dtype=np.int64),
         commanded=np.array(commanded, dtype=np.float64).reshape(-1, 3),
     )

@@ -9,10 +9,11 @@ flattened) or ``lidar`` ``(B,)``; ``sonar={}`` adds a sonar ring (``sonar`` ``(S
 Action: ``Box(-1, 1, (2,))``, scaled to the world's forward speed and turn rate limits.
 Ground truth (``true_pose``, ``contacts``, ``slip_fraction``: the fraction of the step's
 commanded motion the wheels lost, :meth:`envs.config.RobotConfig.slip_fraction`; the sensors'
-facts such as ``visible_landmarks`` and ``false_detections``, one flag per landmark) is in
-``info`` only; every entry but the ``contacts`` list has a fixed shape, so ``gym.make_vec``
-can stack them. An episode terminates when the world has a ``goal`` and the robot has stood
-still there (else it only times out). The base environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``agents.tasks``).
+facts such as ``visible_landmarks``, ``false_detections`` and ``distractor_detections``, one
+flag per landmark) is in ``info`` only; every entry but the ``contacts`` list has a fixed
+shape, so ``gym.make_vec`` can stack them. An episode terminates when the world has a
+``goal`` and the robot has stood still there (else it only times out). The base
+environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``agents.tasks``).
 """
 
 from __future__ import annotations

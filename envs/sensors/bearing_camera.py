@@ -2,6 +2,18 @@
 
 Omnidirectional (the papers' robots) or, with ``fov_rad`` below a full turn, a forward
 camera that must be turned toward landmarks.
+
+The camera finds landmarks by colour, so it can be fooled in two ways:
+
+- *random false detections* (``false_detection_probability``): per slot and frame, a
+  uniformly random bearing with ``visible = 1``; noise, flagged in ``info["false_detections"]``;
+- *persistent false detections* (``distractors``): objects of a landmark's colour at fixed
+  places beyond the field (the candidate-set paper's "blue or yellow objects outside the
+  field" seen by the omnidirectional camera). In a frame where landmark k's slot would be
+  empty (the real landmark occluded, out of range, outside the field of view or dropped
+  out) and a distractor of k is in view, the slot reports the distractor's bearing, so a
+  filter sees the same wrong bearing frame after frame; flagged in
+  ``info["distractor_detections"]``. See :class:`DistractorConfig` for the rules.
 """
 
 from __future__ import annotations
@@ -26,12 +38,80 @@ if TYPE_CHECKING:
     from envs.config import WorldConfig
 
 SIGHT_LINE = (255, 255, 160)
+DISTRACTOR_SIGHT_LINE = (255, 120, 60)  # a sight line to a distractor reported in a landmark's slot
+_DISTRACTOR_MIN_PX = 6  # distractor rings are at least this radius so that they show
+
+
+@dataclass(frozen=True)
+class DistractorConfig:
+    """An object beyond the field that the camera takes for landmark ``landmark`` (a persistent false detection).
+
+    The candidate-set paper's camera identifies the goals and corner poles by their blue and
+    yellow paint; blue or yellow things outside the field that show in the omnidirectional
+    image are taken for landmarks. A distractor is such a thing at a fixed place:
+
+    - it is reported in ``landmark``'s slot only in a frame where that slot would otherwise
+      be empty: the real landmark wins when both are in view (the issue's "whenever they are
+      in view and the real landmark is not");
+    - "in view": a clear line of sight from the robot to the near side of its disc (radius
+      ``radius_m``; the imitated landmark's radius when None) against the same walls and crowd
+      members that hide landmarks, inside the camera's field of view and within the camera's
+      ``max_range_m`` and the distractor's own ``max_range_m``. The imitated landmark's own
+      ``max_range_m`` does not apply: it says how far that pole (a small one) can be made
+      out, and a distractor is another object of its own size;
+    - when several distractors of one landmark are in view, the nearest (centre distance) is reported;
+    - dropout applies to the real landmark only (a dropped landmark leaves its slot to a
+      distractor in view), and a random false detection in the slot takes precedence over both;
+    - the reported bearing carries the camera's bearing noise (the slot's own noise draw:
+      distractors draw no random numbers);
+    - it is not a body: it neither collides nor hides anything.
+
+    Where: the centre must lie outside the field (``size_m`` from ``origin_m``, edges
+    included: the paper's objects are beyond it; an object inside would be something robots
+    drive through) and strictly inside the boundary walls (``boundary_margin_m`` around the
+    field): the robot never leaves the walls and they hide whatever stands behind them, so a
+    distractor beyond them could never be seen. A world without a margin therefore has no
+    room for distractors.
+
+    Attributes:
+        landmark: name of the landmark it looks like (one of the world's ``landmarks``).
+        x_m, y_m: centre in the world frame, metres.
+        radius_m: disc radius in metres; None: the imitated landmark's ``radius_m``.
+        max_range_m: beyond this distance (metres) the camera does not see it (on top of the camera's ``max_range_m``).
+    """
+
+    landmark: str
+    x_m: float
+    y_m: float
+    radius_m: float | None = None
+    max_range_m: float = math.inf
+
+    def __post_init__(self) -> None:
+        where = f"distractor of {self.landmark!r} at ({self.x_m!r}, {self.y_m!r})"
+        check(
+            math.isfinite(self.x_m) and math.isfinite(self.y_m),
+            f"{where}: x_m and y_m must be finite, got ({self.x_m}, {self.y_m})",
+        )
+        if self.radius_m is not None:
+            check(
+                0 < self.radius_m < math.inf,
+                f"{where}: radius_m must be > 0 and finite, got {self.radius_m}",
+            )
+        check(self.max_range_m > 0, f"{where}: max_range_m must be > 0, got {self.max_range_m}")
 
 
 @dataclass(frozen=True)
 class BearingCameraConfig(SensorConfig):
     """Camera reporting landmark bearings: omnidirectional or, with ``fov_rad`` below a full
-    turn, forward-looking."""
+    turn, forward-looking.
+
+    ``distractors`` (persistent false detections, :class:`DistractorConfig`) belong to the
+    camera, not to the world: they are things only a colour camera takes for landmarks (the
+    LIDAR and the sonar see no colour, and they are not bodies: nothing collides with them or
+    is hidden by them), and a camera with other colour thresholds would be fooled by other
+    things. Their landmark names and places are checked against the world in
+    :meth:`check_world`. None by default.
+    """
 
     key: str = "landmarks"
     noise_std_rad: float = math.radians(1.0)
@@ -40,6 +120,7 @@ class BearingCameraConfig(SensorConfig):
     dropout_probability: float = 0.0  # a visible landmark is missed in a frame
     false_detection_probability: float = 0.0  # per slot and frame: a wrong bearing is reported
     height_m: float = 0.6  # the lens's height: bodies block a sight line where they reach above it
+    distractors: tuple[DistractorConfig, ...] = ()  # persistent false detections at fixed places beyond the field
 
     def __post_init__(self) -> None:
         check(self.noise_std_rad >= 0, f"camera.noise_std_rad must be >= 0, got {self.noise_std_rad}")
@@ -53,9 +134,35 @@ class BearingCameraConfig(SensorConfig):
         check(
             math.isfinite(self.height_m) and self.height_m >= 0, f"camera.height_m must be finite and >= 0, got {self.height_m}"
         )
+        for d in self.distractors:
+            check(
+                isinstance(d, DistractorConfig),
+                f"camera.distractors: expected DistractorConfig entries, got {type(d).__name__} {d!r}",
+            )
+        object.__setattr__(self, "distractors", tuple(self.distractors))  # a copy: the caller's list may change
 
     def check_world(self, world: WorldConfig, name: str) -> None:
         check(len(world.landmarks) > 0, f"world {world.name!r}: the bearing camera {name!r} needs landmarks")
+        names = [lm.name for lm in world.landmarks]
+        fx0, fy0, fx1, fy1 = world.field_m
+        ax0, ay0, ax1, ay1 = world.arena_m
+        for i, d in enumerate(self.distractors):
+            where = f"world {world.name!r}: camera {name!r}: distractors[{i}]"
+            check(
+                d.landmark in names,
+                f"{where}: unknown landmark {d.landmark!r} (the world's landmarks: {', '.join(names)})",
+            )
+            check(
+                not (fx0 <= d.x_m <= fx1 and fy0 <= d.y_m <= fy1),
+                f"{where}: ({d.x_m:g}, {d.y_m:g}) m is inside the field x in [{fx0:g}, {fx1:g}], y in [{fy0:g}, {fy1:g}]; "
+                "a distractor stands beyond the field",
+            )
+            check(
+                ax0 < d.x_m < ax1 and ay0 < d.y_m < ay1,
+                f"{where}: ({d.x_m:g}, {d.y_m:g}) m is not inside the boundary walls x in ({ax0:g}, {ax1:g}), "
+                f"y in ({ay0:g}, {ay1:g}) (the field and its boundary_margin_m = {world.boundary_margin_m:g} m); "
+                "the walls would always hide it",
+            )
 
 
 @register_sensor("bearing_camera", BearingCameraConfig)
@@ -66,9 +173,14 @@ class BearingCamera(SensorBase):
     Observation ``(3 L,)``: for each landmark slot in turn ``(visible, cos(bearing),
     sin(bearing))`` in the robot frame (a flat vector, as stable-baselines3 expects; reshape
     to ``(L, 3)`` to read it), zeros when not detected. A false detection puts a uniformly
-    random bearing in a slot with ``visible = 1``. ``info`` gets ``visible_landmarks`` and
-    ``false_detections``: ``(L,)`` flags of the landmarks truly in sight (before dropout) and of
-    the slots holding a false detection.
+    random bearing in a slot with ``visible = 1``; a distractor in view (see
+    :class:`DistractorConfig`) puts its own bearing, with the bearing noise, in the slot of
+    the landmark it imitates when that landmark is not detected. ``info`` gets
+    ``visible_landmarks``, ``false_detections`` and ``distractor_detections``: ``(L,)`` flags
+    of the landmarks truly in sight (before dropout), of the slots holding a random false
+    detection and of the slots holding a distractor's bearing (never both: a random false
+    detection takes the slot first). A slot that is flagged in neither of the last two and
+    reads ``visible = 1`` holds the real landmark.
     """
 
     draw_layer = "under"
@@ -81,6 +193,15 @@ class BearingCamera(SensorBase):
         self.max_range_m = np.minimum(state.landmark_max_range_m, config.max_range_m)
         seen = state.walls_above(config.height_m)
         self._seg_a, self._seg_b = state.seg_a[seen], state.seg_b[seen]
+        slot = {n: j for j, n in enumerate(state.landmark_names)}
+        ds = config.distractors
+        #: ``(D,)`` the landmark slot each distractor imitates; ``(D, 2)`` centres, ``(D,)`` radii and ranges
+        self.distractor_slot = np.array([slot[d.landmark] for d in ds], dtype=np.int64)
+        self.distractor_xy = np.array([(d.x_m, d.y_m) for d in ds], dtype=np.float64).reshape(-1, 2)
+        self.distractor_radius_m = np.array(
+            [state.landmark_radius_m[slot[d.landmark]] if d.radius_m is None else d.radius_m for d in ds], dtype=np.float64
+        )
+        self.distractor_max_range_m = np.array([min(d.max_range_m, config.max_range_m) for d in ds], dtype=np.float64)
 
     def space(self) -> spaces.Box:
         return spaces.Box(-1.0, 1.0, shape=(3 * self.count,), dtype=np.float32)
@@ -88,8 +209,10 @@ class BearingCamera(SensorBase):
     def metadata(self) -> dict[str, Any]:
         return {"landmark_count": self.count, "noise_std_rad": self.config.noise_std_rad, "fov_rad": self.config.fov_rad}
 
-    def true_visibility(self, state: WorldState) -> NDArray[np.bool_]:
-        """``(L,)`` landmarks in the field of view whose line of sight is clear and within range (no dropout).
+    def _in_view(
+        self, state: WorldState, xy: NDArray[np.float64], radius_m: NDArray[np.float64], max_range_m: NDArray[np.float64]
+    ) -> NDArray[np.bool_]:
+        """``(n,)`` points with a clear line of sight, within range and inside the field of view.
 
         A sight line is blocked by the walls and by the bodies' sections at the camera's
         height (a person's torso, a robot's body; not a ball below the lens).
@@ -97,24 +220,34 @@ class BearingCamera(SensorBase):
         occluders = state.occluders(self.config.height_m)
         clear = sight_lines_clear(
             state.positions[0],
-            state.landmark_xy,
-            state.landmark_radius_m,
-            self.max_range_m,
+            xy,
+            radius_m,
+            max_range_m,
             self._seg_a,
             self._seg_b,
             occluders.centres,
             occluders.radii,
         )
         if self.config.fov_rad < 2 * math.pi:
-            clear &= in_field_of_view(state.positions[0], state.angles[0], state.landmark_xy, self.config.fov_rad)
+            clear &= in_field_of_view(state.positions[0], state.angles[0], xy, self.config.fov_rad)
         return clear
+
+    def true_visibility(self, state: WorldState) -> NDArray[np.bool_]:
+        """``(L,)`` landmarks in the field of view whose line of sight is clear and within range (no dropout)."""
+        return self._in_view(state, state.landmark_xy, state.landmark_radius_m, self.max_range_m)
+
+    def distractors_in_view(self, state: WorldState) -> NDArray[np.bool_]:
+        """``(D,)`` distractors the camera would see now (in config order), whether or not their landmark is in view."""
+        if not self.distractor_slot.size:
+            return np.zeros(0, dtype=np.bool_)
+        return self._in_view(state, self.distractor_xy, self.distractor_radius_m, self.distractor_max_range_m)
 
     def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
         cfg = self.config
         draws = rng.random((3, self.count))  # dropout, false detection, false bearing
         noise = rng.standard_normal((self.count,)) * cfg.noise_std_rad
         visible = self.true_visibility(state)
-        obs = _bearing_slots(
+        obs, chosen = _bearing_slots(
             state.positions[0],
             state.angles[0],
             state.landmark_xy,
@@ -123,21 +256,68 @@ class BearingCamera(SensorBase):
             noise,
             cfg.dropout_probability,
             cfg.false_detection_probability,
+            self.distractor_xy,
+            self.distractor_slot,
+            self.distractors_in_view(state),
         )
         # fixed shapes (one flag per landmark), so that vector envs can stack the infos
-        return obs.reshape(-1), {"visible_landmarks": visible, "false_detections": draws[1] < cfg.false_detection_probability}
+        return obs.reshape(-1), {
+            "visible_landmarks": visible,
+            "false_detections": draws[1] < cfg.false_detection_probability,
+            "distractor_detections": chosen >= 0,
+        }
 
     def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None:
-        """Sight lines to the landmarks truly in view and, for a narrow camera, the edges of its view."""
+        """Sight lines to the landmarks truly in view and to the distractors reported, the
+        distractors (hollow rings in the colour of the landmark they imitate, a dot in the
+        middle) and, for a narrow camera, the edges of its view."""
         pose = state.robot_pose
         for j in np.flatnonzero(info.get("visible_landmarks", ())):
             canvas.line(pose[:2], state.landmark_xy[j], SIGHT_LINE, 1)
+        if self.distractor_slot.size:
+            from envs.render import landmark_color  # here: envs.render imports the sensors through envs.config
+
+            reported = np.asarray(info.get("distractor_detections", np.zeros(self.count, dtype=bool)), dtype=bool)
+            chosen = _nearest_in_view(
+                state.positions[0], self.distractor_xy, self.distractor_slot, self.distractors_in_view(state), self.count
+            )
+            for j in np.flatnonzero(reported & (chosen >= 0)):
+                canvas.line(pose[:2], self.distractor_xy[chosen[j]], DISTRACTOR_SIGHT_LINE, 1)
+            for (x, y), r, j in zip(self.distractor_xy, self.distractor_radius_m, self.distractor_slot):
+                color = landmark_color(int(j))
+                ring_m = max(float(r), _DISTRACTOR_MIN_PX / canvas.scale)
+                canvas.circle(x, y, ring_m, color, 2)
+                canvas.circle(x, y, 1.5 / canvas.scale, color, 0)
         fov = self.config.fov_rad
         if fov < 2 * np.pi:
             reach = float(np.hypot(*np.ptp(state.seg_a, axis=0))) if len(state.seg_a) else 10.0
             for side in (-0.5, 0.5):
                 edge = pose[2] + side * fov
                 canvas.line(pose[:2], pose[:2] + reach * np.array([np.cos(edge), np.sin(edge)]), SIGHT_LINE, 1)
+
+
+@numba.njit(cache=True)
+def _nearest_in_view(
+    origin: NDArray[np.float64],
+    distractor_xy: NDArray[np.float64],
+    distractor_slot: NDArray[np.int64],
+    in_view: NDArray[np.bool_],
+    count: int,
+) -> NDArray[np.int64]:
+    """``(L,)`` per landmark slot the nearest distractor in view (its row), -1 for none."""
+    best = np.full(count, -1, dtype=np.int64)
+    best_d2 = np.full(count, math.inf)
+    for d in range(distractor_xy.shape[0]):
+        if not in_view[d]:
+            continue
+        dx = distractor_xy[d, 0] - origin[0]
+        dy = distractor_xy[d, 1] - origin[1]
+        d2 = dx * dx + dy * dy
+        j = distractor_slot[d]
+        if d2 < best_d2[j]:
+            best_d2[j] = d2
+            best[j] = d
+    return best
 
 
 @numba.njit(cache=True)
@@ -150,18 +330,31 @@ def _bearing_slots(
     noise: NDArray[np.float64],
     dropout: float,
     false_rate: float,
-) -> NDArray[np.float32]:
-    """Fill the ``(L, 3)`` camera slots."""
+    distractor_xy: NDArray[np.float64],
+    distractor_slot: NDArray[np.int64],
+    distractor_in_view: NDArray[np.bool_],
+) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+    """Fill the ``(L, 3)`` camera slots; also ``(L,)`` the distractor reported in each slot (its row, -1 for none).
+
+    Per slot, first match wins: a random false detection, the landmark (visible and not
+    dropped out), the nearest distractor in view of that landmark; else the slot stays zero.
+    """
     n = landmark_xy.shape[0]
     obs = np.zeros((n, 3), dtype=np.float32)
+    nearest = _nearest_in_view(origin, distractor_xy, distractor_slot, distractor_in_view, n)
+    chosen = np.full(n, -1, dtype=np.int64)
     for j in range(n):
         if draws[1, j] < false_rate:
             bearing = (draws[2, j] * 2.0 - 1.0) * math.pi
         elif visible[j] and draws[0, j] >= dropout:
             bearing = math.atan2(landmark_xy[j, 1] - origin[1], landmark_xy[j, 0] - origin[0]) - heading + noise[j]
+        elif nearest[j] >= 0:
+            d = nearest[j]
+            chosen[j] = d
+            bearing = math.atan2(distractor_xy[d, 1] - origin[1], distractor_xy[d, 0] - origin[0]) - heading + noise[j]
         else:
             continue
         obs[j, 0] = 1.0
         obs[j, 1] = math.cos(bearing)
         obs[j, 2] = math.sin(bearing)
-    return obs
+    return obs, chosen

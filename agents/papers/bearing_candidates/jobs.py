@@ -237,8 +237,8 @@ def bound_along(recording: Any, fed: NDArray[np.bool_], known_start: bool) -> Ar
 
     Args:
         recording: an :class:`agents.replay.Recording`.
-        fed: ``(T, L)`` landmark slots the localizer was fed; false detections are removed
-            (the bound is for correctly associated bearings).
+        fed: ``(T, L)`` landmark slots the localizer was fed; false detections (random ones
+            and distractors') are removed (the bound is for correctly associated bearings).
         known_start: the localizer got the start pose, else a prior as vague as the field.
 
     Returns:
@@ -250,7 +250,7 @@ def bound_along(recording: Any, fed: NDArray[np.bool_], known_start: bool) -> Ar
     return bound_rmse_along(
         recording.true_pose,
         recording.commanded,
-        fed & ~recording.false_detections,
+        fed & ~recording.false_detections & ~recording.distractor_detections,
         recording.landmark_map.positions_xy_m,
         recording.camera_noise_std_rad,
         recording.odometry_alphas,
