@@ -27,7 +27,7 @@ import envs  # noqa: F401  (registers the crowdloc ids)
 from agents.scenarios import Driver
 from envs.localization_env import LocalizationEnv
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
-from localizers.measurements import decode, find_sensor, measurement_kind, readable_kinds
+from localizers.measurements import decode, find_sensor, measurement_kind, readable_kinds, sensor_map
 from localizers.registry import make_localizer, spec
 
 #: the covariance of the known start pose handed to localizers that need it (as the wrapper does)
@@ -441,7 +441,9 @@ def replay(
         raise ValueError(f"prior must be 'auto', 'start' or 'none', got {prior!r}")
     entry = spec(name)
     needs = entry.needs_prior if prior == "auto" else prior == "start"
-    localizer = make_localizer(name, recording.landmark_map, dt_s=recording.dt_s, params=params)
+    sensor = find_sensor(entry.measurement, recording.sensors, f"replay of {name!r} on {recording.env_id}")
+    landmarks = sensor_map(recording.landmark_map, recording.sensors[sensor])
+    localizer = make_localizer(name, landmarks, dt_s=recording.dt_s, params=params)
     return replay_into(
         localizer,
         recording,

@@ -157,6 +157,91 @@ class GoalConfig:
         check(0 <= self.still_fraction < 1, f"goal.still_fraction must be in [0, 1), got {self.still_fraction}")
 
 
+#: one static segment with its height interval: (x1, y1, x2, y2, bottom, top), metres
+Segment = tuple[float, float, float, float, float, float]
+
+
+@dataclass(frozen=True)
+class FurnitureConfig:
+    """A piece of furniture: static, with a height, seen by sensors at the heights it spans.
+
+    ``kind``:
+
+    - ``"box"``: a shelf, a cabinet, a pillar: solid from the floor to ``height_m``; its four
+      sides are wall segments that collide and that every sensor below its top sees.
+    - ``"table"``: four legs (squares of side ``2 leg_radius_m`` at the corners, from the floor
+      to the underside of the top) and a top ``top_thickness_m`` thick at ``height_m``. The legs
+      collide; the top does not (our robots are lower than a table), but a sensor at its
+      height sees its edges. A LIDAR at 0.2 m sees four legs, one at 1.9 m nothing.
+
+    ``size_m`` is ``(length along the piece's own x, depth)`` before turning by ``angle_rad``
+    about its centre ``(x_m, y_m)``. ``map_offset_m`` and ``map_offset_rad`` say where the
+    localizers' map has it relative to where it stands (furniture moved since the map was
+    made): the map's copy is turned by ``map_offset_rad`` about the centre and shifted; zero by
+    default, the map exact.
+    """
+
+    name: str
+    kind: Literal["box", "table"]
+    x_m: float
+    y_m: float
+    size_m: tuple[float, float]
+    height_m: float
+    angle_rad: float = 0.0
+    leg_radius_m: float = 0.025
+    top_thickness_m: float = 0.03
+    map_offset_m: tuple[float, float] = (0.0, 0.0)
+    map_offset_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        where = f"furniture {self.name!r}"
+        numbers = (self.x_m, self.y_m, *self.size_m, self.height_m, self.angle_rad, *self.map_offset_m, self.map_offset_rad)
+        check(all(math.isfinite(v) for v in numbers), f"{where}: every number must be finite")
+        check(self.size_m[0] > 0 and self.size_m[1] > 0, f"{where}: size_m must be positive, got {self.size_m}")
+        check(self.height_m > 0, f"{where}: height_m must be > 0, got {self.height_m}")
+        if self.kind == "table":
+            check(
+                0 < self.leg_radius_m and 4 * self.leg_radius_m < min(self.size_m),
+                f"{where}: leg_radius_m must be > 0 and the legs must fit under the top {self.size_m}, got {self.leg_radius_m}",
+            )
+            check(
+                0 < self.top_thickness_m < self.height_m,
+                f"{where}: top_thickness_m must be in (0, height_m = {self.height_m}), got {self.top_thickness_m}",
+            )
+
+    def footprint(self, in_map: bool = False) -> NDArray[np.float64]:
+        """``(4, 2)`` corners of its outline, counter-clockwise (where the map has it with ``in_map``)."""
+        return self._place(_rectangle(0.0, 0.0, *self.size_m), in_map)
+
+    def _place(self, local: NDArray[np.float64], in_map: bool) -> NDArray[np.float64]:
+        angle = self.angle_rad + (self.map_offset_rad if in_map else 0.0)
+        c, s = math.cos(angle), math.sin(angle)
+        out = local @ np.array([[c, s], [-s, c]]) + (self.x_m, self.y_m)
+        return out + self.map_offset_m if in_map else out
+
+    def segments(self, in_map: bool = False) -> list[Segment]:
+        """Its outline segments with their height intervals (where the map has them with ``in_map``)."""
+        if self.kind == "box":
+            return _outline(self.footprint(in_map), 0.0, self.height_m)
+        hx, hy = 0.5 * self.size_m[0] - self.leg_radius_m, 0.5 * self.size_m[1] - self.leg_radius_m
+        side = 2.0 * self.leg_radius_m
+        under = self.height_m - self.top_thickness_m
+        out = _outline(self.footprint(in_map), under, self.height_m)
+        for cx, cy in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy)):
+            out += _outline(self._place(_rectangle(cx, cy, side, side), in_map), 0.0, under)
+        return out
+
+
+def _rectangle(cx: float, cy: float, length: float, depth: float) -> NDArray[np.float64]:
+    hx, hy = 0.5 * length, 0.5 * depth
+    return np.array([[cx - hx, cy - hy], [cx + hx, cy - hy], [cx + hx, cy + hy], [cx - hx, cy + hy]])
+
+
+def _outline(corners: NDArray[np.float64], bottom: float, top: float) -> list[Segment]:
+    nxt = np.roll(corners, -1, axis=0)
+    return [(float(a[0]), float(a[1]), float(b[0]), float(b[1]), bottom, top) for a, b in zip(corners, nxt)]
+
+
 @dataclass(frozen=True)
 class WorldConfig:
     """One scenario: geometry, landmarks, robot, its sensors (in observation order) and the crowds."""
@@ -170,6 +255,7 @@ class WorldConfig:
     walls: tuple[tuple[float, float, float, float], ...] = ()  # extra segments (x1, y1, x2, y2)
     boundary_margin_m: float = 0.0  # boundary walls this far outside the field
     wall_height_m: float = math.inf  # every wall's height (a sensor above it sees over it)
+    furniture: tuple[FurnitureConfig, ...] = ()  # static pieces with a height (a shelf, a table)
     landmarks: tuple[LandmarkConfig, ...] = ()
     sensors: Mapping[str, SensorConfig] = field(default_factory=dict)  # name -> config tagged by type
     crowds: Mapping[str, CrowdConfig] = field(default_factory=dict)  # name -> config tagged by type; bodies in this order
@@ -188,6 +274,16 @@ class WorldConfig:
         check(self.boundary_margin_m >= 0, f"world {self.name!r}: boundary_margin_m must be >= 0, got {self.boundary_margin_m}")
         names = [lm.name for lm in self.landmarks]
         check(len(set(names)) == len(names), f"world {self.name!r}: landmark names repeat: {names}")
+        names = [f.name for f in self.furniture]
+        check(len(set(names)) == len(names), f"world {self.name!r}: furniture names repeat: {names}")
+        xmin, ymin, xmax, ymax = self.arena_m
+        for piece in self.furniture:
+            for corners in (piece.footprint(), piece.footprint(in_map=True)):
+                check(
+                    bool(np.all((corners >= (xmin, ymin)) & (corners <= (xmax, ymax)))),
+                    f"world {self.name!r}: furniture {piece.name!r} (corners {np.round(corners, 3).tolist()}, in the world "
+                    f"and in the map) must lie inside the boundary walls x [{xmin:g}, {xmax:g}], y [{ymin:g}, {ymax:g}]",
+                )
         check(len(self.sensors) > 0, f"world {self.name!r}: needs at least one sensor (sensors: name -> {{type: ...}})")
         keys: dict[str, str] = {}
         for name, sensor in self.sensors.items():
@@ -277,14 +373,23 @@ class WorldConfig:
         xmin, ymin, xmax, ymax = self.field_m
         return (xmin - m, ymin - m, xmax + m, ymax + m)
 
-    def wall_segments(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """``(seg_a, seg_b)``, each ``(S, 2)``: the arena boundary (counter-clockwise, the first
-        :data:`BOUNDARY_SEGMENTS` rows), then the extra walls; the segments the world collides with and
-        the sensors see."""
+    def static_segments(self, in_map: bool = False) -> NDArray[np.float64]:
+        """``(S, 6)`` every static segment ``(x1, y1, x2, y2, bottom, top)``: the arena boundary
+        (counter-clockwise, the first :data:`BOUNDARY_SEGMENTS` rows) and the extra walls, from the
+        floor to ``wall_height_m``, then each piece of furniture's. With ``in_map`` the furniture
+        stands where the localizers' map has it (``map_offset_m``)."""
         xmin, ymin, xmax, ymax = self.arena_m
         boundary = [(xmin, ymin, xmax, ymin), (xmax, ymin, xmax, ymax), (xmax, ymax, xmin, ymax), (xmin, ymax, xmin, ymin)]
-        arr = np.asarray(boundary + [tuple(s) for s in self.walls], dtype=np.float64).reshape(-1, 4)
-        return np.ascontiguousarray(arr[:, :2]), np.ascontiguousarray(arr[:, 2:])
+        rows: list[Segment] = [(*wall, 0.0, self.wall_height_m) for wall in boundary + [tuple(w) for w in self.walls]]
+        for piece in self.furniture:
+            rows += piece.segments(in_map)
+        return np.asarray(rows, dtype=np.float64).reshape(-1, 6)
+
+    def wall_segments(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(seg_a, seg_b)``, each ``(S, 2)``: the end points of :meth:`static_segments` (the
+        boundary first), the segments the world collides with and the sensors see."""
+        arr = self.static_segments()
+        return np.ascontiguousarray(arr[:, 0:2]), np.ascontiguousarray(arr[:, 2:4])
 
     def features_of_type(self, type_name: str) -> dict[str, FeatureConfig]:
         """The features of one registered type (``"ceiling"``), by name, in config order."""

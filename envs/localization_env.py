@@ -207,10 +207,19 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
     @property
     def landmark_map(self) -> LandmarkMap:
         """The known map a localizer gets: landmark positions, the field's bounds, the walls and
-        the features' map data (a ceiling's targets), as plain values."""
-        walls = np.hstack([self.world.seg_a, self.world.seg_b])
+        furniture with their heights (where the map has them: ``map_offset_m``) and the
+        features' map data (a ceiling's targets), as plain values. A localizer on a range
+        sensor gets it cut at the sensor's height (:func:`localizers.measurements.sensor_map`)."""
+        segments = self.config.static_segments(in_map=True)  # furniture where the map has it
         features = {name: f.map_data() for name, f in self.config.features.items()}
-        return LandmarkMap(self.world.landmark_xy.copy(), self.world.landmark_names, self.config.field_m, walls, features)
+        return LandmarkMap(
+            self.world.landmark_xy.copy(),
+            self.world.landmark_names,
+            self.config.field_m,
+            segments[:, 0:4],
+            features,
+            wall_heights_m=segments[:, 4:6],
+        )
 
     @property
     def sensor_metadata(self) -> dict[str, dict[str, Any]]:

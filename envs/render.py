@@ -36,6 +36,7 @@ import pygame.surfarray  # noqa: E402
 from numpy.typing import ArrayLike, NDArray  # noqa: E402
 
 from envs.config import WorldConfig  # noqa: E402
+from envs.state import WorldState  # noqa: E402
 from localizers.base import Overlay  # noqa: E402
 
 if TYPE_CHECKING:
@@ -359,7 +360,7 @@ class Renderer:
         """
         state = env.world.snapshot()
         if self._background is None:
-            self._background = self._draw_background(state.seg_a, state.seg_b)
+            self._background = self._draw_background(state)
         self.surface.blit(self._background, (0, 0))
         canvas = self.canvas()
         pose = state.robot_pose
@@ -397,8 +398,9 @@ class Renderer:
             self._clock = None
 
     # ------------------------------------------------------------------ internals
-    def _draw_background(self, seg_a: NDArray[np.float64], seg_b: NDArray[np.float64]) -> pygame.Surface:
-        """Floor, field or room outline, walls ``(S, 2)`` to ``(S, 2)`` and landmark labels."""
+    def _draw_background(self, state: WorldState) -> pygame.Surface:
+        """Floor, field or room outline, walls and furniture (raised parts, a table's top, thin)
+        and landmark labels."""
         bg = pygame.Surface((self.width, self.height), 0, 32)
         bg.fill(BACKGROUND)
         canvas = Canvas(bg, self.scale, *self._canvas_args)
@@ -411,8 +413,8 @@ class Renderer:
         pygame.draw.lines(bg, FIELD_LINE if self.is_field else ROOM_OUTLINE, True, [canvas._pt(p) for p in outline], 2)
         for feature in cfg.features.values():
             feature.draw(canvas, cfg)
-        for a, b in zip(seg_a, seg_b):
-            canvas.line(a, b, WALL, 3)
+        for a, b, bottom in zip(state.seg_a, state.seg_b, state.seg_bottom_m):
+            canvas.line(a, b, WALL, 3 if bottom <= 0.0 else 1)
         label_font = _font(_LABEL_FONT_PX)
         for lm in cfg.landmarks:
             label = label_font.render(lm.name, True, FIELD_LINE if self.is_field else WALL)

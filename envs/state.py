@@ -39,7 +39,7 @@ class WorldState(NamedTuple):
         ball_row: the ball's row, or -1 without a ball.
         occluder_rows: rows whose discs block a camera's sight lines; ``occluder_radius_m`` their radii.
         seg_a, seg_b: ``(S, 2)`` wall segments (static; they occlude and collide);
-            ``seg_top_m``: ``(S,)`` their heights.
+            ``seg_bottom_m``, ``seg_top_m``: ``(S,)`` the heights they span.
         figures: every body's parts by height (:mod:`envs.bodies`); :meth:`section` cuts them.
         landmark_xy: ``(L, 2)``, ``landmark_radius_m`` and ``landmark_max_range_m``: ``(L,)``;
             ``landmark_names``: ``L`` names.
@@ -57,6 +57,7 @@ class WorldState(NamedTuple):
     occluder_radius_m: NDArray[np.float64]
     seg_a: NDArray[np.float64]
     seg_b: NDArray[np.float64]
+    seg_bottom_m: NDArray[np.float64]
     seg_top_m: NDArray[np.float64]
     figures: Figures
     landmark_xy: NDArray[np.float64]
@@ -95,9 +96,9 @@ class WorldState(NamedTuple):
         """The discs at ``height_m`` that block a camera's sight lines."""
         return self.figures.occluders(height_m)
 
-    def walls_above(self, height_m: float) -> NDArray[np.bool_]:
-        """``(S,)`` the wall segments that reach above ``height_m`` (a sensor there sees them)."""
-        return self.seg_top_m > height_m
+    def walls_at(self, height_m: float) -> NDArray[np.bool_]:
+        """``(S,)`` the static segments a sensor at ``height_m`` sees: those spanning it (``bottom <= h < top``)."""
+        return (self.seg_bottom_m <= height_m) & (height_m < self.seg_top_m)
 
     @property
     def occluder_xy(self) -> NDArray[np.float64]:

@@ -125,6 +125,7 @@ class World:
         statics = (
             self.seg_a,
             self.seg_b,
+            self.seg_bottom_m,
             self.seg_top_m,
             self.landmark_xy,
             self.landmark_radius_m,
@@ -145,9 +146,12 @@ class World:
     def _wall_segments(self) -> None:
         """The arena boundary (counter-clockwise) and extra walls, as the sensors see them."""
         self._boundary_count = BOUNDARY_SEGMENTS
-        self.seg_a, self.seg_b = self.config.wall_segments()
-        #: ``(S,)`` each segment's top: a sensor above it sees over it
-        self.seg_top_m = np.full(self.seg_a.shape[0], self.config.wall_height_m)
+        segments = self.config.static_segments()
+        self.seg_a, self.seg_b = np.ascontiguousarray(segments[:, 0:2]), np.ascontiguousarray(segments[:, 2:4])
+        #: ``(S,)`` each segment's bottom and top: a sensor sees it at heights in [bottom, top)
+        self.seg_bottom_m, self.seg_top_m = np.ascontiguousarray(segments[:, 4]), np.ascontiguousarray(segments[:, 5])
+        #: the segments that stand on the floor and collide (a table's top is above the bodies)
+        self._colliding = self.seg_bottom_m <= 0.0
 
     def _build_space(self) -> None:
         """A fresh pymunk space with every body; called on construction and on every reset.
@@ -167,6 +171,8 @@ class World:
         self.space.collision_slop = _COLLISION_SLOP_M
         self.space.collision_bias = _COLLISION_BIAS
         for i, (a, b) in enumerate(zip(self.seg_a, self.seg_b)):
+            if not self._colliding[i]:
+                continue
             radius = _WALL_RADIUS_M
             if i < self._boundary_count:
                 # thick boundary walls whose inner face is the arena edge: nothing is squeezed through
@@ -254,8 +260,9 @@ class World:
         The disc (``robot.radius_m``) must lie inside the boundary walls, that is the field
         (:attr:`WorldConfig.field_m`) and its ``boundary_margin_m`` (:attr:`WorldConfig.arena_m`,
         the field itself where the margin is 0: the soccer robot may stand on the touch line),
-        and clear every interior wall's thickness; a disc placed over a wall would be pushed
-        out on either side, or trapped in it.
+        and clear every interior wall's and floor-standing furniture segment's thickness, its
+        centre outside every box (under a table is open floor); a disc placed over a wall would
+        be pushed out on either side, or trapped in it.
         """
         config = self.config
         r = config.robot.radius_m
@@ -268,7 +275,12 @@ class World:
                 f"y in [{fy0:g}, {fy1:g}] m){margin}, x in [{xmin:g}, {xmax:g}] and y in [{ymin:g}, {ymax:g}] m: "
                 f"its centre must be in x [{xmin + r:g}, {xmax - r:g}], y [{ymin + r:g}, {ymax - r:g}]"
             )
-        a, b = self.seg_a[self._boundary_count :], self.seg_b[self._boundary_count :]
+        for piece in config.furniture:
+            corners = piece.footprint()
+            if piece.kind == "box" and _inside_convex(corners, x, y):  # under a table is open floor
+                return f"the robot's centre ({x:g}, {y:g}) would be inside furniture {piece.name!r} (corners {np.round(corners, 3).tolist()})"
+        interior = np.flatnonzero(self._colliding[self._boundary_count :]) + self._boundary_count
+        a, b = self.seg_a[interior], self.seg_b[interior]
         if a.shape[0]:
             d = b - a
             length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
@@ -364,6 +376,7 @@ class World:
                 occluder_radius_m=self._occluder_radius_m,
                 seg_a=self.seg_a,
                 seg_b=self.seg_b,
+                seg_bottom_m=self.seg_bottom_m,
                 seg_top_m=self.seg_top_m,
                 figures=self.figures,
                 landmark_xy=self.landmark_xy,
@@ -438,6 +451,13 @@ class World:
         point = arbiter.contact_point_set.points[0].point_a if arbiter.contact_point_set.points else self.robot_body.position
         self.contacts.append(ContactEvent(self.step_count + 1, kind, index, (float(point[0]), float(point[1]))))
         self.contact_count += 1
+
+
+def _inside_convex(corners: NDArray[np.float64], x: float, y: float) -> bool:
+    """Whether ``(x, y)`` lies inside the convex polygon ``corners`` ``(K, 2)`` (counter-clockwise)."""
+    edges = np.roll(corners, -1, axis=0) - corners
+    rel = np.array([x, y]) - corners
+    return bool(np.all(edges[:, 0] * rel[:, 1] - edges[:, 1] * rel[:, 0] > 0.0))
 
 
 def _as_slice(rows: NDArray[np.int64]) -> Rows:

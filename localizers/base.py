@@ -8,6 +8,7 @@ are counter-clockwise from the robot's heading, in ``[-pi, pi)``.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -30,6 +31,9 @@ class LandmarkMap:
         names: ``L`` landmark names (for reports).
         bounds_m: ``(xmin, ymin, xmax, ymax)`` of the region the robot can be in.
         walls_m: ``(S, 4)`` static wall segments ``(x1, y1, x2, y2)`` (what a LIDAR sees of the map).
+        wall_heights_m: ``(S, 2)`` the height interval ``[bottom, top)`` each segment spans (a
+            table's top, a shelf lower than a sensor); ``None``: every wall from the floor up
+            without end. :meth:`at_height` keeps the walls a sensor at one height sees.
         features: per world feature name, its map data as plain values (a ceiling's targets:
             their positions and colour codes); empty for worlds without features.
         max_step_m: the longest translation one odometry increment may have, in metres; a
@@ -45,6 +49,7 @@ class LandmarkMap:
     walls_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
     features: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     max_step_m: float | None = None
+    wall_heights_m: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         pos = np.asarray(self.positions_xy_m, dtype=np.float64)
@@ -58,10 +63,36 @@ class LandmarkMap:
         walls = np.asarray(self.walls_m, dtype=np.float64).reshape(-1, 4)
         if self.max_step_m is not None and not (math.isfinite(self.max_step_m) and self.max_step_m > 0.0):
             raise ValueError(f"LandmarkMap.max_step_m must be a finite number of metres > 0 or None, got {self.max_step_m!r}")
-        pos.setflags(write=False)
-        walls.setflags(write=False)
+        if self.wall_heights_m is None:
+            heights = np.tile([-math.inf, math.inf], (walls.shape[0], 1))
+        else:
+            heights = np.asarray(self.wall_heights_m, dtype=np.float64).reshape(-1, 2)
+            if heights.shape[0] != walls.shape[0] or np.isnan(heights).any() or np.any(heights[:, 0] >= heights[:, 1]):
+                raise ValueError(
+                    f"LandmarkMap.wall_heights_m must hold one (bottom, top) with bottom < top per wall ({walls.shape[0]}), "
+                    f"got shape {heights.shape}"
+                )
+        for array in (pos, walls, heights):
+            array.setflags(write=False)
         object.__setattr__(self, "positions_xy_m", pos)
         object.__setattr__(self, "walls_m", walls)
+        object.__setattr__(self, "wall_heights_m", heights)
+
+    def at_height(self, height_m: float) -> LandmarkMap:
+        """The map as a sensor at ``height_m`` sees it: only the walls spanning that height."""
+        if not math.isfinite(height_m):
+            raise ValueError(f"LandmarkMap.at_height: height_m must be finite, got {height_m!r}")
+        h = self.heights
+        keep = (h[:, 0] <= height_m) & (height_m < h[:, 1])
+        if keep.all():
+            return self
+        return dataclasses.replace(self, walls_m=self.walls_m[keep], wall_heights_m=h[keep])
+
+    @property
+    def heights(self) -> NDArray[np.float64]:
+        """``(S, 2)`` each wall's ``[bottom, top)`` (set in ``__post_init__``)."""
+        assert self.wall_heights_m is not None
+        return self.wall_heights_m
 
     @property
     def count(self) -> int:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.base import BearingMeasurement, ScanMeasurement
+from localizers.base import BearingMeasurement, LandmarkMap, ScanMeasurement
 from localizers.schema import ConfigError
 
 Decoder = Callable[[NDArray[np.float32], Mapping[str, Any]], Any]
@@ -87,6 +87,13 @@ def find_sensor(kind: str, sensors: Mapping[str, Mapping[str, Any]], needed_by: 
     if len(names) > 1:
         raise ConfigError(f"{needed_by} reads {kind} from a {want} sensor, and this world has several: {', '.join(names)}")
     return names[0]
+
+
+def sensor_map(landmarks: LandmarkMap, metadata: Mapping[str, Any]) -> LandmarkMap:
+    """The map as the localizer's sensor sees it: cut at the sensor's ``height_m`` when its
+    metadata has one (a range sensor sees the walls and furniture spanning its plane only)."""
+    height = metadata.get("height_m")
+    return landmarks if height is None else landmarks.at_height(float(height))
 
 
 def bearing_measurement(landmarks_obs: NDArray[np.float32], metadata: Mapping[str, Any] | None = None) -> BearingMeasurement:

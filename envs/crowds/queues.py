@@ -1,11 +1,14 @@
 """People queueing along two opposite walls (the LIDAR paper's room).
 
 Every ``step_period_s`` each queue moves up one place and its head walks over to the end
-of the other queue.
+of the other queue. A head on its way gives way to the robot (``give_way``): it sees the
+robot coming and curves around it (:func:`envs.crowds.steering.give_way`), as the people
+in the paper's room did, rather than walking into it.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -13,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envs.crowds.base import Commands, Crowd, CrowdConfig, Taken, register_crowd
-from envs.crowds.steering import seek
+from envs.crowds.steering import TRANSIT_M, give_way, seek
 from envs.state import Rows, WorldState
 from localizers.schema import check
 
@@ -35,12 +38,23 @@ class QueuesConfig(CrowdConfig):
     spacing_m: float = 0.6  # distance between people in a queue
     step_period_s: float = 5.0  # every person steps forward this often
     walk_speed_mps: float = 1.0  # speed of a head walking over to the other queue
+    give_way: bool = True  # a head on its way curves around the robot
+    give_way_margin_m: float = 0.3  # ... keeping this gap between its body and the robot's
+    give_way_horizon_s: float = 2.0  # ... when it would come nearer within this time
 
     def __post_init__(self) -> None:
         super().__post_init__()
         check(self.spacing_m > 0, f"queues.spacing_m must be > 0, got {self.spacing_m}")
         check(self.step_period_s > 0, f"queues.step_period_s must be > 0, got {self.step_period_s}")
         check(self.walk_speed_mps > 0, f"queues.walk_speed_mps must be > 0, got {self.walk_speed_mps}")
+        check(
+            math.isfinite(self.give_way_margin_m) and self.give_way_margin_m >= 0,
+            f"queues.give_way_margin_m must be finite and >= 0, got {self.give_way_margin_m}",
+        )
+        check(
+            math.isfinite(self.give_way_horizon_s) and self.give_way_horizon_s > 0,
+            f"queues.give_way_horizon_s must be finite and > 0, got {self.give_way_horizon_s}",
+        )
 
     def top_speeds(self) -> tuple[tuple[str, float, float], ...]:
         """The people: every member seeks its place at up to ``walk_speed_mps`` (``speed_mps`` is unused)."""
@@ -93,4 +107,20 @@ class QueueCrowd(Crowd):
             self._shift_queues()
             self.next_shift_s += self.q.step_period_s
         pos = state.positions[self.member_rows]
-        return Commands(seek(pos, self._slot_xy(), self.max_speed, self.held, self.radii_m))
+        targets = self._slot_xy()
+        want = seek(pos, targets, self.max_speed, self.held, self.radii_m)
+        if self.q.give_way:
+            walking = np.sum((targets - pos) ** 2, axis=1) > TRANSIT_M**2
+            if walking.any():
+                want = give_way(
+                    pos,
+                    want,
+                    self.radii_m,
+                    walking & ~self.held,
+                    state.positions[0],
+                    state.velocities[0],
+                    state.robot_radius_m,
+                    self.q.give_way_margin_m,
+                    self.q.give_way_horizon_s,
+                )
+        return Commands(want)

@@ -191,7 +191,7 @@ class BearingCamera(SensorBase):
         self.config = config
         self.count = state.landmark_xy.shape[0]
         self.max_range_m = np.minimum(state.landmark_max_range_m, config.max_range_m)
-        seen = state.walls_above(config.height_m)
+        seen = state.walls_at(config.height_m)
         self._seg_a, self._seg_b = state.seg_a[seen], state.seg_b[seen]
         slot = {n: j for j, n in enumerate(state.landmark_names)}
         ds = config.distractors

@@ -62,14 +62,18 @@ class RangeSensor(SensorBase):
         self.config = config
         self.relative_angles = ray_angles
         self.reading_angles = reading_angles
-        seen = state.walls_above(config.height_m)
+        seen = state.walls_at(config.height_m)
         self._seg_a, self._seg_b = state.seg_a[seen], state.seg_b[seen]
 
     def space(self) -> spaces.Box:
         return spaces.Box(0.0, self.config.max_range_m, shape=(self.reading_angles.shape[0],), dtype=np.float32)
 
     def metadata(self) -> dict[str, Any]:
-        return {"beam_angles_rad": self.reading_angles.copy(), "max_range_m": float(self.config.max_range_m)}
+        return {
+            "beam_angles_rad": self.reading_angles.copy(),
+            "max_range_m": float(self.config.max_range_m),
+            "height_m": float(self.config.height_m),  # the map's walls a localizer should expect: those spanning this plane
+        }
 
     def readings(self, rays: NDArray[np.float64]) -> NDArray[np.float64]:
         """The ``(B,)`` readings from the ``(R,)`` ranges of the rays."""

@@ -24,12 +24,6 @@ CENTER_XY = (3.5, 3.5)  # the middle of the 7 m x 7 m room
 SIDE_M = 2.5  # ours: fits between the queues (1.32 m clear of the queued bodies); 10 m per lap
 TURN_RATE_RPS = 0.5  # ours (turns in place; the paper does not say)
 CROWD_SIZE = 16  # the world's default: 8 people per queue
-#: ours: the queue heads walk straight across the room and do not give way to the robot, so a
-#: 30 kg robot is shoved by metres per run (pose jumps no odometry sees; ``PILOT_PUSH_M``). In
-#: the paper people did not push the robot; a heavy robot keeps its commanded path while
-#: people still brush past it and occlude.
-ROBOT_MASS_KG = 10_000.0
-PILOT_PUSH_M = (1.0, 4.5)  # measured push per 3-lap run at 16 people with the world's robot mass
 PILOT_SEEDS = (100, 103)  # the pilot that set SIDE_M and DENSITY_PARAMS (first and last seed)
 #: ours: the MCL weighs a scan every 0.5 m of travel only (paper B); turning in place at the
 #: corners (pi/2 between two updates at most) must not trigger extra updates.
@@ -191,7 +185,7 @@ def start_pose() -> tuple[float, float, float]:
 
 def env_kwargs(crowd_size: int, steps: int) -> dict[str, Any]:
     """``gym.make`` arguments of the experiment's room."""
-    return {"crowd_size": crowd_size, "robot": {"mass_kg": ROBOT_MASS_KG}, "max_episode_steps": steps}
+    return {"crowd_size": crowd_size, "max_episode_steps": steps}
 
 
 def driver_factory(laps: int) -> Callable[[Any], OpenLoopDriver]:

@@ -281,11 +281,9 @@ def setup_section(c: Context) -> Lines:
         "noise adds: see the differences below).",
         f"- Reference: the simulator's true pose (the paper localized a second LIDAR at {paper.REFERENCE_LIDAR_HEIGHT_M:g} m "
         "above the crowd). Both variants start from the known start pose (the paper's MCL tracked from a known pose).",
-        f"- Robot mass {experiment.ROBOT_MASS_KG:.0f} kg (ours, experiment only): the world's queue heads walk straight across "
-        f"the room without giving way, and at the world's {room.robot.mass_kg:g} kg they shove the robot by "
-        f"{experiment.PILOT_PUSH_M[0]:g}-{experiment.PILOT_PUSH_M[1]:g} m per run (unobserved pose jumps the paper did not "
-        f"have). Heavy, it keeps its commanded path while people brush past it ({f.contacts:.0f} contacts per run on average; "
-        f"{f.push_m * 100:.1f} cm of push left per run).",
+        f"- The robot at the world's {room.robot.mass_kg:g} kg: the queue heads walking across the room give way to it "
+        f"(`queues.give_way`: they curve around it, {world.queues().give_way_margin_m:g} m clear), as the paper's people "
+        f"did; {f.contacts:.1f} contacts per run on average, {f.push_m * 100:.1f} cm of push left per run.",
         mcl_item(),
         "- Every (seed, crowd size) episode is recorded once and replayed into every configuration (the localizers share one "
         "generator seed per episode, so the variants see the same random numbers). The far-point scans come from one real "
@@ -474,7 +472,6 @@ def differences_section(c: Context) -> Lines:
             f"paper's {paper.RAW_FAILURES_AT_HIT_THRESHOLD} of {paper.ESTIMATES} (> {paper.LARGE_FAIL_M:g} m each); far points "
             f"{far.failures:.2f} per run (paper: {paper.FAR_FAILURES_AT_HIT_THRESHOLD})."
         )
-    room = world.room()
     lines += [
         people_item(c),
         "- Failure mode: with the queue as a false wall, raw MCL's estimate is pulled toward the queue along the side walls (a "
@@ -489,8 +486,6 @@ def differences_section(c: Context) -> Lines:
         "- Our reference is the true pose; the paper's was MCL on a second LIDAR above the crowd, whose own error adds "
         f"to every error it reports. We average several runs per value where the paper shows one run of {paper.ESTIMATES} "
         "estimates, so its failure counts carry a run-to-run spread of about the size of the counts.",
-        f"- Pushes: the world's people would shove the {room.robot.mass_kg:g} kg robot by metres per run; our robot is "
-        f"heavy ({experiment.ROBOT_MASS_KG:.0f} kg) so that it keeps its path as the paper's did.",
         "",
     ]
     return lines
@@ -502,7 +497,7 @@ def parameters_section(c: Context) -> Lines:
         "## Parameters",
         "",
         f"Experiment-specific settings (nothing in `configs/` changed): the update schedule (every {paper.UPDATE_TRAVEL_M:g} m, "
-        f"no update on turns), the robot mass ({experiment.ROBOT_MASS_KG:.0f} kg), the path, and the swept `sampling` / "
+        f"no update on turns), the path, and the swept `sampling` / "
         f"`hit_std_m` / model parameters. All other MCL and filter parameters are the shipped defaults ({files}). Per-run "
         "numbers: `results.json` beside this report.",
         "",
