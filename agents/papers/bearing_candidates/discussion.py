@@ -142,12 +142,15 @@ def _ours_against(ours: Row, paper: Row, what: str) -> str:
     )
 
 
+PAPERS_EQ2 = "the paper's eq. (2)"
+
+
 def _exp1_ours(ours: Row, cs: Row) -> str:
     """The forgetting variant (ours) against the paper's method (5)."""
     reach = "within" if ours.ratio <= 2.0 else "not within"
     return (
         f"- **Forgetting (ours, not in the paper)**, `error_time_constant_s` = {OURS_FORGETTING_S:g} s on the same "
-        f"thresholds: {_ours_against(ours, cs, 'the paper eq. (2)')}; seed-to-seed sd of the per-seed mean "
+        f"thresholds: {_ours_against(ours, cs, PAPERS_EQ2)}; seed-to-seed sd of the per-seed mean "
         f"{ours.pos_seed_sd_mm:.0f} mm against {cs.pos_seed_sd_mm:.0f} mm, failures {100 * ours.failure:.1f} % against "
         f"{100 * cs.failure:.1f} %, availability {100 * ours.availability:.1f} % against {100 * cs.availability:.1f} %. "
         f"That is {reach} 2x of the bound. Forgetting lets a set that fits live on, but it does not make the "
