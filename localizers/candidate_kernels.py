@@ -113,6 +113,14 @@ def evaluate(
 
 
 @numba.njit(cache=True)
+def forget(store: NDArray[np.float64], m: int, factor: float) -> None:
+    """Multiply the Error of the first ``m`` candidates by ``factor`` (the forgetting option, ours)."""
+    err = store[ROW_ERR]
+    for i in range(m):
+        err[i] *= factor
+
+
+@numba.njit(cache=True)
 def _best_of_set(err: NDArray[np.float64], lo: int, hi: int) -> int:
     """Index of the least Error in ``lo:hi`` (the first one on ties)."""
     best = lo

@@ -6,7 +6,8 @@
    triples (:func:`localizers.resection.resect_all_triples`) inside the bounds. Every
    error starts at 0.
 2. *Propagation*: each candidate moves by the odometry increment in its own frame.
-3. *Evaluation*: eq. (1)-(2), accumulated per candidate.
+3. *Evaluation*: eq. (1)-(2), accumulated per candidate (optionally with forgetting,
+   ours and off by default: ``error_time_constant_s``, see below).
 4. *Pruning / determination*: candidates with Error > ``prune_error_rad`` are deleted; a
    set with fewer than ``determine_below`` candidates is determined, its pose the candidate
    of least Error (re-chosen at every frame).
@@ -34,6 +35,24 @@ Implementation notes (ours):
 * At most one set is generated per frame (sets generated from one frame are identical);
   owed generations wait for the next frame with >= 2 landmarks. A set discarded at a frame
   is replaced from a later frame, never from the bearings that made it fail.
+* Forgetting (ours, not the paper's; off by default, ``error_time_constant_s = inf``): eq. (2)
+  sums every frame's eq. (1) error since the set was generated, so a correct candidate's
+  Error grows without bound (about 2.7 bearing sigmas per frame with two landmarks) and
+  every set reaches the abort threshold after a fixed time, however well it fits. With a
+  time constant ``tau``, each update first multiplies every Error by ``exp(-elapsed / tau)``
+  (``elapsed``: the frames since the last evaluation times ``dt_s``), then adds eq. (1):
+  ``Error <- lambda Error + AngleError`` with ``lambda = exp(-dt / tau)`` at every frame.
+  An exponential factor keeps O(1) state per candidate (a sliding window would have to
+  store each candidate's last ``tau / dt`` terms) and, written as a time constant, means
+  the same at any frame rate. Multiplying every Error of the store by the same factor
+  changes no ranking, so the least-Error pose of a set is chosen as before; what changes is
+  the meaning of the thresholds: a candidate whose eq. (1) error is ``e`` per frame settles
+  at ``e / (1 - lambda) ~ e tau / dt``, so ``prune_error_rad`` and ``abort_error_rad``
+  become limits on the *recent* mean error per frame, ``threshold * (1 - lambda)``. For a
+  correct candidate to survive, its steady state, ``mean eq. (1) error per frame * tau /
+  dt``, must stay well below ``abort_error_rad`` (with two landmarks at 1 deg noise and
+  30 fps, ~1.4 rad per second of ``tau``); ``tau`` also bounds how much evidence a set
+  can use to separate candidates, so a short ``tau`` keeps sets from ever determining.
 * Once a pose has been determined, the estimate stays valid: if every determined set is
   discarded, the last fused pose is dead-reckoned with odometry until a set determines
   again, its standard deviations growing by ``coast_growth_per_m`` per metre travelled
@@ -69,6 +88,7 @@ from localizers.candidate_kernels import (
     append_candidates,
     compose_pose,
     evaluate,
+    forget,
     fuse,
     fused_output,
     inside,
@@ -115,6 +135,11 @@ class CandidateSetParams:
         coast_growth_per_m: while no set is determined after a first fix, the position
             standard deviation grows by this many metres per metre travelled and the heading
             one by this many radians per radian turned (dimensionless; ours).
+        error_time_constant_s: time constant ``tau`` of an exponential forgetting of the
+            accumulated Error, ``Error <- exp(-dt / tau) Error + eq. (1)`` at each update
+            (s; ours, not the paper's). ``inf`` (the default) is the paper's eq. (2)
+            exactly, with no forgetting. With a finite ``tau`` the thresholds bound the
+            recent mean error per frame (see the module docstring).
     """
 
     candidates_per_arc: int = 360
@@ -129,6 +154,7 @@ class CandidateSetParams:
     position_floor_m: float = 0.05
     heading_floor_rad: float = 0.0125
     coast_growth_per_m: float = 0.1
+    error_time_constant_s: float = math.inf
 
     def __post_init__(self) -> None:
         for name in ("candidates_per_arc", "max_sets", "determine_below", "max_live_candidates"):
@@ -140,6 +166,16 @@ class CandidateSetParams:
         for name in ("bounds_margin_m", "position_floor_m", "heading_floor_rad", "coast_growth_per_m"):
             value = getattr(self, name)
             check(math.isfinite(value) and value >= 0.0, f"CandidateSetParams.{name} must be a number >= 0, got {value!r}")
+        tau = self.error_time_constant_s
+        check(
+            tau > 0.0,  # false for NaN
+            f"CandidateSetParams.error_time_constant_s must be a number > 0 (s; inf: no forgetting, the paper's eq. (2)), got {tau!r}",
+        )
+
+    @property
+    def forgets(self) -> bool:
+        """Whether the accumulated Error is forgotten (a finite ``error_time_constant_s``)."""
+        return math.isfinite(self.error_time_constant_s)
 
 
 _ARC_OVERSAMPLING = 8
@@ -263,6 +299,7 @@ class CandidateSetLocalizer:
         self._turn_rad = 0.0  # |rotation| accumulated since reset
         self._m = 0
         self._n_sets = 0
+        self._since_eval_s = 0.0  # time since the candidates' Errors were last evaluated (forgetting)
         self._pending = 1  # generations owed now (the first set is owed from the start)
         self._pending_next = 0  # generations owed from the next frame on (after an abort)
         # Last fused output, kept for coasting: base pose X, covariance, path/turn at the time.
@@ -308,11 +345,14 @@ class CandidateSetLocalizer:
         self._pending_next = 0
         ids, bearings = meas.landmark_ids, meas.bearings_rad
         n = ids.size
+        p = self._params
+        self._since_eval_s += self._dt
         if n == 0:
             return
-        p = self._params
         if self._m:
             ox, oy, ot = self._odo.tolist()
+            if p.forgets:  # (ours; off by default, so the paper's eq. (2) is untouched)
+                forget(self._store, self._m, math.exp(-self._since_eval_s / p.error_time_constant_s))
             evaluate(self._store, self._m, ox, oy, ot, self._lx32, self._ly32, ids, bearings)
             self._m, self._n_sets, n_dead, n_new, snapped = prune_abort_determine(
                 self._store, self._m, self._counts, self._n_sets, self._determined,
@@ -322,6 +362,7 @@ class CandidateSetLocalizer:
             if snapped:  # the last determined pose, before it was discarded
                 pose, cov = self._snapshot[0].copy(), self._snapshot[1:].copy()
                 self._coast = (compose(pose, between(self._odo, np.zeros(3))), cov, self._path_m, self._turn_rad)
+            self._since_eval_s = 0.0
             self._pending_next += n_dead  # replaced "the next time" (sec. 3), not from this frame
             self._pending += n_new
         self._pending = min(self._pending, p.max_sets - self._n_sets)

@@ -5,7 +5,9 @@ contract."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import re
 from itertools import combinations
 from pathlib import Path
 
@@ -450,3 +452,125 @@ def test_yaml_defaults_match_dataclass_and_paper() -> None:
     params = from_mapping(CandidateSetParams, load_yaml(CONFIG), str(CONFIG))
     assert params == CandidateSetParams()
     assert (params.candidates_per_arc, params.max_sets) == (360, 10)  # N and K of the paper
+
+
+# ----------------------------------------------------------------------------- forgetting (ours)
+
+
+def _noisy_run(landmarks: LandmarkMap, p_seen: float, params: CandidateSetParams) -> list:
+    """A fixed noisy sequence (2 % odometry, 1 deg bearings, a random landmark subset per frame,
+    empty frames included); the same summary the pinned numbers below were recorded with."""
+    rng = np.random.default_rng(11)
+    poses = drive([(1.0, 1.0), (4.0, 1.5), (4.0, 4.0), (1.5, 3.5)], speed_m_s=0.9)
+    loc = make(landmarks, params)
+    acc, n_valid, errors = np.zeros(3), 0, 0.0
+    for t in range(len(poses)):
+        if t:
+            d = between(poses[t - 1], poses[t])
+            loc.predict(OdometryDelta(*(d * (1.0 + rng.normal(0.0, 0.02, 3)))))
+        ids = np.flatnonzero(rng.random(landmarks.count) < p_seen)
+        b = bearings_to(poses[t], landmarks.positions_xy_m[ids]) + rng.normal(0.0, math.radians(1.0), ids.size)
+        loc.update(BearingMeasurement(ids, wrap_angle(b)))
+        e = loc.estimate
+        if e.valid:
+            acc += e.as_array()
+            n_valid += 1
+        errors += float(loc.candidate_errors.sum())
+    return [len(poses), n_valid, *acc.tolist(), errors, loc.set_sizes.tolist()]
+
+
+# Recorded with the code before the forgetting option existed (commit c5b3ecc).
+_BEFORE_FORGETTING = {
+    "field8": [337, 336, 1082.3808193666277, 867.5631939141178, -17.307550641408568, 224882.17455808865,
+               [3, 38, 3, 29, 1, 72, 28, 3, 4, 360]],
+    "goal_posts": [337, 300, 2647.089196590066, 850.7133046387544, 179.83823019011479, 327025.8175253914, [216, 241]],
+}  # fmt: skip
+
+
+@pytest.mark.parametrize(("case", "landmarks", "p_seen"), [("field8", FIELD8, 0.3), ("goal_posts", GOAL_POSTS, 0.8)])
+def test_forgetting_off_is_the_papers_method_exactly(case: str, landmarks: LandmarkMap, p_seen: float) -> None:
+    """The default (no forgetting) and an explicit ``inf`` give the numbers of the code before the option, bit for bit."""
+    assert CandidateSetParams().error_time_constant_s == math.inf and not CandidateSetParams().forgets
+    assert _noisy_run(landmarks, p_seen, CandidateSetParams()) == _BEFORE_FORGETTING[case]
+    assert _noisy_run(landmarks, p_seen, CandidateSetParams(error_time_constant_s=math.inf)) == _BEFORE_FORGETTING[case]
+    # and forgetting does change them (the comparison can fail)
+    assert _noisy_run(landmarks, p_seen, CandidateSetParams(error_time_constant_s=2.0)) != _BEFORE_FORGETTING[case]
+
+
+def test_forgetting_is_an_exponential_decay_per_elapsed_frame() -> None:
+    """Error <- exp(-elapsed / tau) Error + eq. (1), elapsed counting the frames without bearings too."""
+    tau = 0.5
+    params = CandidateSetParams(prune_error_rad=1e6, abort_error_rad=1e6, determine_below=1, error_time_constant_s=tau)
+    loc, paper = make(GOAL_POSTS, params), make(GOAL_POSTS, dataclasses.replace(params, error_time_constant_s=math.inf))
+    rng = np.random.default_rng(4)
+    pose = np.array([4.0, 2.0, 0.3])
+    for loc_ in (loc, paper):
+        loc_.update(measure(GOAL_POSTS, pose, [0, 1]))
+    for frames in (1, 1, 3, 1, 2):
+        b = wrap_angle(bearings_to(pose, GOAL_POSTS.positions_xy_m) + rng.normal(0.0, 0.05, 2))
+        before, before_paper = loc.candidate_errors, paper.candidate_errors
+        for loc_ in (loc, paper):
+            for _ in range(frames - 1):
+                loc_.update(BearingMeasurement(np.zeros(0, dtype=np.int64), np.zeros(0)))  # nothing seen
+            loc_.update(BearingMeasurement(np.array([0, 1]), b))
+        increment = paper.candidate_errors - before_paper  # eq. (1) of this frame
+        expected = math.exp(-frames * DT / tau) * before + increment
+        np.testing.assert_allclose(loc.candidate_errors, expected, rtol=1e-12, atol=1e-12)
+        if before.any():  # (the first frame's Errors start from 0)
+            assert (loc.candidate_errors < paper.candidate_errors).all()
+
+
+@pytest.mark.parametrize("tau", [0.5, 1.0])
+def test_forgetting_bounds_a_correct_candidates_error_on_a_long_static_run(tau: float) -> None:
+    """Standing still before the goal posts for 60 s with 1 deg noise (every arc candidate explains
+    the bearings equally well): without forgetting the least Error grows linearly and the shipped
+    thresholds abort every set after a few seconds; with ``tau`` it settles at ``mean eq. (1)
+    error per frame / (1 - exp(-dt / tau))`` and the first set lives on."""
+    sigma = math.radians(1.0)
+    pose = np.array([4.0, 2.0, 0.3])
+    frames = round(60.0 / DT)
+    abort = CandidateSetParams().abort_error_rad
+    runs = {}
+    for key, p in (("paper", CandidateSetParams()), ("ours", CandidateSetParams(error_time_constant_s=tau))):
+        rng = np.random.default_rng(8)
+        loc = make(GOAL_POSTS, p)
+        least, sets_generated, first = [], 0, None
+        for _ in range(frames):
+            b = wrap_angle(bearings_to(pose, GOAL_POSTS.positions_xy_m) + rng.normal(0.0, sigma, 2))
+            n_before = loc.set_sizes.size
+            loc.update(BearingMeasurement(np.array([0, 1]), b))
+            sets_generated += loc.set_sizes.size > n_before
+            errors = loc.candidate_errors
+            least.append(errors.min() if errors.size else math.nan)
+            if first is None:
+                first = loc.overlay().poses.copy()
+        runs[key] = (np.array(least), sets_generated, first, loc.overlay().poses)
+    paper_least, paper_sets, _, _ = runs["paper"]
+    ours_least, ours_sets, first, last = runs["ours"]
+    # the paper's: the Error grows by about the same amount every frame until the set is aborted, again and again.
+    # Its first set is ours (same frame, same candidates), so its growth is ours' eq. (1) per frame.
+    steps = np.diff(paper_least)
+    first_life = int(np.argmax(~(steps > 0)))  # the first abort (NaN: no set until the next frame)
+    assert first_life > 30
+    per_frame = float(steps[:first_life].mean())
+    assert np.nanmax(paper_least) > abort - 3 * per_frame
+    assert paper_sets >= 0.5 * frames * per_frame / abort
+    # ours: bounded at the steady state for the whole run, below the abort threshold; one set, never aborted
+    steady = per_frame / (1.0 - math.exp(-DT / tau))
+    assert np.nanmax(ours_least) < min(1.5 * steady, abort)
+    assert np.nanmean(ours_least[frames // 2 :]) == pytest.approx(steady, rel=0.15)
+    assert ours_sets == 1 and np.array_equal(last, first)
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, -math.inf, math.nan])
+def test_bad_forgetting_time_constant_is_refused(value: float) -> None:
+    with pytest.raises(ConfigError, match=rf"error_time_constant_s must be a number > 0.*got {re.escape(repr(value))}"):
+        CandidateSetParams(error_time_constant_s=value)
+
+
+def test_forgetting_time_constant_from_yaml_names_the_field() -> None:
+    with pytest.raises(ConfigError, match=r"error_time_constant_s.*'fast'"):
+        from_mapping(CandidateSetParams, {"error_time_constant_s": "fast"}, "test")
+    with pytest.raises(ConfigError, match=r"error_time_constant_s must be a number > 0.*got -2\.0"):
+        from_mapping(CandidateSetParams, {"error_time_constant_s": -2.0}, "test")
+    assert from_mapping(CandidateSetParams, {"error_time_constant_s": 20}, "test").error_time_constant_s == 20.0

@@ -4,7 +4,9 @@ Exp 1: RoboCupStatic-v0, an open-loop closed polygon a-b-...-h-a; the proposed m
 L6 and L7 only, the baselines all three landmarks. Exp 2: RoboCupCrowded-v0 with the
 goalkeeper and a ball, our field robot chasing, dribbling and shooting, half of the visible
 landmarks dropped at random per frame. Exp 3: Exp 2's recordings replayed into the proposed
-method with K = 1, 5, 10 candidate sets. Beyond the paper: error and availability against
+method with K = 1, 5, 10 candidate sets. Beside the paper's rows of Tables 1-3, "(ours)" rows
+run method (5) with an exponential forgetting of its accumulated Error (``jobs.OURS_PARAMS``,
+not in the paper). Beyond the paper: error and availability against
 crowd density and false-detection rate, and recovery after a shove. Every run is recorded
 once and replayed into every localizer (agents.replay), one process per seed.
 

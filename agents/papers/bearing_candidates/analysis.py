@@ -18,9 +18,13 @@ from numpy.typing import NDArray
 from agents import metrics
 from agents.papers.bearing_candidates.jobs import (
     EXP1_METHODS,
+    EXP1_OURS,
+    EXP1_TABLE_METHODS,
     EXP2_METHODS,
+    EXP2_OURS,
     EXP2_TABLE_METHODS,
     EXP3_METHODS,
+    EXP3_OURS,
     FAIL_M,
     PUSH_AT_S,
     PUSH_BEFORE_S,
@@ -259,6 +263,7 @@ class Exp1Stats:
     seeds: int
     path_m: float  # length of seed 0's true path
     all_in_view: float  # share of the steps with every landmark in view (seed mean)
+    ours_rows: list[Row]  # the "(ours)" variants (jobs.EXP1_OURS), not in the paper
 
 
 @dataclass(frozen=True)
@@ -274,6 +279,8 @@ class Exp2Stats:
     visible: float  # landmarks in sight per frame (seed mean)
     plays: float  # per seed
     contacts: float  # per seed
+    ours_rows: list[Row]  # the "(ours)" variants beside Table 2 (jobs.EXP2_OURS), not in the paper
+    exp3_ours_rows: list[Row]  # and beside Table 3 (jobs.EXP3_OURS)
 
 
 @dataclass(frozen=True)
@@ -310,11 +317,12 @@ class Analysis:
 def exp1_stats(results: Sequence[JobResult]) -> Exp1Stats:
     """Table 1's rows and the path facts."""
     return Exp1Stats(
-        rows=study_rows(results, EXP1_METHODS, references(EXP1_METHODS)),
+        rows=study_rows(results, EXP1_TABLE_METHODS, references(EXP1_TABLE_METHODS)),
         per_seed=per_seed(results, EXP1_METHODS, references(EXP1_METHODS)),
         seeds=len(results),
         path_m=float(metrics.travelled(results[0].truth)[-1]),
         all_in_view=float(np.mean([np.mean(r.visible_count >= r.landmarks_xy.shape[0]) for r in results])),
+        ours_rows=study_rows(results, EXP1_OURS, references(EXP1_OURS)),
     )
 
 
@@ -331,6 +339,8 @@ def exp2_stats(results: Sequence[JobResult]) -> Exp2Stats:
         visible=float(np.mean([r.visible_count.mean() for r in results])),
         plays=float(np.mean([r.plays for r in results])),
         contacts=float(np.mean([r.contacts for r in results])),
+        ours_rows=study_rows(results, EXP2_OURS, references(EXP2_OURS)),
+        exp3_ours_rows=study_rows(results, EXP3_OURS, references(EXP3_OURS)),
     )
 
 
@@ -371,11 +381,14 @@ def results_json(analysis: Analysis, plan: Plan, wall_s: float, workers: int) ->
     if analysis.exp1:
         out["exp1"] = [asdict(r) for r in analysis.exp1.rows]
         out["exp1_per_seed"] = analysis.exp1.per_seed
+        out["exp1_ours"] = [asdict(r) for r in analysis.exp1.ours_rows]
     if analysis.exp2:
         out["exp2"] = [asdict(r) for r in analysis.exp2.rows]
         out["exp3"] = [asdict(r) for r in analysis.exp2.exp3_rows]
         out["exp2_per_seed"] = analysis.exp2.per_seed
         out["exp2_speed_mps"] = analysis.exp2.speed_mps
+        out["exp2_ours"] = [asdict(r) for r in analysis.exp2.ours_rows]
+        out["exp3_ours"] = [asdict(r) for r in analysis.exp2.exp3_ours_rows]
     for name, study in (("density", analysis.density), ("false", analysis.false)):
         if study:
             out[name] = {k: {str(p): asdict(c) for p, c in d.items()} for k, d in study.cells.items()}

@@ -108,6 +108,24 @@ def test_quick_run_writes_report_tables_and_figures(tmp_path: Path, capsys: pyte
     assert [t[0].split("|")[1].strip() for t in tables] == ["exp1 (2 seeds)", "exp2 (2 seeds)"]
     for t in tables:
         assert_aligned(t)
+    # the "(ours)" rows (forgetting, not in the paper) beside Tables 1-3: computed by this run, not hard-coded
+    results = json.loads((out / "results.json").read_text())
+    ours = {"exp1_ours": ["candidate_sets_forgetting"], "exp2_ours": ["candidate_sets_forgetting"],
+            "exp3_ours": ["candidate_sets_k1_forgetting", "candidate_sets_k5_forgetting", "candidate_sets_forgetting"]}  # fmt: skip
+    assert {k: [r["key"] for r in results[k]] for k in ours} == ours
+    for study, rows in ours.items():
+        for got, key in zip(results[study], rows):
+            assert got["label"].endswith(f"forgetting {jobs.OURS_FORGETTING_S:g} s (ours)")
+            assert np.isfinite(got["pos_mm"][0]) and got["seeds"] == 2
+            line = next(line for line in report.splitlines() if line.startswith(f"| {got['label']} |"))
+            assert line.split("|")[2].strip() == "–"  # no paper column
+            assert line.split("|")[3].strip().startswith(f"{got['pos_mm'][0]:.0f} ± ")
+            per_seed = results[f"{study[:4]}_per_seed" if study != "exp3_ours" else "exp2_per_seed"][key]
+            assert got["pos_mm"][0] == pytest.approx(np.mean([s["position_mm"][0] for s in per_seed]))
+    paper_exp1 = next(r for r in results["exp1"] if r["key"] == "candidate_sets")
+    assert results["exp1_ours"][0]["pos_mm"] != paper_exp1["pos_mm"]  # forgetting changes the numbers
+    assert 'The "(ours)" row is not in the paper' in report
+    assert sum(re.search(r"forgetting \S+ s \(ours\) +\|", line) is not None for line in printed.splitlines()) == 1 + 3
     # ours are numbers, not n/a, for the method every statistic starts from
     row = next(line for line in report.splitlines() if line.startswith("| (5) candidate sets K=10 |"))
     ours = row.split("|")[3]
