@@ -76,6 +76,12 @@ class Recording:
     def steps(self) -> int:
         return int(self.true_pose.shape[0])
 
+    def localizer_map(self, measurement: str) -> LandmarkMap:
+        """The map a localizer reading ``measurement`` (a kind) gets: :attr:`landmark_map` as the
+        recorded sensor of that kind sees it (cut at a range sensor's height), as the env wrapper gives it."""
+        sensor = find_sensor(measurement, self.sensors, f"a {measurement} localizer on a recording of {self.env_id}")
+        return sensor_map(self.landmark_map, self.sensors[sensor])
+
     def sensor_of(self, sensor_type: str) -> tuple[str, Mapping[str, Any]] | None:
         """``(name, metadata)`` of the first sensor of a registered type, or None."""
         for name, meta in self.sensors.items():
@@ -441,9 +447,7 @@ def replay(
         raise ValueError(f"prior must be 'auto', 'start' or 'none', got {prior!r}")
     entry = spec(name)
     needs = entry.needs_prior if prior == "auto" else prior == "start"
-    sensor = find_sensor(entry.measurement, recording.sensors, f"replay of {name!r} on {recording.env_id}")
-    landmarks = sensor_map(recording.landmark_map, recording.sensors[sensor])
-    localizer = make_localizer(name, landmarks, dt_s=recording.dt_s, params=params)
+    localizer = make_localizer(name, recording.localizer_map(entry.measurement), dt_s=recording.dt_s, params=params)
     return replay_into(
         localizer,
         recording,

@@ -117,7 +117,9 @@ def test_without_fixes_dead_reckoning_stops_about_45_cm_short() -> None:
 def test_a_person_standing_in_the_way_is_waited_for_then_passed_without_contact(
     person_xy: tuple[float, float], side: int
 ) -> None:
-    env = gym.make(CORRIDOR, localizer="ceiling_target", crowd={"corridor": {"count": 1, "groups": 0}})
+    # a column of the person's footprint: the side it is passed on is the follower's rule; a
+    # person's legs, at a random heading, would tip the tie for one on the centre line
+    env = gym.make(CORRIDOR, localizer="ceiling_target", crowd={"corridor": {"count": 1, "groups": 0, "shape": "column"}})
 
     def stand(e: gym.Env[Any, Any]) -> None:
         e.unwrapped.world.place_crowd_member(0, person_xy, hold=True)  # type: ignore[attr-defined]

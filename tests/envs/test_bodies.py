@@ -152,7 +152,7 @@ def test_a_lidar_at_torso_height_sees_one_torso_and_one_above_the_head_sees_over
 
 
 def test_a_sensor_above_a_wall_sees_over_it() -> None:
-    config = dataclasses.replace(load_world("crowded_room"), wall_height_m=1.0, walls=((5.0, 0.5, 5.0, 6.5),))
+    config = dataclasses.replace(load_world("crowded_room"), wall_height_m=1.0, walls=((5.0, 0.5, 5.0, 6.5),), furniture=())
     state = World(config).snapshot()
     assert state.walls_at(0.2).all()
     assert not state.walls_at(1.5).any()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import gymnasium as gym
@@ -9,10 +10,13 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
+from envs.config import load_world
 
 STILL = np.zeros(2, dtype=np.float32)
 START = [2.5, 8.0, 0.0]  # robocup_static's start pose; L5 (5, 10), L6 (3.5, 10), L7 (1.5, 10)
 NAMES = ("L5", "L6", "L7")
+#: the crowded room without its door, bevel and furniture: four walls, analytic ranges
+BARE_ROOM = dataclasses.replace(load_world("crowded_room"), walls=(), furniture=())
 
 
 def slots(obs: dict) -> np.ndarray:
@@ -192,7 +196,7 @@ def box_ranges(x: float, y: float, angles: np.ndarray, size: tuple[float, float]
 
 @pytest.mark.parametrize("pose", [(2.0, 3.0, 0.3), (5.5, 1.2, -2.8), (3.5, 3.5, math.pi / 2)])
 def test_lidar_in_the_empty_room_reads_the_wall_distances(pose: tuple[float, float, float]) -> None:
-    env = gym.make("crowdloc/CrowdedRoom-v0", crowd_size=0, lidar={"range_std_m": 0.0})
+    env = gym.make("crowdloc/CrowdedRoom-v0", world=BARE_ROOM, crowd_size=0, lidar={"range_std_m": 0.0})
     obs, _ = env.reset(seed=0, options={"robot_pose": list(pose)})
     lidar = env.unwrapped.config.sensors["lidar"]
     lo, hi = lidar.relative_angles_rad
@@ -230,7 +234,7 @@ def cone_rays(sensors: int, cone: float, per_cone: int) -> np.ndarray:
 @pytest.mark.parametrize(("pose", "per_cone"), [((2.0, 3.0, 0.3), 1), ((5.5, 1.2, -2.8), 5), ((3.5, 3.5, math.pi / 2), 9)])
 def test_sonar_reads_the_nearest_wall_in_each_cone(pose: tuple[float, float, float], per_cone: int) -> None:
     sonar = {"range_std_m": 0.0, "max_range_m": 20.0, "rays_per_cone": per_cone, "sensors": 8, "cone_rad": 0.6}
-    env = gym.make("crowdloc/CrowdedRoom-v0", crowd_size=0, sonar=sonar)
+    env = gym.make("crowdloc/CrowdedRoom-v0", world=BARE_ROOM, crowd_size=0, sonar=sonar)
     obs, _ = env.reset(seed=0, options={"robot_pose": list(pose)})
     rays = cone_rays(8, 0.6, per_cone) + pose[2]
     expected = box_ranges(pose[0], pose[1], rays.reshape(-1), env.unwrapped.config.size_m).reshape(8, per_cone).min(axis=1)

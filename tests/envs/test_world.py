@@ -20,7 +20,8 @@ def test_world_exports_its_static_geometry(world_name: str) -> None:
     config = load_world(world_name)
     world = World(config)
     xmin, ymin, xmax, ymax = config.arena_m
-    assert world.seg_a.shape == world.seg_b.shape == (4 + len(config.walls), 2)
+    furniture = sum(len(piece.segments()) for piece in config.furniture)
+    assert world.seg_a.shape == world.seg_b.shape == (4 + len(config.walls) + furniture, 2)
     corners = {tuple(p) for p in world.seg_a[:4]}
     assert corners == {(xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)}
     assert world.landmark_xy.shape == (len(config.landmarks), 2)

@@ -74,7 +74,7 @@ def snapshot_figure(out: Path, episodes: Sequence[Episode]) -> dict[str, Path]:
     travel = world.far_point_defaults().filter.travel_m
     fov_deg = math.degrees(world.lidar().fov_rad)
     path = plots.scan_snapshot(
-        out / "far_points.png", ep.recording.landmark_map.walls_m, sn.pose,
+        out / "far_points.png", ep.scan_map.walls_m, sn.pose,
         {"one raw scan": sn.raw_xy, f"accumulated over the last {travel:g} m": sn.accumulated_xy,
          f"far points, every bin (MCL reads {fov_deg:g} deg)": sn.far_xy},
         people_xy=sn.people_xy, people_radius_m=sn.people_radius_m,

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from agents import metrics
 from agents.replay import Recording, feed, odometry_deltas, record, replay_into, start_prior
 from agents.sweep import run_tasks
-from localizers.base import ScanMeasurement
+from localizers.base import LandmarkMap, ScanMeasurement
 from localizers.geometry import between
 from localizers.raycast import cast_rays
 from localizers.registry import make_localizer
@@ -84,6 +84,7 @@ class Episode:
     Attributes:
         task: what was run.
         recording: the :class:`agents.replay.Recording` without its LIDAR leaves.
+        scan_map: the map the LIDAR localizers get (cut at the LIDAR's height).
         update_steps: ``(K,)`` steps at which the MCL weighs a scan.
         raw_scans: ``(K, B)`` the LIDAR's scans at those steps.
         far_scans: ``(K, B)`` the far-point scans handed to the MCL at those steps.
@@ -103,6 +104,7 @@ class Episode:
 
     task: EpisodeTask
     recording: Recording
+    scan_map: LandmarkMap
     update_steps: NDArray[np.int64]
     raw_scans: NDArray[np.float32]
     far_scans: Array
@@ -183,7 +185,7 @@ class _UpdateLog:
         self.angles = np.asarray(rec.lidar_angles_rad, dtype=np.float64)
         self.max_range = rec.lidar_max_range_m
         self.truth = rec.true_pose
-        walls = rec.landmark_map.walls_m
+        walls = rec.localizer_map("scan").walls_m  # what the LIDAR's plane cuts of the map
         self._segments = (np.ascontiguousarray(walls[:, :2]), np.ascontiguousarray(walls[:, 2:]), np.zeros((0, 2)), np.zeros(0))
         self._crowd_xy = crowd_xy
         self._want_snapshot = snapshot
@@ -239,7 +241,7 @@ def run_episode(task: EpisodeTask) -> Episode:
     rec, crowd_xy = record_episode(task.seed, task.crowd_size, task.laps)
     t1 = time.perf_counter()
     log = _UpdateLog(rec, crowd_xy, task.snapshot)
-    loc = make_localizer("far_point_mcl", rec.landmark_map, dt_s=rec.dt_s, params={"mcl": reference_config().mcl_params()})
+    loc = make_localizer("far_point_mcl", rec.localizer_map("scan"), dt_s=rec.dt_s, params={"mcl": reference_config().mcl_params()})
     if not isinstance(loc, FarPointMCL):
         raise TypeError(f"far_point_mcl built a {type(loc).__name__}")
     out = replay_into(loc, rec, episode_rng(task.seed, task.crowd_size), prior=start_prior(rec), measurement="scan",
@@ -249,6 +251,7 @@ def run_episode(task: EpisodeTask) -> Episode:
     return Episode(
         task=task,
         recording=rec.without("lidar"),
+        scan_map=rec.localizer_map("scan"),
         update_steps=update_steps,
         raw_scans=log.lidar[update_steps].copy(),
         far_scans=np.stack(log.far),
@@ -334,7 +337,7 @@ def run_chunk(task: ChunkTask) -> list[Run]:
     runs = []
     for c in task.configs:
         c0 = time.process_time()
-        loc = make_localizer("mcl_lidar", rec.landmark_map, dt_s=rec.dt_s, params=c.mcl_params())
+        loc = make_localizer("mcl_lidar", ep.scan_map, dt_s=rec.dt_s, params=c.mcl_params())
         est, _, updated = feed(loc, deltas, streams[c.far], episode_rng(ep.task.seed, ep.task.crowd_size), prior=prior,
                                read="updates")  # fmt: skip
         if updated is None or not np.array_equal(np.flatnonzero(updated), ep.update_steps):

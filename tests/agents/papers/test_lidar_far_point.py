@@ -80,7 +80,9 @@ def test_one_estimate_per_half_metre_of_travel(lap: Recording, name: str) -> Non
     gaps = np.diff(metrics.travelled(lap.true_pose)[out.updated])
     assert np.all((gaps >= 0.5) & (gaps < 0.51))
     err = metrics.position_errors(out.estimates[out.updated], lap.true_pose[out.updated])
-    assert np.max(err) < 0.1  # the empty room, exact odometry: both track the square
+    # the empty room, exact odometry: both track the square, within what the map's table (20 cm
+    # from where it stands) costs
+    assert np.max(err) < 0.2
 
 
 def test_failure_count_on_hand_made_errors() -> None:
