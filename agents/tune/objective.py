@@ -24,15 +24,37 @@ from agents.scenarios import SoccerDriver
 from agents.train import EVAL_SEED_BASE
 from agents.tune.space import SearchSpace
 from agents.util import nest
-from localizers.registry import load_params
-from localizers.schema import ConfigError
+from localizers.registry import load_params, spec
+from localizers.schema import ConfigError, merge_nested
 
 DEFAULT_ENV_ID = "crowdloc/RoboCupCrowded-v0"
-SCENARIOS = ("soccer", "random_walk")
+#: the LIDAR paper's room (docs/papers.md section B) and its square path
+ROOM_ENV_ID = "crowdloc/CrowdedRoom-v0"
+SCENARIOS = ("soccer", "random_walk", "square")
+#: the world a localizer is tuned in by default, by the measurement kind it reads: bearing
+#: localizers on the crowded soccer field (paper A), LIDAR ones in the crowded room (paper B)
+DEFAULT_WORLDS = {"bearings": DEFAULT_ENV_ID, "scan": ROOM_ENV_ID}
 #: Exp 2 of the candidate-set paper: the field robot starts at (0, 3000) mm facing +x
 SOCCER_START_POSE = (0.0, 3.0, 0.0)
+#: steps of a soccer or random-walk episode (30 s at 30 Hz)
+DEFAULT_EPISODE_STEPS = 900
 #: metres added to the objective per unit of unavailability (share of steps without a pose)
 DEFAULT_PENALTY_M = 1.0
+#: metres added per unit of failure share (share of steps whose valid estimate is >= fail_m off).
+#: Equal to DEFAULT_PENALTY_M: a confidently wrong pose costs at least what no pose costs (its own
+#: error enters the mean error as well), so a localizer cannot lower the objective by answering
+#: wrongly where it would otherwise abstain. 0 gives the objective of the earlier tune exactly.
+DEFAULT_FAILURE_PENALTY_M = 1.0
+#: metres from the truth at which a valid estimate is a failure, by world: the LIDAR paper's 1 m
+#: in its room (paper B counts estimates >= 1 m off); 0.5 m on the 6 m x 9 m soccer field and
+#: elsewhere (ours: a tenth of the field's width, five times the candidate-set paper's errors)
+DEFAULT_FAIL_M = 0.5
+FAIL_M_BY_WORLD = {ROOM_ENV_ID: 1.0}
+
+
+def default_fail_m(env_id: str) -> float:
+    """The failure threshold of ``env_id`` (:data:`FAIL_M_BY_WORLD`, else :data:`DEFAULT_FAIL_M`)."""
+    return FAIL_M_BY_WORLD.get(env_id, DEFAULT_FAIL_M)
 
 
 # ------------------------------------------------------------------------------------ seeds
@@ -98,25 +120,32 @@ class EpisodeSetup:
     """What a tuning or evaluation episode is.
 
     Attributes:
-        env_id: a registered crowdloc id with a bearing camera.
+        env_id: a registered crowdloc id with the sensor that ``measurement`` reads.
         crowd_size: other robots / people (``None``: the world's own count).
         scenario: ``"soccer"``: Exp 2's field robot (:class:`agents.scenarios.SoccerDriver`,
             chase, dribble, shoot; start at (0, 3) m facing +x), needs a world with a ball;
-            ``"random_walk"``: :class:`agents.policies.RandomWalk` from the world's start pose.
-        episode_steps: steps per episode.
+            ``"random_walk"``: :class:`agents.policies.RandomWalk` from the world's start pose;
+            ``"square"``: the LIDAR paper's run in ``crowdloc/CrowdedRoom-v0``
+            (:mod:`agents.papers.lidar_far_point.experiment`: 3 laps of its 2.5 m square at
+            0.15 m/s from the lower-left corner, the robot heavy enough that the queues do
+            not shove it, as in that experiment).
+        episode_steps: steps per episode (the square path stops when its laps are done).
         env_overrides: further ``gym.make`` world overrides (``{"camera": {"dropout_probability": 0.5}}``).
+        measurement: the measurement kind the tuned localizer reads (:mod:`localizers.measurements`).
     """
 
     env_id: str = DEFAULT_ENV_ID
     crowd_size: int | None = None
     scenario: str = "soccer"
-    episode_steps: int = 900
+    episode_steps: int = DEFAULT_EPISODE_STEPS
     env_overrides: Mapping[str, Any] = field(default_factory=dict)
+    measurement: str = "bearings"
 
     def world(self) -> Any:
-        """The effective world config; ConfigError if this setup cannot record bearings."""
+        """The effective world config; ConfigError if this setup cannot record what the localizer reads."""
         import envs
         from envs.localization_env import apply_overrides
+        from localizers.measurements import measurement_kind
 
         if self.env_id not in envs.ENV_WORLDS:
             raise ConfigError(f"unknown env id {self.env_id!r}; known: {', '.join(envs.ENV_WORLDS)}")
@@ -126,12 +155,26 @@ class EpisodeSetup:
             raise ConfigError(f"episode steps must be >= 1, got {self.episode_steps}")
         if self.crowd_size is not None and self.crowd_size < 0:
             raise ConfigError(f"crowd size must be >= 0, got {self.crowd_size}")
-        world = apply_overrides(envs.load_world(envs.ENV_WORLDS[self.env_id]), self.crowd_size, **dict(self.env_overrides))
-        if world.sensor_of_type("bearing_camera") is None:
-            raise ConfigError(f"{self.env_id} has no bearing camera; crowdloc tune replays bearing recordings")
+        if self.scenario == "square" and self.env_id != ROOM_ENV_ID:
+            raise ConfigError(f"scenario 'square' is the LIDAR paper's path in {ROOM_ENV_ID}, not in {self.env_id}")
+        sensor_type = measurement_kind(self.measurement).sensor_type
+        world = apply_overrides(envs.load_world(envs.ENV_WORLDS[self.env_id]), self.crowd_size, **self.world_overrides())
+        if world.sensor_of_type(sensor_type) is None:
+            raise ConfigError(f"{self.env_id} has no {sensor_type}; a localizer reading {self.measurement} needs one "
+                              f"(its default world: {DEFAULT_WORLDS.get(self.measurement, 'none')})")  # fmt: skip
         if self.scenario == "soccer" and not any(getattr(c, "ball", False) for c in world.crowds.values()):
             raise ConfigError(f"scenario 'soccer' needs a world with a ball; {self.env_id} has none (try --scenario random_walk)")
         return world
+
+    def world_overrides(self) -> dict[str, Any]:
+        """The world overrides of the recording: the scenario's own (the square path's heavy
+        robot), then ``env_overrides``."""
+        base: dict[str, Any] = {}
+        if self.scenario == "square":
+            from agents.papers.lidar_far_point.experiment import ROBOT_MASS_KG
+
+            base = {"robot": {"mass_kg": ROBOT_MASS_KG}}
+        return merge_nested(base, dict(self.env_overrides)) if base else dict(self.env_overrides)
 
     def facts(self) -> WorldFacts:
         """The crowd size and time step of :meth:`world` (same checks)."""
@@ -139,7 +182,7 @@ class EpisodeSetup:
         return WorldFacts(int(world.crowd.count) if world.crowd is not None else 0, float(world.dt_s))
 
     def env_kwargs(self) -> dict[str, Any]:
-        kwargs: dict[str, Any] = {**self.env_overrides, "max_episode_steps": self.episode_steps}
+        kwargs: dict[str, Any] = {**self.world_overrides(), "max_episode_steps": self.episode_steps}
         if self.crowd_size is not None:
             kwargs["crowd_size"] = self.crowd_size
         return kwargs
@@ -149,12 +192,70 @@ class EpisodeSetup:
         if self.scenario == "soccer":
             return record(self.env_id, SoccerDriver(seed), seed, max_steps=self.episode_steps,
                           env_kwargs=self.env_kwargs(), reset_options={"robot_pose": list(SOCCER_START_POSE)})  # fmt: skip
+        if self.scenario == "square":
+            from agents.papers.lidar_far_point import experiment
+            from agents.papers.lidar_far_point.paper import LAPS
+
+            return record(self.env_id, experiment.driver_factory(LAPS), seed, max_steps=self.episode_steps,
+                          env_kwargs=self.env_kwargs(), reset_options={"robot_pose": list(experiment.start_pose())})  # fmt: skip
         from gymnasium import spaces
 
         from agents.policies import RandomWalk
 
         policy = RandomWalk(spaces.Box(-1.0, 1.0, (2,), np.float32), seed=seed)
         return record(self.env_id, _PolicyDriver(policy), seed, max_steps=self.episode_steps, env_kwargs=self.env_kwargs())
+
+
+def default_scenario(env_id: str) -> str:
+    """The scenario a world is tuned with: the square path in the LIDAR room, soccer where there is a
+    ball, else the random walk."""
+    import envs
+
+    if env_id == ROOM_ENV_ID:
+        return "square"
+    if env_id not in envs.ENV_WORLDS:
+        return "random_walk"  # EpisodeSetup.world() names the unknown id
+    crowds = envs.load_world(envs.ENV_WORLDS[env_id]).crowds.values()
+    return "soccer" if any(getattr(c, "ball", False) for c in crowds) else "random_walk"
+
+
+def default_episode_steps(scenario: str) -> int:
+    """Steps of one episode of ``scenario``: the square path's 3 laps (plus 10 steps), else 30 s."""
+    if scenario == "square":
+        from agents.papers.lidar_far_point import experiment
+        from agents.papers.lidar_far_point.paper import LAPS
+
+        return experiment.episode_steps(LAPS) + 10
+    return DEFAULT_EPISODE_STEPS
+
+
+def default_setup(
+    localizer: str,
+    *,
+    env_id: str | None = None,
+    scenario: str | None = None,
+    episode_steps: int | None = None,
+    crowd_size: int | None = None,
+    env_overrides: Mapping[str, Any] | None = None,
+) -> EpisodeSetup:
+    """The episodes ``localizer`` is tuned on, unset choices from its measurement kind.
+
+    The world defaults to :data:`DEFAULT_WORLDS` of the kind it reads (bearings: the crowded
+    soccer field; scans: the LIDAR paper's crowded room), the scenario to
+    :func:`default_scenario` of that world, the episode length to :func:`default_episode_steps`.
+
+    Raises:
+        ConfigError: an unknown localizer, or one whose measurement kind has no default world
+            and no ``env_id`` was given.
+    """
+    measurement = spec(localizer).measurement
+    if env_id is None:
+        if measurement not in DEFAULT_WORLDS:
+            raise ConfigError(f"localizer {localizer!r} reads {measurement}, which has no default tuning world; give --env-id")
+        env_id = DEFAULT_WORLDS[measurement]
+    scenario = scenario if scenario is not None else default_scenario(env_id)
+    steps = episode_steps if episode_steps is not None else default_episode_steps(scenario)
+    return EpisodeSetup(env_id, crowd_size, scenario, steps, dict(env_overrides or {}), measurement)
 
 
 def record_task(task: tuple[EpisodeSetup, int]) -> Recording:
@@ -172,7 +273,10 @@ class EpisodeScore:
         heading_error_rad: mean heading error from the first fix on (NaN if it never fixed).
         availability: share of all steps with a valid estimate.
         first_fix_s: time of the first valid estimate (``inf`` if none).
-        objective: ``position_error_m + penalty_m * (1 - availability)`` (map diagonal for the error if no fix).
+        failures: steps whose valid estimate is at least ``fail_m`` from the truth.
+        failure_share: ``failures`` / all steps (disjoint from the unavailable share).
+        objective: ``position_error_m + penalty_m * (1 - availability) + failure_penalty_m *
+            failure_share`` (map diagonal for the error if no fix).
     """
 
     position_error_m: float
@@ -180,32 +284,87 @@ class EpisodeScore:
     availability: float
     first_fix_s: float
     objective: float
+    failures: int = 0
+    failure_share: float = 0.0
 
 
-def score_episode(recording: Recording, localizer: str, params: Mapping[str, Any] | None, penalty_m: float) -> EpisodeScore:
+@dataclass(frozen=True)
+class ObjectiveTerms:
+    """How an episode is scored (:func:`score_episode`).
+
+    Attributes:
+        penalty_m: metres per unit of unavailability.
+        failure_penalty_m: metres per unit of failure share (0: the objective without failures).
+        fail_m: a valid estimate at least this far from the truth is a failure.
+    """
+
+    penalty_m: float = DEFAULT_PENALTY_M
+    failure_penalty_m: float = DEFAULT_FAILURE_PENALTY_M
+    fail_m: float = DEFAULT_FAIL_M
+
+    def check(self) -> None:
+        """ConfigError naming a term that is not a finite number >= 0 (``fail_m`` > 0)."""
+        for name, flag in (("penalty_m", "--penalty-m"), ("failure_penalty_m", "--failure-penalty-m")):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ConfigError(f"{flag} must be a finite number >= 0, got {value}")
+        if not (math.isfinite(self.fail_m) and self.fail_m > 0):
+            raise ConfigError(f"--fail-m must be a finite number > 0, got {self.fail_m}")
+
+    def describe(self) -> str:
+        """The objective in words (for the report)."""
+        text = f"mean position error from the first fix on (m) + {self.penalty_m:g} m x (1 - availability over the whole episode)"
+        if self.failure_penalty_m:
+            text += f" + {self.failure_penalty_m:g} m x failure share (steps whose valid estimate is >= {self.fail_m:g} m off)"
+        return text
+
+
+def score_episode(
+    recording: Recording,
+    localizer: str,
+    params: Mapping[str, Any] | None,
+    penalty_m: float,
+    *,
+    failure_penalty_m: float = 0.0,
+    fail_m: float = DEFAULT_FAIL_M,
+) -> EpisodeScore:
     """Replay ``recording`` into ``localizer`` with parameter overrides ``params`` and score it.
 
     The localizer's generator is seeded from the env seed alone, so every parameter set sees
-    the same random stream too.
+    the same random stream too. Failures are counted whatever ``failure_penalty_m`` is; with
+    ``failure_penalty_m = 0`` the objective is ``error + penalty_m * (1 - availability)`` exactly.
     """
     out = replay(recording, localizer, rng_seed=[recording.seed, 0], params=params or None)
     fix = metrics.first_fix(out.valid)
     avail = metrics.availability(out.valid)
+    errors = metrics.position_errors(out.estimates, recording.true_pose)
+    failures = metrics.failure_count(np.where(out.valid, errors, np.nan), threshold=fail_m)
+    share = failures / max(recording.steps, 1)
     if fix is None:
         xmin, ymin, xmax, ymax = recording.landmark_map.bounds_m
         diagonal = math.hypot(xmax - xmin, ymax - ymin)
-        return EpisodeScore(float("nan"), float("nan"), avail, float("inf"), diagonal + penalty_m * (1.0 - avail))
-    pos, _ = metrics.mean_sd(metrics.position_errors(out.estimates, recording.true_pose), fix)
+        objective = diagonal + penalty_m * (1.0 - avail)
+        return EpisodeScore(float("nan"), float("nan"), avail, float("inf"), objective, failures, share)
+    pos, _ = metrics.mean_sd(errors, fix)
     head, _ = metrics.mean_sd(metrics.heading_errors(out.estimates, recording.true_pose), fix)
     first = float(recording.time_s[fix] - recording.time_s[0])
-    return EpisodeScore(pos, head, avail, first, pos + penalty_m * (1.0 - avail))
+    objective = pos + penalty_m * (1.0 - avail)
+    if failure_penalty_m:
+        objective += failure_penalty_m * share
+    return EpisodeScore(pos, head, avail, first, objective, failures, share)
 
 
-def evaluate_task(task: tuple[EpisodeSetup, int, str, Mapping[str, Any], float]) -> tuple[EpisodeScore, EpisodeScore]:
+def score_with(recording: Recording, localizer: str, params: Mapping[str, Any] | None, terms: ObjectiveTerms) -> EpisodeScore:
+    """:func:`score_episode` with the terms of ``terms``."""
+    return score_episode(recording, localizer, params, terms.penalty_m, failure_penalty_m=terms.failure_penalty_m,
+                         fail_m=terms.fail_m)  # fmt: skip
+
+
+def evaluate_task(task: tuple[EpisodeSetup, int, str, Mapping[str, Any], ObjectiveTerms]) -> tuple[EpisodeScore, EpisodeScore]:
     """One held-out episode: the defaults and the tuned parameters on the same recording."""
-    setup, seed, localizer, tuned, penalty_m = task
+    setup, seed, localizer, tuned, terms = task
     rec = setup.record(seed)
-    return score_episode(rec, localizer, None, penalty_m), score_episode(rec, localizer, tuned, penalty_m)
+    return score_with(rec, localizer, None, terms), score_with(rec, localizer, tuned, terms)
 
 
 # ------------------------------------------------------------------------------------ the trial function
@@ -217,18 +376,22 @@ class Objective:
 
     space: SearchSpace
     recordings: tuple[Recording, ...]
-    penalty_m: float
+    terms: ObjectiveTerms
 
     def __call__(self, trial: optuna.Trial) -> float:
-        overrides = nest(self.space.suggest(trial))
+        applied = self.space.applied(self.space.suggest(trial))
+        if applied != trial.params:
+            trial.set_user_attr("applied", applied)  # the sum_to_one groups as the localizer got them
+        overrides = nest(applied)
         load_params(self.space.localizer, overrides)  # a combination the params class rejects fails the trial
         scores: list[EpisodeScore] = []
         for step, rec in enumerate(self.recordings):
-            scores.append(score_episode(rec, self.space.localizer, overrides, self.penalty_m))
+            scores.append(score_with(rec, self.space.localizer, overrides, self.terms))
             running = float(np.mean([s.objective for s in scores]))
             trial.report(running, step)
             if trial.should_prune():
                 raise optuna.TrialPruned()
         trial.set_user_attr("position_error_m", float(np.nanmean([s.position_error_m for s in scores])))
         trial.set_user_attr("availability", float(np.mean([s.availability for s in scores])))
+        trial.set_user_attr("failure_share", float(np.mean([s.failure_share for s in scores])))
         return running

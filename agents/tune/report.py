@@ -35,8 +35,14 @@ _COLUMNS: tuple[tuple[MetricInfo, Callable[[EpisodeScore], float]], ...] = (
     (MetricInfo("position_error_m", "position error [m]", "{:.3f}"), lambda s: s.position_error_m),
     (MetricInfo("heading_error_deg", "heading error [deg]", "{:.2f}"), lambda s: math.degrees(s.heading_error_rad)),
     (_EVAL_METRICS["availability"], lambda s: s.availability),
+    (MetricInfo("failures", "failures [steps/run]", "{:.1f}"), lambda s: float(s.failures)),
+    (MetricInfo("failure_share", "failure share", "{:.4f}"), lambda s: s.failure_share),
     (_EVAL_METRICS["first_fix_s"], lambda s: s.first_fix_s),
 )
+#: the metrics whose paired difference (tuned - defaults, same recording) gets an interval
+_PAIRED = ("objective_m", "position_error_m", "availability", "failures", "failure_share")
+#: below this many held-out seeds the percentile bootstrap's interval is too narrow to trust
+_FEW_SEEDS = 5
 #: confidence level of the paired difference's bootstrap interval
 _CI_LEVEL = 0.95
 _State = optuna.trial.TrialState
@@ -196,6 +202,9 @@ class HeldOut:
         tuned_better_on: episodes where the tuned objective is lower.
         paired: spread of the per-episode objective difference, tuned - defaults (m).
         paired_ci_m: bootstrap interval of the mean paired difference (m).
+        paired_metrics: per metric of ``_PAIRED``, the spread of its per-episode paired
+            difference and the bootstrap interval of its mean (the objective's is ``paired``,
+            ``paired_ci_m``).
     """
 
     seeds: tuple[int, ...]
@@ -203,25 +212,71 @@ class HeldOut:
     tuned_better_on: int
     paired: metrics.Spread
     paired_ci_m: tuple[float, float]
+    paired_metrics: Mapping[str, tuple[metrics.Spread, tuple[float, float]]] = dataclasses.field(default_factory=dict)
 
 
 def compare_held_out(seeds: Sequence[int], evals: Sequence[tuple[EpisodeScore, EpisodeScore]], seed: int) -> HeldOut:
-    """Spreads over seeds and the paired difference; ``seed`` seeds the bootstrap."""
+    """Spreads over seeds and the paired differences; ``seed`` seeds the bootstrap.
+
+    Every metric's interval resamples the same seeds (one generator per metric, all seeded with
+    ``seed``), so the objective's interval is the one the earlier report gave.
+    """
     rows = {
         label: {info.key: metrics.over_seeds([value(e[k]) for e in evals]) for info, value in _COLUMNS}
         for label, k in (("defaults", 0), ("tuned", 1))
     }
     wins = sum(t.objective < d.objective for d, t in evals)
-    differences = [t.objective - d.objective for d, t in evals]
-    ci = bootstrap_ci(differences, rng=np.random.default_rng(seed), level=_CI_LEVEL)
-    return HeldOut(tuple(seeds), rows, wins, metrics.over_seeds(differences), ci)
+    values = {info.key: value for info, value in _COLUMNS}
+    paired = {}
+    for key in _PAIRED:
+        differences = [values[key](t) - values[key](d) for d, t in evals]
+        ci = bootstrap_ci(differences, rng=np.random.default_rng(seed), level=_CI_LEVEL)
+        paired[key] = (metrics.over_seeds(differences), ci)
+    spread, ci = paired["objective_m"]
+    return HeldOut(tuple(seeds), rows, wins, spread, ci, paired)
+
+
+def resolution_text(held_out: HeldOut) -> str:
+    """What the held-out seeds can resolve, computed from the paired objective interval.
+
+    States the interval's width and half-width, whether it excludes zero, and (for a nonzero
+    mean difference) about how many seeds an interval excluding zero at that difference needs
+    (the half-width shrinks as 1 / sqrt(seeds)).
+    """
+    n = len(held_out.seeds)
+    low, high = held_out.paired_ci_m
+    mean = held_out.paired.mean
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return f"With {n} held-out seeds no paired objective difference was finite, so there is no interval."
+    if held_out.paired.n < 2:
+        return (f"With {held_out.paired.n} held-out seed with a finite paired difference the interval is a single point "
+                "(zero width by construction): it resolves nothing; use --eval-seeds >= 2, better >= "
+                f"{_FEW_SEEDS}.")  # fmt: skip
+    width, half = high - low, (high - low) / 2
+    level = f"{_CI_LEVEL * 100:g} %"
+    text = (f"With {n} held-out seed{'s' if n != 1 else ''} the {level} interval of the mean paired objective difference is "
+            f"{width:.4f} m wide (half-width {half:.4f} m): a mean effect smaller than about {half:.4f} m cannot be told "
+            "from zero with these seeds. ")  # fmt: skip
+    if low > 0 or high < 0:
+        text += (f"The interval [{low:+.4f}, {high:+.4f}] m excludes zero: the tuned parameters are "
+                 f"{'better' if high < 0 else 'worse'} than the defaults on these episodes.")  # fmt: skip
+    else:
+        text += f"The interval [{low:+.4f}, {high:+.4f}] m does not exclude zero."
+        if half > 0 and mean != 0 and math.isfinite(mean):
+            needed = math.ceil(n * (half / abs(mean)) ** 2)
+            text += (f" Resolving the observed mean difference of {mean:+.4f} m would take about {needed} seeds "
+                     "(the half-width shrinks as 1 / sqrt(seeds)).")  # fmt: skip
+    if n < _FEW_SEEDS:
+        text += (f" With fewer than {_FEW_SEEDS} seeds the percentile bootstrap understates the interval; "
+                 "use more --eval-seeds before reading it.")  # fmt: skip
+    return text
 
 
 def _pm(s: metrics.Spread, fmt: str) -> str:
-    """``mean ± sd`` in ``fmt``, ``n/a`` without a value."""
+    """``mean ± sd`` in ``fmt`` (a sign flag applies to the mean only), ``n/a`` without a value."""
     if not s.n:
         return "n/a"
-    return f"{fmt.format(s.mean)} ± {fmt.format(s.sd)}"
+    return f"{fmt.format(s.mean)} ± {fmt.replace('{:+', '{:').format(s.sd)}"
 
 
 # ------------------------------------------------------------------------------------ report
@@ -239,12 +294,16 @@ def _summary(plan: StudyPlan, config: TuneConfig, outcome: StudyOutcome, held_ou
         "best_trial": best.number,
         "best_training_objective_m": best.value,
         "default_training_objective_m": None if default is None else default.value,
-        "best_params": dict(best.params),
+        "best_params": plan.space.applied(best.params),
         "defaults": plan.space.defaults(),
         "held_out": {label: {k: dataclasses.asdict(s) for k, s in row.items()} for label, row in held_out.rows.items()},
         "tuned_better_on": held_out.tuned_better_on,
         "paired_objective_difference_m": dataclasses.asdict(held_out.paired),
         "paired_objective_difference_ci95_m": list(held_out.paired_ci_m),
+        "paired_differences": {
+            key: {**dataclasses.asdict(spread), "ci95": list(ci)} for key, (spread, ci) in held_out.paired_metrics.items()
+        },
+        "resolution": resolution_text(held_out),
         "importances": dict(outcome.importances),
         "importance_notes": list(outcome.importance_notes),
     }
@@ -252,7 +311,7 @@ def _summary(plan: StudyPlan, config: TuneConfig, outcome: StudyOutcome, held_ou
 
 def _setup_section(plan: StudyPlan, config: TuneConfig, outcome: StudyOutcome) -> list[str]:
     """Title and the run's world, objective, search and best trial."""
-    setup, attrs, counts, best, default = config.setup, plan.attrs, outcome.counts, outcome.best, outcome.defaults
+    setup, attrs, counts, best, default = plan.setup, plan.attrs, outcome.counts, outcome.best, outcome.defaults
     seconds = f"{setup.episode_steps} steps ({setup.episode_steps * plan.world.step_s:.0f} s)"
     overrides = f", overrides `{json.dumps(attrs['env_overrides'])}`" if attrs["env_overrides"] else ""
     return [
@@ -260,9 +319,10 @@ def _setup_section(plan: StudyPlan, config: TuneConfig, outcome: StudyOutcome) -
         "",
         f"- World `{setup.env_id}`, crowd size {attrs['crowd_size']}, scenario `{setup.scenario}`, {seconds} per episode"
         f"{overrides}.",
-        f"- Objective (minimized): mean position error from the first fix on (m) + {config.penalty_m:g} m x "
-        "(1 - availability over the whole episode), mean over the training episodes "
-        f"(env seeds {list(attrs['train_seeds'])}), each recorded once and replayed into every trial.",
+        f"- Objective (minimized): {plan.terms.describe()}, mean over the training episodes "
+        f"(env seeds {list(attrs['train_seeds'])}), each recorded once and replayed into every trial. A failure is a "
+        f"step whose valid estimate is >= {plan.terms.fail_m:g} m from the truth; failures are counted and reported "
+        "whatever their penalty.",
         f"- Search: Optuna TPE (seed {config.seed}) with median pruning, storage `{config.storage}`; "
         f"{outcome.trials} trials in the study: {counts['complete']} completed, {counts['pruned']} pruned, "
         f"{counts['fail']} failed.",
@@ -293,7 +353,20 @@ def _held_out_section(held_out: HeldOut) -> list[str]:
         f"difference (tuned - defaults, same recording): {_pm(held_out.paired, '{:+.4f}')} m, {_CI_LEVEL * 100:g} % "
         f"bootstrap CI of its mean [{low:+.4f}, {high:+.4f}] m.",
         "",
+        f"Paired differences per metric (tuned - defaults on the same recording; mean ± sd over seeds, "
+        f"{_CI_LEVEL * 100:g} % percentile-bootstrap interval of the mean):",
+        "",
+        "| metric | tuned - defaults | interval | excludes 0 |",
+        "|---|---|---|---|",
     ]
+    labels = {info.key: info for info, _ in _COLUMNS}
+    for key, (spread, (lo, hi)) in held_out.paired_metrics.items():
+        info = labels[key]
+        fmt = "{:+" + info.fmt[2:]
+        interval = f"[{fmt.format(lo)}, {fmt.format(hi)}]" if math.isfinite(lo) else "n/a"
+        excludes = "n/a" if not math.isfinite(lo) else ("yes" if lo > 0 or hi < 0 else "no")
+        lines.append(f"| {info.label} | {_pm(spread, fmt)} | {interval} | {excludes} |")
+    lines += ["", resolution_text(held_out), ""]
     return lines
 
 
@@ -307,7 +380,7 @@ def _best_params_section(localizer: str, space: SearchSpace, outcome: StudyOutco
         "| parameter | default | tuned | searched | importance |",
         "|---|---|---|---|---|",
     ]
-    defaults, tuned, importances = space.defaults(), outcome.best.params, outcome.importances
+    defaults, tuned, importances = space.defaults(), space.applied(outcome.best.params), outcome.importances
     for r in space.params:
         imp = f"{importances[r.name]:.3f}" if r.name in importances else "n/a"
         lines.append(
@@ -349,7 +422,10 @@ def write_report(
     best = outcome.best
     header = [f"crowdloc tune {config.localizer}: study {plan.name!r}, best trial #{best.number}, "
               f"training objective {_value(best):.4f} m"]  # fmt: skip
-    (out / "best_params.yaml").write_text(best_params_yaml(config.localizer, best.params, plan.space, header))
+    if plan.space.sum_to_one:
+        header.append("sum_to_one groups (" + "; ".join(", ".join(g) for g in plan.space.sum_to_one) + ") as applied: "
+                      "the drawn weights divided by their sum")  # fmt: skip
+    (out / "best_params.yaml").write_text(best_params_yaml(config.localizer, plan.space.applied(best.params), plan.space, header))
     held_out = compare_held_out(plan.held_out_seeds, evals, config.seed)
     summary = _summary(plan, config, outcome, held_out)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")

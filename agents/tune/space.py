@@ -1,7 +1,13 @@
 """The search space of ``crowdloc tune``: ``configs/tuning/<localizer>.yaml`` and its checks.
 
 Per parameter ``{low, high[, log][, step]}`` or ``{choices: [...]}``; dotted names reach nested
-parameters (``mcl.hit_std_m``). Parameters not in the space keep their YAML defaults.
+parameters (``mcl.hit_std_m``). Parameters not in the space keep their YAML defaults. A
+``sum_to_one:`` list names groups of searched weights that must sum to 1 (the LIDAR beam
+model's mixture weights): each member is drawn as a raw weight in its range and the group is
+divided by its sum before it reaches the localizer (:meth:`SearchSpace.applied`).
+
+A localizer is *tunable* when it has a search-space file; the shipped localizers without one
+are in :data:`UNTUNED` with the reason, and ``crowdloc tune`` refuses them with it.
 """
 
 from __future__ import annotations
@@ -20,11 +26,23 @@ import optuna
 
 import crowdloc_configs
 from agents.util import nest
-from localizers.registry import load_params, spec
+from localizers.registry import LOCALIZERS, load_params, spec
 from localizers.schema import ConfigError, load_yaml
 
 TUNING_CONFIG_DIR = crowdloc_configs.path("tuning")  # package data (configs/ in the checkout)
 _SPEC_KEYS = ("low", "high", "log", "step", "choices")
+_TOP_KEYS = ("parameters", "sum_to_one")
+#: a group that already sums to 1 within this is applied unchanged (the params' own check allows 1e-6)
+_SUM_TOL = 1e-12
+
+#: shipped localizers deliberately without a search space, and why (``crowdloc tune`` says so)
+UNTUNED: dict[str, str] = {
+    "dead_reckoning": "it has nothing to tune: it integrates the odometry from the known start pose, and its "
+    "parameters (the covariance growth) change the reported spread, never the pose",
+    "ceiling_target": "its colour thresholds are fitted by `crowdloc fit ceiling_target`; under the paper's reset "
+    "fusion the fix sds and drift rates change the covariance only; and its recordings (a 320 x 240 colour image "
+    "per step, ~230 MB a minute) do not fit tune's record-once-replay-every-trial design",
+}
 
 
 @dataclass(frozen=True)
@@ -88,14 +106,33 @@ class SearchSpace:
     localizer: str
     path: Path
     params: tuple[ParamRange, ...]
+    sum_to_one: tuple[tuple[str, ...], ...] = ()
 
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.params)
 
     def suggest(self, trial: optuna.Trial) -> dict[str, Any]:
-        """Draw every parameter: ``{dotted name: value}``."""
+        """Draw every parameter: ``{dotted name: raw value}`` (Optuna's ``trial.params``; see :meth:`applied`)."""
         return {p.name: p.suggest(trial) for p in self.params}
+
+    def applied(self, raw: Mapping[str, Any]) -> dict[str, Any]:
+        """The values a localizer gets for drawn values ``raw``: each ``sum_to_one`` group divided by its sum.
+
+        A group that already sums to 1 (the defaults) is passed unchanged, bit for bit.
+
+        Raises:
+            ConfigError: a group whose raw weights sum to 0.
+        """
+        out = dict(raw)
+        for group in self.sum_to_one:
+            total = math.fsum(float(raw[name]) for name in group)
+            if not total > 0:
+                raise ConfigError(f"{self.path}: sum_to_one group {list(group)} drew weights summing to {total!r}; need > 0")
+            if abs(total - 1.0) > _SUM_TOL:
+                for name in group:
+                    out[name] = float(raw[name]) / total
+        return out
 
     def defaults(self) -> dict[str, Any]:
         """The YAML defaults of the searched parameters: ``{dotted name: value}``."""
@@ -193,13 +230,58 @@ def space_path(localizer: str) -> Path:
     return TUNING_CONFIG_DIR / f"{localizer}.yaml"
 
 
+def tunable_localizers() -> tuple[str, ...]:
+    """The registered localizers with a shipped search space, in registry order."""
+    return tuple(name for name in LOCALIZERS if space_path(name).is_file())
+
+
+def _parse_groups(p: Path, value: Any, ranges: Mapping[str, ParamRange]) -> tuple[tuple[str, ...], ...]:
+    """Check the ``sum_to_one`` groups: lists of >= 2 searched float parameters, none in two groups."""
+    if not isinstance(value, list):
+        raise ConfigError(f"{p}: sum_to_one must be a list of parameter-name lists, got {value!r}")
+    groups, seen = [], set()
+    for group in value:
+        if not isinstance(group, list) or len(group) < 2 or not all(isinstance(n, str) for n in group):
+            raise ConfigError(f"{p}: each sum_to_one group must list at least 2 parameter names, got {group!r}")
+        for name in group:
+            r = ranges.get(name)
+            if r is None:
+                raise ConfigError(f"{p}: sum_to_one names {name!r}, which is not searched under parameters")
+            if r.kind != "float" or r.low is None or r.low < 0:
+                raise ConfigError(f"{p}: sum_to_one member {name!r} must be a float range with low >= 0, got {r.describe()}")
+            if name in seen:
+                raise ConfigError(f"{p}: {name!r} is in two sum_to_one groups")
+            seen.add(name)
+        groups.append(tuple(group))
+    return tuple(groups)
+
+
+def _check_bounds(localizer: str, p: Path, space: SearchSpace) -> None:
+    """Every bound and choice is a valid value of its parameter, the others at their defaults
+    (a ``sum_to_one`` member with the rest of its group at their defaults, the group normalized)."""
+    defaults = space.defaults()
+    grouped = {name: g for g in space.sum_to_one for name in g}
+    for r in space.params:
+        points = r.choices if r.kind == "categorical" else (r.low, r.high)
+        for value in points:
+            group = grouped.get(r.name, (r.name,))
+            raw = {**{n: defaults[n] for n in group}, r.name: value}
+            try:
+                applied = space.applied(raw) if len(group) > 1 else raw
+                load_params(localizer, nest(applied))
+            except ConfigError as exc:
+                raise ConfigError(f"{p}: {r.name} = {value!r} is not a valid value: {exc}") from None
+
+
 def load_search_space(localizer: str, path: str | Path | None = None) -> SearchSpace:
     """Read and check a localizer's search space.
 
     The file's top level is ``parameters:``, a mapping of parameter name (dotted for nested
-    parameters) to ``{low, high, log?, step?}`` or ``{choices: [...]}``. Integer parameters
-    need integer bounds. Every bound and choice must itself be a valid value of the parameter
-    (checked by building the localizer's parameters with it).
+    parameters) to ``{low, high, log?, step?}`` or ``{choices: [...]}``, and optionally
+    ``sum_to_one:``, a list of groups (lists of searched float parameters) normalized to sum 1
+    before they are applied. Integer parameters need integer bounds. Every bound and choice
+    must itself be a valid value of the parameter (checked by building the localizer's
+    parameters with it).
 
     Args:
         localizer: a registered localizer name.
@@ -211,11 +293,14 @@ def load_search_space(localizer: str, path: str | Path | None = None) -> SearchS
     s = spec(localizer)
     p = Path(path) if path is not None else space_path(localizer)
     if path is None and not p.is_file():
+        if localizer in UNTUNED:
+            raise ConfigError(f"localizer {localizer!r} is not tunable: {UNTUNED[localizer]} (tunable: "
+                              f"{', '.join(tunable_localizers())})")  # fmt: skip
         raise ConfigError(f"no search space for localizer {localizer!r}: write {p} (see configs/tuning/candidate_sets.yaml)")
     data = load_yaml(p)
-    unknown = sorted(set(data) - {"parameters"})
+    unknown = sorted(set(data) - set(_TOP_KEYS))
     if unknown:
-        raise ConfigError(f"{p}: unknown top-level key {unknown[0]!r} (valid: parameters)")
+        raise ConfigError(f"{p}: unknown top-level key {unknown[0]!r} (valid: {', '.join(_TOP_KEYS)})")
     entries = data.get("parameters")
     if not isinstance(entries, Mapping) or not entries:
         raise ConfigError(f"{p}: 'parameters' must be a non-empty mapping of parameter name to range")
@@ -224,12 +309,8 @@ def load_search_space(localizer: str, path: str | Path | None = None) -> SearchS
     for name, entry in entries.items():
         if not isinstance(name, str):
             raise ConfigError(f"{p}: parameter names must be strings, got {name!r}")
-        r = _parse_range(name, entry, _field_type(params_cls, name, str(p), localizer), str(p))
-        points = r.choices if r.kind == "categorical" else (r.low, r.high)
-        for value in points:
-            try:
-                load_params(localizer, nest({name: value}))
-            except ConfigError as exc:
-                raise ConfigError(f"{p}: {name} = {value!r} is not a valid value: {exc}") from None
-        ranges.append(r)
-    return SearchSpace(localizer, p, tuple(ranges))
+        ranges.append(_parse_range(name, entry, _field_type(params_cls, name, str(p), localizer), str(p)))
+    groups = _parse_groups(p, data["sum_to_one"], {r.name: r for r in ranges}) if "sum_to_one" in data else ()
+    space = SearchSpace(localizer, p, tuple(ranges), groups)
+    _check_bounds(localizer, p, space)
+    return space

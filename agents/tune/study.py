@@ -7,10 +7,10 @@ setup it was created with and refuses to mix trials from another one.
 
 from __future__ import annotations
 
+import dataclasses
 import json
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,12 +19,20 @@ import optuna
 
 from agents.sweep import run_tasks
 from agents.tune.objective import (
+    DEFAULT_EPISODE_STEPS,
+    DEFAULT_FAIL_M,
+    DEFAULT_FAILURE_PENALTY_M,
     DEFAULT_PENALTY_M,
+    DEFAULT_WORLDS,
+    FAIL_M_BY_WORLD,
     SCENARIOS,
     SOCCER_START_POSE,
     EpisodeSetup,
     Objective,
+    ObjectiveTerms,
     WorldFacts,
+    default_fail_m,
+    default_setup,
     eval_seeds,
     evaluate_task,
     record_task,
@@ -32,9 +40,9 @@ from agents.tune.objective import (
     tuning_seeds,
 )
 from agents.tune.report import write_report
-from agents.tune.space import SearchSpace, load_search_space, space_path
+from agents.tune.space import UNTUNED, SearchSpace, load_search_space, tunable_localizers
 from agents.util import flatten, nest, seed_int
-from localizers.registry import LOCALIZERS, spec
+from localizers.registry import spec
 from localizers.schema import ConfigError
 
 DEFAULT_STORAGE = "sqlite:///results/tuning.db"
@@ -42,7 +50,8 @@ DEFAULT_STORAGE = "sqlite:///results/tuning.db"
 PRUNER_STARTUP_TRIALS = 5
 PRUNER_WARMUP_STEPS = 1
 #: study attributes that define the objective; a stored study must match them
-_SETUP_ATTRS = ("localizer", "env_id", "crowd_size", "scenario", "episode_steps", "env_overrides", "train_seeds", "penalty_m")
+_SETUP_ATTRS = ("localizer", "env_id", "crowd_size", "scenario", "episode_steps", "env_overrides", "train_seeds", "penalty_m",
+                "failure_penalty_m", "fail_m")  # fmt: skip
 
 
 # ------------------------------------------------------------------------------------ configuration
@@ -53,8 +62,9 @@ class TuneConfig:
     """One ``crowdloc tune`` run.
 
     Attributes:
-        localizer: a registered bearing localizer.
-        setup: the episodes.
+        localizer: a registered localizer with a search space (:func:`~agents.tune.space.tunable_localizers`).
+        setup: the episodes (``None``: :func:`~agents.tune.objective.default_setup` of the
+            localizer, its world by measurement kind); its ``measurement`` is set to the localizer's.
         space_path: search-space YAML (default ``configs/tuning/<localizer>.yaml``).
         trials: trials to add to the study in this run (split over the workers).
         train_seeds: training episodes (env seeds ``0 .. n - 1``).
@@ -66,11 +76,15 @@ class TuneConfig:
         out: report folder (default ``results/tuning/<study>``).
         seed: sampler seed.
         penalty_m: metres added per unit of unavailability.
+        failure_penalty_m: metres added per unit of failure share (0: the objective of the
+            earlier tune, error and availability only, exactly).
+        fail_m: failure threshold (``None``: :func:`~agents.tune.objective.default_fail_m` of the world).
+        overwrite: replace an existing ``report.md`` under ``out`` (else a ConfigError).
         verbose: log every trial and show progress bars.
     """
 
     localizer: str
-    setup: EpisodeSetup = field(default_factory=EpisodeSetup)
+    setup: EpisodeSetup | None = None
     space_path: Path | None = None
     trials: int = 40
     train_seeds: int = 4
@@ -82,6 +96,9 @@ class TuneConfig:
     out: Path | None = None
     seed: int = 0
     penalty_m: float = DEFAULT_PENALTY_M
+    failure_penalty_m: float = DEFAULT_FAILURE_PENALTY_M
+    fail_m: float | None = None
+    overwrite: bool = False
     verbose: bool = True
 
 
@@ -113,6 +130,8 @@ class StudyPlan:
         name: the study name.
         out: the report folder.
         space: the search space.
+        setup: the episodes (the localizer's default world where the config gave none).
+        terms: the objective's terms (the world's failure threshold where the config gave none).
         world: the effective world's crowd size and time step.
         train_seeds: env seeds of the training episodes.
         held_out_seeds: env seeds of the held-out episodes (never a training seed).
@@ -122,32 +141,41 @@ class StudyPlan:
     name: str
     out: Path
     space: SearchSpace
+    setup: EpisodeSetup
+    terms: ObjectiveTerms
     world: WorldFacts
     train_seeds: tuple[int, ...]
     held_out_seeds: tuple[int, ...]
     attrs: Mapping[str, Any]
 
 
-def _check_config(config: TuneConfig) -> tuple[SearchSpace, WorldFacts]:
+def check_tunable(localizer: str, space: Path | None = None) -> None:
+    """ConfigError for an unknown localizer, or one in :data:`~agents.tune.space.UNTUNED` without ``space``."""
+    spec(localizer)
+    if space is None and localizer in UNTUNED:
+        raise ConfigError(f"localizer {localizer!r} is not tunable: {UNTUNED[localizer]} (tunable: "
+                          f"{', '.join(tunable_localizers())})")  # fmt: skip
+
+
+def _check_config(config: TuneConfig) -> tuple[SearchSpace, EpisodeSetup, ObjectiveTerms, WorldFacts]:
     s = spec(config.localizer)
-    if s.measurement != "bearings":
-        bearing = ", ".join(sorted(n for n, x in LOCALIZERS.items() if x.measurement == "bearings"))
-        raise ConfigError(f"localizer {config.localizer!r} consumes {s.measurement}; crowdloc tune replays bearing "
-                          f"recordings (bearing localizers: {bearing})")  # fmt: skip
+    check_tunable(config.localizer, config.space_path)
     for name in ("trials", "train_seeds", "eval_seeds", "workers"):
         value = getattr(config, name)
         if value < 1:
             raise ConfigError(f"{name.replace('_', '-')} must be >= 1, got {value}")
-    if not (math.isfinite(config.penalty_m) and config.penalty_m >= 0):
-        raise ConfigError(f"penalty must be a finite number >= 0, got {config.penalty_m}")
-    world = config.setup.facts()
-    return load_search_space(config.localizer, config.space_path), world
+    setup = config.setup if config.setup is not None else default_setup(config.localizer)
+    setup = dataclasses.replace(setup, measurement=s.measurement)
+    fail_m = config.fail_m if config.fail_m is not None else default_fail_m(setup.env_id)
+    terms = ObjectiveTerms(config.penalty_m, config.failure_penalty_m, fail_m)
+    terms.check()
+    world = setup.facts()
+    return load_search_space(config.localizer, config.space_path), setup, terms, world
 
 
 def plan_study(config: TuneConfig) -> StudyPlan:
-    """Check ``config`` and settle the study name, report folder, seeds and study attributes."""
-    space, world = _check_config(config)
-    setup = config.setup
+    """Check ``config`` and settle the study name, report folder, episodes, seeds and study attributes."""
+    space, setup, terms, world = _check_config(config)
     name = config.study_name or default_study_name(config.localizer, setup, world.crowd_size)
     out = config.out if config.out is not None else Path("results") / "tuning" / name
     train = tuning_seeds(config.train_seeds)
@@ -161,10 +189,26 @@ def plan_study(config: TuneConfig) -> StudyPlan:
         "episode_steps": setup.episode_steps,
         "env_overrides": json.loads(json.dumps(dict(setup.env_overrides))),
         "train_seeds": list(train),
-        "penalty_m": config.penalty_m,
+        "penalty_m": terms.penalty_m,
+        "failure_penalty_m": terms.failure_penalty_m,
+        "fail_m": terms.fail_m,
         "space": {r.name: r.describe() for r in space.params},
     }
-    return StudyPlan(name, out, space, world, train, held_out, attrs)
+    if space.sum_to_one:
+        attrs["sum_to_one"] = [list(g) for g in space.sum_to_one]
+    return StudyPlan(name, out, space, setup, terms, world, train, held_out, attrs)
+
+
+def _stored_attr(stored: Mapping[str, Any], key: str, attrs: Mapping[str, Any]) -> Any:
+    """A stored study's setup attribute; a study made before failures were counted has none for
+    ``failure_penalty_m`` (its objective had no failure term: 0) and ``fail_m`` (irrelevant then)."""
+    if key in stored:
+        return stored[key]
+    if key == "failure_penalty_m":
+        return 0.0
+    if key == "fail_m" and "failure_penalty_m" not in stored and attrs["failure_penalty_m"] == 0:
+        return attrs[key]
+    return None
 
 
 # ------------------------------------------------------------------------------------ storage and workers
@@ -212,10 +256,10 @@ def _open_study(config: TuneConfig, plan: StudyPlan) -> optuna.Study:
     )
     stored = study.user_attrs
     if stored:
-        diff = [k for k in _SETUP_ATTRS if stored.get(k) != attrs[k]]
+        diff = [k for k in _SETUP_ATTRS if _stored_attr(stored, k, attrs) != attrs[k]]
         if diff:
             k = diff[0]
-            raise ConfigError(f"study {name!r} in {config.storage} was created with {k}={stored.get(k)!r}, this run has "
+            raise ConfigError(f"study {name!r} in {config.storage} was created with {k}={_stored_attr(stored, k, attrs)!r}, this run has "
                               f"{k}={attrs[k]!r}; use another --study-name")  # fmt: skip
     else:
         for k, v in attrs.items():
@@ -285,25 +329,27 @@ def tune(config: TuneConfig) -> TuneResult:
             stored study made for another setup.
     """
     plan = plan_study(config)
-    setup = config.setup
+    setup = plan.setup
+    if (plan.out / "report.md").exists() and not config.overwrite:
+        raise ConfigError(f"{plan.out / 'report.md'} exists; pass --overwrite to replace it, or --out for another folder")
     _set_log_level(config.verbose)
     study = _open_study(config, plan)
     first_new = len(study.trials)
     recordings = run_tasks(record_task, [(setup, s) for s in plan.train_seeds], workers=config.workers,
                            desc="record training episodes", progress=config.verbose)  # fmt: skip
-    _optimize(config, study, Objective(plan.space, tuple(recordings), config.penalty_m), first_new)
+    _optimize(config, study, Objective(plan.space, tuple(recordings), plan.terms), first_new)
 
     study = optuna.load_study(study_name=plan.name, storage=_storage(config.storage))
     if not any(t.state == optuna.trial.TrialState.COMPLETE for t in study.trials):
         raise ConfigError(f"study {plan.name!r}: no trial completed (all pruned or failed); see the log above")
     best = study.best_trial
-    tuned = nest(best.params)
-    tasks = [(setup, s, config.localizer, tuned, config.penalty_m) for s in plan.held_out_seeds]
+    applied = plan.space.applied(best.params)
+    tasks = [(setup, s, config.localizer, nest(applied), plan.terms) for s in plan.held_out_seeds]
     evals = run_tasks(evaluate_task, tasks, workers=config.workers, ray_address=config.ray_address,
                       desc="held-out episodes", progress=config.verbose)  # fmt: skip
     summary = write_report(plan, config, study, evals)
     out = plan.out
-    return TuneResult(plan.name, out / "report.md", out / "best_params.yaml", dict(best.params), len(study.trials), summary)
+    return TuneResult(plan.name, out / "report.md", out / "best_params.yaml", applied, len(study.trials), summary)
 
 
 # ------------------------------------------------------------------------------------ command line
@@ -327,18 +373,23 @@ def _count(minimum: int) -> Any:
 
 def add_arguments(parser: Any) -> None:
     """The ``crowdloc tune`` options; their defaults are :class:`TuneConfig`'s and :class:`EpisodeSetup`'s."""
-    config, setup = TuneConfig(localizer=""), EpisodeSetup()
-    shipped = ", ".join(n for n, s in LOCALIZERS.items() if s.measurement == "bearings" and space_path(n).is_file())
+    config = TuneConfig(localizer="")
+    shipped = ", ".join(tunable_localizers())
+    untuned = ", ".join(UNTUNED)
+    worlds = "; ".join(f"{kind}: {env_id}" for kind, env_id in DEFAULT_WORLDS.items())
     x_m, y_m, _ = SOCCER_START_POSE
-    parser.add_argument("localizer", help=f"a bearing localizer with a search space: {shipped} (others: give --space)")
+    parser.add_argument("localizer", help=f"a localizer with a search space: {shipped} (not tunable: {untuned}; "
+                                          "others: give --space)")  # fmt: skip
     parser.add_argument("--space", type=Path, help="search-space YAML (default configs/tuning/LOCALIZER.yaml)")
-    parser.add_argument("--env-id", default=setup.env_id, help=f"a bearing world (default {setup.env_id})")
+    parser.add_argument("--env-id", help=f"the world (default by what the localizer reads: {worlds})")
     parser.add_argument("--crowd-size", type=_count(0), help="crowd size (default: the world's own)")
-    parser.add_argument("--scenario", choices=SCENARIOS, default=setup.scenario,
+    parser.add_argument("--scenario", choices=SCENARIOS,
                         help=f"soccer: Exp 2's chase-dribble-shoot driver from ({x_m:g}, {y_m:g}) m; random_walk: the "
-                             f"RandomWalk policy from the world's start (default {setup.scenario})")  # fmt: skip
-    parser.add_argument("--episode-steps", type=_count(1), default=setup.episode_steps,
-                        help=f"steps per episode (default {setup.episode_steps})")  # fmt: skip
+                             "RandomWalk policy from the world's start; square: the LIDAR paper's 3 laps of a 2.5 m "
+                             "square in the crowded room (default: square in the room, soccer where there is a ball, "
+                             "else random_walk)")  # fmt: skip
+    parser.add_argument("--episode-steps", type=_count(1),
+                        help=f"steps per episode (default {DEFAULT_EPISODE_STEPS}; square: its 3 laps)")  # fmt: skip
     parser.add_argument("--env-set", action="append", default=[], metavar="KEY=VALUE",
                         help="world override, e.g. --env-set camera.dropout_probability=0.5 (repeatable)")  # fmt: skip
     parser.add_argument("--train-seeds", type=_count(1), default=config.train_seeds,
@@ -355,7 +406,15 @@ def add_arguments(parser: Any) -> None:
     parser.add_argument("--seed", type=seed_int, default=config.seed, help=f"sampler seed (default {config.seed})")
     parser.add_argument("--penalty-m", type=float, default=config.penalty_m,
                         help=f"metres added to the objective per unit of unavailability (default {config.penalty_m:g})")  # fmt: skip
+    parser.add_argument("--failure-penalty-m", type=float, default=config.failure_penalty_m,
+                        help="metres added per unit of failure share, the share of steps whose valid estimate is "
+                             f">= --fail-m off (default {config.failure_penalty_m:g}; 0: error and availability only, "
+                             "the earlier objective)")  # fmt: skip
+    by_world = ", ".join(f"{env_id}: {m:g}" for env_id, m in FAIL_M_BY_WORLD.items())
+    parser.add_argument("--fail-m", type=float,
+                        help=f"failure threshold in metres (default by world: {by_world}; else {DEFAULT_FAIL_M:g})")  # fmt: skip
     parser.add_argument("--out", type=Path, help="report folder (default results/tuning/STUDY)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing report in --out")
     parser.add_argument("--quiet", action="store_true", help="no per-trial log, no progress bars")
 
 
@@ -363,9 +422,11 @@ def run_cli(args: Any) -> TuneResult:
     """``crowdloc tune`` from parsed arguments (raises ConfigError for bad values)."""
     from agents.train import parse_overrides
 
+    check_tunable(args.localizer, args.space)
     config = TuneConfig(
         localizer=args.localizer,
-        setup=EpisodeSetup(
+        setup=default_setup(
+            args.localizer,
             env_id=args.env_id,
             crowd_size=args.crowd_size,
             scenario=args.scenario,
@@ -383,6 +444,9 @@ def run_cli(args: Any) -> TuneResult:
         out=args.out,
         seed=args.seed,
         penalty_m=args.penalty_m,
+        failure_penalty_m=args.failure_penalty_m,
+        fail_m=args.fail_m,
+        overwrite=args.overwrite,
         verbose=not args.quiet,
     )
     return tune(config)

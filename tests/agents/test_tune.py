@@ -119,7 +119,7 @@ def test_space_needs_integer_bounds_for_integer_parameter(tmp_path: Path) -> Non
         tune.load_search_space("candidate_sets", path)
 
 
-@pytest.mark.parametrize("name", ["candidate_sets", "mcl_bearing"])
+@pytest.mark.parametrize("name", tune.tunable_localizers())
 def test_shipped_spaces_load(name: str) -> None:
     space = tune.load_search_space(name)
     assert space.names and set(space.defaults()) == set(space.names)
@@ -129,9 +129,15 @@ def test_shipped_spaces_load(name: str) -> None:
     ("argv", "message"),
     [
         (["tune", "no_such_localizer"], "unknown localizer 'no_such_localizer'"),
-        (["tune", "mcl_lidar"], "localizer 'mcl_lidar' consumes scan"),
+        (["tune", "dead_reckoning"], "localizer 'dead_reckoning' is not tunable: it has nothing to tune"),
+        (["tune", "ceiling_target"], "localizer 'ceiling_target' is not tunable: its colour thresholds are fitted"),
         (["tune", "candidate_sets", "--trials", "0"], "argument --trials: expected an integer >= 1, got 0"),
-        (["tune", "candidate_sets", "--env-id", "crowdloc/CrowdedRoom-v0"], "has no bearing camera"),
+        (["tune", "candidate_sets", "--env-id", "crowdloc/CrowdedRoom-v0"], "CrowdedRoom-v0 has no bearing_camera"),
+        (["tune", "mcl_lidar", "--env-id", "crowdloc/RoboCupCrowded-v0"], "RoboCupCrowded-v0 has no lidar"),
+        (["tune", "mcl_lidar", "--scenario", "soccer"], "scenario 'soccer' needs a world with a ball"),
+        (["tune", "candidate_sets", "--scenario", "square"], "scenario 'square' is the LIDAR paper's path in crowdloc/Crowd"),
+        (["tune", "candidate_sets", "--fail-m", "0"], "--fail-m must be a finite number > 0, got 0.0"),
+        (["tune", "candidate_sets", "--failure-penalty-m", "-1"], "--failure-penalty-m must be a finite number >= 0, got -1.0"),
     ],
 )
 def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str) -> None:
