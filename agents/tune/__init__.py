@@ -13,7 +13,7 @@ parameters for a given world, crowd density and motion scenario:
 * **World**: by the measurement kind the localizer reads (:data:`DEFAULT_WORLDS`): bearing
   localizers on the crowded soccer field (``crowdloc/RoboCupCrowded-v0``, Exp 2's soccer
   scenario), LIDAR ones in the far-point paper's crowded room (``crowdloc/CrowdedRoom-v0``)
-  on its square path (3 laps of a 2.5 m square, the experiment's heavy robot); ``--env-id``,
+  on its square path (3 laps of a 2.5 m square, as in that experiment); ``--env-id``,
   ``--scenario`` and ``--episode-steps`` override (:func:`default_setup`).
 * **Episodes, recorded once**: ``--train-seeds`` episodes are rolled out once
   (:func:`agents.replay.record`) and every trial replays its localizer into the same

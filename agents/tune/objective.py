@@ -25,7 +25,7 @@ from agents.train import EVAL_SEED_BASE
 from agents.tune.space import SearchSpace
 from agents.util import nest
 from localizers.registry import load_params, spec
-from localizers.schema import ConfigError, merge_nested
+from localizers.schema import ConfigError
 
 DEFAULT_ENV_ID = "crowdloc/RoboCupCrowded-v0"
 #: the LIDAR paper's room (docs/papers.md section B) and its square path
@@ -127,8 +127,7 @@ class EpisodeSetup:
             ``"random_walk"``: :class:`agents.policies.RandomWalk` from the world's start pose;
             ``"square"``: the LIDAR paper's run in ``crowdloc/CrowdedRoom-v0``
             (:mod:`agents.papers.lidar_far_point.experiment`: 3 laps of its 2.5 m square at
-            0.15 m/s from the lower-left corner, the robot heavy enough that the queues do
-            not shove it, as in that experiment).
+            0.15 m/s from the lower-left corner; the queue heads give way to the robot).
         episode_steps: steps per episode (the square path stops when its laps are done).
         env_overrides: further ``gym.make`` world overrides (``{"camera": {"dropout_probability": 0.5}}``).
         measurement: the measurement kind the tuned localizer reads (:mod:`localizers.measurements`).
@@ -167,14 +166,8 @@ class EpisodeSetup:
         return world
 
     def world_overrides(self) -> dict[str, Any]:
-        """The world overrides of the recording: the scenario's own (the square path's heavy
-        robot), then ``env_overrides``."""
-        base: dict[str, Any] = {}
-        if self.scenario == "square":
-            from agents.papers.lidar_far_point.experiment import ROBOT_MASS_KG
-
-            base = {"robot": {"mass_kg": ROBOT_MASS_KG}}
-        return merge_nested(base, dict(self.env_overrides)) if base else dict(self.env_overrides)
+        """The world overrides of the recording (``env_overrides``; every scenario runs the world as shipped)."""
+        return dict(self.env_overrides)
 
     def facts(self) -> WorldFacts:
         """The crowd size and time step of :meth:`world` (same checks)."""

@@ -125,7 +125,7 @@ def test_default_worlds_by_measurement_kind() -> None:
         lidar = tune.default_setup(name)
         assert (lidar.env_id, lidar.scenario, lidar.measurement) == ("crowdloc/CrowdedRoom-v0", "square", "scan")
         assert lidar.episode_steps == experiment.episode_steps(3) + 10  # the paper's 3 laps
-        assert lidar.world_overrides() == {"robot": {"mass_kg": experiment.ROBOT_MASS_KG}}
+        assert lidar.world_overrides() == {}  # the room as shipped: its queue heads give way to the robot
         assert tune.default_fail_m(lidar.env_id) == 1.0  # paper B's failure
     assert tune.default_fail_m(bearing.env_id) == tune.DEFAULT_FAIL_M
     assert tune.default_setup("mcl_lidar", env_id="crowdloc/RoboCupCrowded-v0").scenario == "soccer"

@@ -241,7 +241,9 @@ def run_episode(task: EpisodeTask) -> Episode:
     rec, crowd_xy = record_episode(task.seed, task.crowd_size, task.laps)
     t1 = time.perf_counter()
     log = _UpdateLog(rec, crowd_xy, task.snapshot)
-    loc = make_localizer("far_point_mcl", rec.localizer_map("scan"), dt_s=rec.dt_s, params={"mcl": reference_config().mcl_params()})
+    loc = make_localizer(
+        "far_point_mcl", rec.localizer_map("scan"), dt_s=rec.dt_s, params={"mcl": reference_config().mcl_params()}
+    )
     if not isinstance(loc, FarPointMCL):
         raise TypeError(f"far_point_mcl built a {type(loc).__name__}")
     out = replay_into(loc, rec, episode_rng(task.seed, task.crowd_size), prior=start_prior(rec), measurement="scan",
