@@ -76,11 +76,12 @@ class Recording:
     def steps(self) -> int:
         return int(self.true_pose.shape[0])
 
-    def localizer_map(self, measurement: str) -> LandmarkMap:
+    def localizer_map(self, measurement: str, sensor: str | None = None) -> LandmarkMap:
         """The map a localizer reading ``measurement`` (a kind) gets: :attr:`landmark_map` as the
-        recorded sensor of that kind sees it (cut at a range sensor's height), as the env wrapper gives it."""
-        sensor = find_sensor(measurement, self.sensors, f"a {measurement} localizer on a recording of {self.env_id}")
-        return sensor_map(self.landmark_map, self.sensors[sensor])
+        recorded sensor of that kind (``sensor``, where there are several) sees it (cut at a
+        range sensor's height), as the env wrapper gives it."""
+        name = find_sensor(measurement, self.sensors, f"a {measurement} localizer on a recording of {self.env_id}", sensor)
+        return sensor_map(self.landmark_map, self.sensors[name])
 
     def sensor_of(self, sensor_type: str) -> tuple[str, Mapping[str, Any]] | None:
         """``(name, metadata)`` of the first sensor of a registered type, or None."""
@@ -252,14 +253,15 @@ def commanded_increment(action: NDArray[np.float32], env: LocalizationEnv) -> ND
     return np.array([v * dt * np.cos(half), v * dt * np.sin(half), omega * dt])
 
 
-def stream(recording: Recording, kind: str) -> list[Any]:
+def stream(recording: Recording, kind: str, sensor: str | None = None) -> list[Any]:
     """The ``T`` measurements of ``kind`` a localizer is fed, decoded from the observations only
-    (:func:`localizers.measurements.decode`, with the recorded sensor metadata).
+    (:func:`localizers.measurements.decode`, with the recorded sensor metadata); ``sensor``
+    names the sensor where the recording has several of the kind.
 
     Raises:
-        ConfigError: if the recording has no (or more than one) sensor that ``kind`` reads.
+        ConfigError: if the recording has no (or, without ``sensor``, more than one) sensor that ``kind`` reads.
     """
-    name = find_sensor(kind, recording.sensors, f"replay of {kind} measurements from {recording.env_id}")
+    name = find_sensor(kind, recording.sensors, f"replay of {kind} measurements from {recording.env_id}", sensor)
     meta = recording.sensors[name]
     return [decode(kind, row, meta) for row in recording.observations[meta["key"]]]
 
@@ -398,6 +400,7 @@ def replay_into(
     measurement: str = "bearings",
     read: str = "every_step",
     observer: Callable[[int, Localizer, bool], None] | None = None,
+    sensor: str | None = None,
 ) -> ReplayResult:
     """Feed a recording's observation leaves to ``localizer``, as the online wrapper does.
 
@@ -410,8 +413,9 @@ def replay_into(
         measurement: a registered measurement kind (``"bearings"``: the camera's slots;
             ``"scan"``: the LIDAR's ranges), decoded from the sensor it reads.
         read, observer: see :func:`feed`.
+        sensor: the sensor it reads, where the recording has several of the kind.
     """
-    fed_stream: list[Any] = stream(recording, measurement)
+    fed_stream: list[Any] = stream(recording, measurement, sensor)
     if landmark_subset is not None:
         if measurement_kind(measurement).sensor_type != "bearing_camera":
             raise ValueError(f"landmark_subset applies to bearing measurements, not {measurement!r}")
@@ -430,6 +434,7 @@ def replay(
     landmark_subset: Sequence[int] | None = None,
     prior: str = "auto",
     read: str = "every_step",
+    sensor: str | None = None,
 ) -> ReplayResult:
     """Build registered localizer ``name`` and replay ``recording`` into it.
 
@@ -442,12 +447,13 @@ def replay(
         prior: ``"start"`` (the true start pose), ``"none"``, or ``"auto"``: what the
             registry says the method needs.
         read: see :func:`feed`.
+        sensor: the sensor it reads, where the recording has several of its kind (a second LIDAR).
     """
     if prior not in ("auto", "start", "none"):
         raise ValueError(f"prior must be 'auto', 'start' or 'none', got {prior!r}")
     entry = spec(name)
     needs = entry.needs_prior if prior == "auto" else prior == "start"
-    localizer = make_localizer(name, recording.localizer_map(entry.measurement), dt_s=recording.dt_s, params=params)
+    localizer = make_localizer(name, recording.localizer_map(entry.measurement, sensor), dt_s=recording.dt_s, params=params)
     return replay_into(
         localizer,
         recording,
@@ -456,6 +462,7 @@ def replay(
         landmark_subset=landmark_subset,
         measurement=entry.measurement,
         read=read,
+        sensor=sensor,
     )
 
 

@@ -38,7 +38,7 @@ from localizers.schema import ConfigError, replace_checked
 OVERRIDE_SECTIONS = ("robot", "crowd")
 _SECTION_FIELDS = {"robot": "robot", "crowd": "crowds"}  # keyword -> WorldConfig field
 #: what gym.make takes besides the world overrides (the localizer wrapper's keywords, the time limit)
-MAKE_KEYWORDS = ("localizer", "localizer_params", "prior", "belief_spread", "max_episode_steps")
+MAKE_KEYWORDS = ("localizer", "localizer_params", "prior", "belief_spread", "localizer_sensor", "max_episode_steps")
 #: the options ``reset`` understands
 RESET_OPTIONS = ("robot_pose",)
 
@@ -279,18 +279,33 @@ def apply_overrides(config: WorldConfig, crowd_size: int | None = None, **overri
     """Apply env keyword overrides to a world config, checking every key and value.
 
     A keyword is a world section (``robot``, ``crowd``), the name of one of the world's
-    sensors (its fields are overridden), or a registered sensor type the world lacks (added
-    under that name with its defaults and the given fields).
+    sensors (its fields are overridden), a registered sensor type the world lacks (added
+    under that name with its defaults and the given fields), or ``sensors``: sensor name ->
+    overrides, where a name the world lacks adds a sensor of the given ``type`` (a second
+    LIDAR: ``sensors={"lidar_top": {"type": "lidar", "key": "lidar_top", "height_m": 1.9}}``).
 
     Raises:
         ConfigError: naming an unknown keyword, an unknown key inside a section, or a bad value.
     """
     changes: dict[str, Any] = {}
     sensors: dict[str, Any] = {}
+    named = overrides.pop("sensors", None)
+    if named is not None:
+        if not isinstance(named, Mapping):
+            raise ConfigError(f"env kwarg 'sensors' must map sensor names to mappings, got {type(named).__name__} {named!r}")
+        for name, value in named.items():
+            if not isinstance(value, Mapping):
+                raise ConfigError(f"env kwarg sensors[{name!r}] must be a mapping, got {type(value).__name__} {value!r}")
+            if name not in config.sensors and "type" not in value:
+                raise ConfigError(
+                    f"env kwarg sensors[{name!r}]: world {config.name!r} has no sensor {name!r} (sensors: "
+                    f"{', '.join(config.sensors)}); a new one needs a 'type' (one of {', '.join(sensor_types())})"
+                )
+            sensors[str(name)] = dict(value)
     for section, value in overrides.items():
         known = section in OVERRIDE_SECTIONS or section in config.sensors or section in sensor_types()
         if not known:
-            valid = ["world", "render_mode", "crowd_size", *OVERRIDE_SECTIONS, *config.sensors]
+            valid = ["world", "render_mode", "crowd_size", "sensors", *OVERRIDE_SECTIONS, *config.sensors]
             added = [t for t in sensor_types() if t not in config.sensors]
             raise ConfigError(
                 f"unknown env keyword {section!r} = {value!r} (valid: {', '.join(valid)}; "

@@ -17,6 +17,7 @@ def make_env(
     localizer_params: Mapping[str, Any] | None = None,
     prior: str | None = None,
     belief_spread: bool | None = None,
+    localizer_sensor: str | None = None,
     **kwargs: Any,
 ) -> gym.Env[Any, Any]:
     """Build a :class:`LocalizationEnv` for a shipped world with keyword overrides.
@@ -29,13 +30,15 @@ def make_env(
         localizer_params: overrides of that localizer's parameters.
         prior: ``"start"`` or ``"none"``: whether the localizer gets the true start pose.
         belief_spread: also observe the spread of the localizer's hypotheses (default false).
+        localizer_sensor: the sensor the localizer reads where the world has several of its kind.
         **kwargs: world overrides (``crowd_size``, ``camera={...}``, ...).
     """
     env = LocalizationEnv(world=world, render_mode=render_mode, **kwargs)
     if localizer is None:
-        if localizer_params is not None or prior is not None or belief_spread is not None:
-            raise ValueError("localizer_params, prior and belief_spread need a localizer=... name")
+        if localizer_params is not None or prior is not None or belief_spread is not None or localizer_sensor is not None:
+            raise ValueError("localizer_params, prior, belief_spread and localizer_sensor need a localizer=... name")
         return env
     from localizers.wrappers import LocalizationObservation  # envs -> localizers, never the reverse
 
-    return LocalizationObservation(env, localizer, localizer_params, prior, False if belief_spread is None else belief_spread)
+    spread = False if belief_spread is None else belief_spread
+    return LocalizationObservation(env, localizer, localizer_params, prior, spread, localizer_sensor)

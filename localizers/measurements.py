@@ -76,16 +76,28 @@ def readable_kinds(sensors: Mapping[str, Mapping[str, Any]]) -> list[str]:
     return [name for name, kind in _KINDS.items() if kind.sensor_type in types]
 
 
-def find_sensor(kind: str, sensors: Mapping[str, Mapping[str, Any]], needed_by: str) -> str:
+def find_sensor(kind: str, sensors: Mapping[str, Mapping[str, Any]], needed_by: str, name: str | None = None) -> str:
     """The one sensor (by name) among ``sensors`` (name -> metadata with a ``type``) that
-    ``kind`` reads, or a :class:`ConfigError` saying which sensor is missing or ambiguous."""
+    ``kind`` reads, or a :class:`ConfigError` saying which sensor is missing or ambiguous.
+
+    ``name`` picks one of several (a second LIDAR); it must be a sensor of the right type."""
     want = measurement_kind(kind).sensor_type
-    names = [name for name, meta in sensors.items() if meta.get("type") == want]
+    names = [n for n, meta in sensors.items() if meta.get("type") == want]
+    if name is not None:
+        if name not in names:
+            have = ", ".join(f"{n} ({m.get('type')})" for n, m in sensors.items()) or "none"
+            raise ConfigError(
+                f"{needed_by}: sensor {name!r} is not a {want} sensor of this world ({kind} measurements); it has {have}"
+            )
+        return name
     if not names:
         have = ", ".join(f"{n} ({m.get('type')})" for n, m in sensors.items()) or "none"
         raise ConfigError(f"{needed_by} needs a {want} sensor ({kind} measurements); this world has {have}")
     if len(names) > 1:
-        raise ConfigError(f"{needed_by} reads {kind} from a {want} sensor, and this world has several: {', '.join(names)}")
+        raise ConfigError(
+            f"{needed_by} reads {kind} from a {want} sensor, and this world has several: {', '.join(names)}; name one "
+            "(gym.make(..., localizer_sensor=NAME))"
+        )
     return names[0]
 
 

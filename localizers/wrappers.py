@@ -102,6 +102,8 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         prior: ``"start"`` to give the localizer the true start pose (what the paper's dead
             reckoning and Kalman filter assume), ``"none"``; default: what the localizer needs.
         belief_spread: also observe the spread of the localizer's hypotheses (module docstring).
+        sensor: the name of the sensor it reads, where the world has several of its kind (a
+            second LIDAR); default: the world's one sensor of that kind.
 
     Raises:
         ConfigError: unknown localizer or parameter, a world without the sensor it needs, or
@@ -115,9 +117,10 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         localizer_params: Mapping[str, Any] | None = None,
         prior: str | None = None,
         belief_spread: bool = False,
+        sensor: str | None = None,
     ) -> None:
         gym.utils.RecordConstructorArgs.__init__(
-            self, localizer=localizer, localizer_params=localizer_params, prior=prior, belief_spread=belief_spread
+            self, localizer=localizer, localizer_params=localizer_params, prior=prior, belief_spread=belief_spread, sensor=sensor
         )
         if not isinstance(belief_spread, bool):
             raise ConfigError(f"belief_spread must be true or false, got {belief_spread!r}")
@@ -149,7 +152,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
             entry = spec(localizer)
             self.measurement = entry.measurement
             self.localizer_name = localizer
-            self._sensor = find_sensor(self.measurement, sensors, f"localizer {localizer!r}")
+            self._sensor = find_sensor(self.measurement, sensors, f"localizer {localizer!r}", sensor)
             self.landmark_map = sensor_map(self.landmark_map, sensors[self._sensor])
             self.localizer: Localizer = make_localizer(localizer, self.landmark_map, dt_s=dt_s, params=localizer_params)
             default_prior = "start" if entry.needs_prior else "none"
@@ -164,7 +167,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
             self.localizer_name = type(localizer).__name__
             # a ready localizer names its kind (a ``measurement`` attribute) or gets the first the world offers
             self.measurement = getattr(localizer, "measurement", None) or _first_kind(sensors, self.localizer_name)
-            self._sensor = find_sensor(self.measurement, sensors, f"localizer {self.localizer_name!r}")
+            self._sensor = find_sensor(self.measurement, sensors, f"localizer {self.localizer_name!r}", sensor)
             self.localizer = localizer
             default_prior = "none"
         self._decode = measurement_kind(self.measurement).decode
