@@ -10,8 +10,8 @@ The camera finds landmarks by colour, so it can be fooled in two ways:
 - *persistent false detections* (``distractors``): objects of a landmark's colour at fixed
   places beyond the field (the candidate-set paper's "blue or yellow objects outside the
   field" seen by the omnidirectional camera). In a frame where landmark k's slot would be
-  empty (the real landmark occluded, out of range, outside the field of view or dropped
-  out) and a distractor of k is in view, the slot reports the distractor's bearing, so a
+  empty because the real landmark is occluded, out of range or outside the field of view,
+  and a distractor of k is in view, the slot reports the distractor's bearing, so a
   filter sees the same wrong bearing frame after frame; flagged in
   ``info["distractor_detections"]``. See :class:`DistractorConfig` for the rules.
 """
@@ -60,8 +60,10 @@ class DistractorConfig:
       ``max_range_m`` does not apply: it says how far that pole (a small one) can be made
       out, and a distractor is another object of its own size;
     - when several distractors of one landmark are in view, the nearest (centre distance) is reported;
-    - dropout applies to the real landmark only (a dropped landmark leaves its slot to a
-      distractor in view), and a random false detection in the slot takes precedence over both;
+    - dropout drops the slot, whichever object would have filled it (a missed detection, or
+      the candidate-set paper's Exp 2 using a random subset of the landmarks: a dropped
+      landmark is not replaced by its distractor), and a random false detection in the slot
+      takes precedence over everything;
     - the reported bearing carries the camera's bearing noise (the slot's own noise draw:
       distractors draw no random numbers);
     - it is not a body: it neither collides nor hides anything.
@@ -336,8 +338,9 @@ def _bearing_slots(
 ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
     """Fill the ``(L, 3)`` camera slots; also ``(L,)`` the distractor reported in each slot (its row, -1 for none).
 
-    Per slot, first match wins: a random false detection, the landmark (visible and not
-    dropped out), the nearest distractor in view of that landmark; else the slot stays zero.
+    Per slot, first match wins: a random false detection; nothing when the slot drops out
+    (a missed detection drops the slot, whichever object would have filled it); the landmark
+    when visible; the nearest distractor in view of that landmark; else the slot stays zero.
     """
     n = landmark_xy.shape[0]
     obs = np.zeros((n, 3), dtype=np.float32)
@@ -346,7 +349,9 @@ def _bearing_slots(
     for j in range(n):
         if draws[1, j] < false_rate:
             bearing = (draws[2, j] * 2.0 - 1.0) * math.pi
-        elif visible[j] and draws[0, j] >= dropout:
+        elif draws[0, j] < dropout:
+            continue
+        elif visible[j]:
             bearing = math.atan2(landmark_xy[j, 1] - origin[1], landmark_xy[j, 0] - origin[0]) - heading + noise[j]
         elif nearest[j] >= 0:
             d = nearest[j]

@@ -4,6 +4,7 @@ landmark is not (the bearing camera's ``distractors``)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
@@ -146,13 +147,15 @@ def test_the_nearest_of_several_is_reported() -> None:
         env.close()
 
 
-def test_a_dropped_landmark_leaves_its_slot_to_a_distractor_and_a_random_false_detection_comes_first() -> None:
-    env = static_env([FAKE_L5], dropout_probability=1.0)
-    obs, info = place(env, NEAR)
-    assert info["visible_landmarks"][0] and info["distractor_detections"].tolist() == [True, False, False]
-    assert reported(obs, 0) == pytest.approx(bearing(NEAR, (5.3, 10.3)), abs=1e-6)
-    assert slots(obs)[1:, 0].tolist() == [0.0, 0.0]  # dropped, no distractor of theirs
-    env.close()
+def test_a_dropped_slot_stays_empty_and_a_random_false_detection_comes_first() -> None:
+    # dropout drops the slot (a missed detection, or Exp 2's random landmark subset): the
+    # landmark is not replaced by its distractor, in view or not
+    for pose in (NEAR, FAR):
+        env = static_env([FAKE_L5], dropout_probability=1.0)
+        obs, info = place(env, pose)
+        assert not info["distractor_detections"].any()
+        assert slots(obs)[:, 0].tolist() == [0.0, 0.0, 0.0]
+        env.close()
 
     env = static_env([FAKE_L5], false_detection_probability=1.0)
     _, info = place(env, FAR)
@@ -213,11 +216,24 @@ def test_determinism_and_no_extra_random_numbers() -> None:
     assert reports > 0  # the rollout did meet them
 
 
-def test_shipped_worlds_have_none() -> None:
+def test_the_soccer_worlds_ship_distractors_beyond_their_fields_and_the_default_has_none() -> None:
     for name in ("robocup_static", "robocup_crowded"):
-        camera = load_world(name).sensors["camera"]
-        assert isinstance(camera, BearingCameraConfig) and camera.distractors == ()
+        world = load_world(name)
+        camera = world.sensors["camera"]
+        assert isinstance(camera, BearingCameraConfig) and len(camera.distractors) >= 2
+        xmin, ymin, xmax, ymax = world.field_m
+        for d in camera.distractors:
+            assert not (xmin <= d.x_m <= xmax and ymin <= d.y_m <= ymax)  # beyond the field
     assert BearingCameraConfig().distractors == ()
+    # the crowded field's keeper hides its goal posts: their distractors get reported
+    flags = np.array([info["distractor_detections"] for _, info in rollout(list(_shipped("robocup_crowded")))])
+    assert flags.any()
+
+
+def _shipped(name: str) -> list[dict[str, Any]]:
+    camera = load_world(name).sensors["camera"]
+    assert isinstance(camera, BearingCameraConfig)
+    return [dataclasses.asdict(d) for d in camera.distractors]
 
 
 @pytest.mark.parametrize(
@@ -247,6 +263,8 @@ def test_bad_distractors_are_refused(distractor: dict[str, Any], message: str) -
 
 def test_bad_distractors_in_a_world_file_name_the_file_and_the_entry(tmp_path: Path) -> None:
     text = world_path("robocup_static").read_text()
+    shipped = text.index("    distractors:")
+    text = text[:shipped] + text[text.index("crowds:") :]  # the file without its own distractors
     assert "noise_std_rad: 0.0174532925199433   # 1 deg\n" in text
     good = text.replace(
         "    noise_std_rad: 0.0174532925199433   # 1 deg\n",
@@ -299,5 +317,5 @@ def test_a_recording_keeps_the_distractor_flags() -> None:
     flags = rec.distractor_detections[:, 0]
     assert flags.any() and not rec.distractor_detections[:, 1:].any()
     assert not (flags & rec.visible[:, 0]).any()  # never while L5 itself is in view
-    plain = record("crowdloc/RoboCupStatic-v0", exp1_driver, seed=4, max_steps=300)
+    plain = record("crowdloc/RoboCupStatic-v0", exp1_driver, seed=4, max_steps=300, env_kwargs={"camera": {"distractors": []}})
     assert not plain.distractor_detections.any()

@@ -11,8 +11,10 @@ import pytest
 from envs import LocalizationEnv
 from envs.config import RobotConfig
 from localizers.schema import ConfigError
+from tests.envs.exact import EXACT
 
-NO_NOISE = {"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0}
+#: noise-free and without the world's systematic errors (the soccer worlds ship some)
+NO_NOISE = {"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0, **EXACT}
 CENTRE = (2.5, 5.0, 0.0)  # robocup_static: 5 m x 10 m, nothing within 2.5 m
 SLIPPY = {
     "slip_per_accel_s2": 0.01,

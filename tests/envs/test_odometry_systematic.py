@@ -24,8 +24,10 @@ from envs.sensors.odometry import Odometry, OdometryConfig
 from localizers.geometry import compose, wrap_angle
 from localizers.motion import odometry_noise_std, sample_odometry
 from localizers.schema import ConfigError
+from tests.envs.exact import EXACT
 
-NO_NOISE = {"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0}
+#: noise-free and without the world's systematic errors (the soccer worlds ship some)
+NO_NOISE = {"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0, **EXACT}
 STATIC = "crowdloc/RoboCupStatic-v0"  # 5 m x 10 m, 1.75 m/s, 3 rad/s, dt 1/30 s
 SIDE_M = 4.0
 LEG_STEPS, TURN_STEPS = 80, 20
@@ -33,7 +35,9 @@ LEG_STEPS, TURN_STEPS = 80, 20
 
 def long_field() -> LocalizationEnv:
     """The static soccer field stretched to 25 m along x, for a 20.8 m straight drive."""
-    config = dataclasses.replace(load_world("robocup_static"), size_m=(25.0, 10.0))
+    world = load_world("robocup_static")
+    camera = dataclasses.replace(world.sensors["camera"], distractors=())  # they would stand inside the longer field
+    config = dataclasses.replace(world, size_m=(25.0, 10.0), sensors={**world.sensors, "camera": camera})
     return LocalizationEnv(config, crowd_size=0, odometry=NO_NOISE)
 
 
@@ -105,8 +109,9 @@ def test_the_defaults_read_exactly_as_before(wheelbase_m: float) -> None:
 
 
 def test_an_env_with_error_free_fields_named_rolls_out_identically() -> None:
-    error_free = {"wheelbase_m": 0.55, "wheel_diameter_ratio": 1.0, "wheelbase_ratio": 1.0, "distance_scale": 1.0}
-    envs = [gym.make(STATIC, crowd_size=3), gym.make(STATIC, crowd_size=3, odometry=error_free)]
+    # the error-free fields take the exact code path: the wheelbase then makes no difference
+    error_free = {"wheelbase_m": 0.55, **EXACT}
+    envs = [gym.make(STATIC, crowd_size=3, odometry=EXACT), gym.make(STATIC, crowd_size=3, odometry=error_free)]
     actions = np.random.default_rng(5).uniform(-1, 1, size=(60, 2)).astype(np.float32)
     first = [env.reset(seed=9)[0] for env in envs]
     np.testing.assert_array_equal(first[0]["odometry"], first[1]["odometry"])
@@ -150,7 +155,7 @@ def test_one_step_reads_what_the_wheel_encoders_give(action: tuple[float, float]
 
 @pytest.mark.parametrize("k", [1.0221, 0.97, 1.1])
 def test_a_straight_drive_reads_long_by_the_distance_scale(k: float) -> None:
-    env = with_odometry(long_field(), **NO_NOISE, distance_scale=k)
+    env = with_odometry(long_field(), **{**NO_NOISE, "distance_scale": k})
     steps = 360
     a_v = np.float32(20.8 / (steps * env.config.robot.max_speed_mps * env.config.dt_s))
     start = np.array([1.0, 2.0, 0.0])
@@ -167,7 +172,7 @@ def test_a_straight_drive_reads_long_by_the_distance_scale(k: float) -> None:
 @pytest.mark.parametrize(("e_d", "b"), [(1.002, 0.4), (0.995, 0.4), (1.002, 0.55)])
 @pytest.mark.parametrize("k", [1.0, 1.0221])
 def test_unequal_wheels_bend_a_straight_drive(e_d: float, b: float, k: float) -> None:
-    env = with_odometry(long_field(), **NO_NOISE, wheelbase_m=b, wheel_diameter_ratio=e_d, distance_scale=k)
+    env = with_odometry(long_field(), **{**NO_NOISE, "wheelbase_m": b, "wheel_diameter_ratio": e_d, "distance_scale": k})
     steps = 360
     a_v = np.float32(20.8 / (steps * env.config.robot.max_speed_mps * env.config.dt_s))
     start = np.array([1.0, 2.0, 0.0])

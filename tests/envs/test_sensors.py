@@ -24,7 +24,9 @@ def slots(obs: dict) -> np.ndarray:
 
 
 def static_env(**kwargs: object) -> gym.Env:
-    return gym.make("crowdloc/RoboCupStatic-v0", **kwargs)
+    """Exp 1's field without its distractors (tests of what the camera sees of the landmarks)."""
+    camera = {"distractors": [], **kwargs.pop("camera", {})}  # type: ignore[dict-item]
+    return gym.make("crowdloc/RoboCupStatic-v0", camera=camera, **kwargs)
 
 
 def test_static_world_landmark_order() -> None:
