@@ -1,5 +1,11 @@
 """Statistics of the runs and the verdicts on the paper's claims, as data (the words are :mod:`.report`'s).
 
+Every statistic exists against two yardsticks (``Against``): ``"reference"``, the reference
+pose of the second LIDAR above the crowd (the paper's measure: its failures are estimates
+>= ``FAIL_M`` from the reference), and ``"truth"``, the simulator's true pose (ours). The
+verdicts on the claims are taken on the paper's measure (:data:`VERDICT_MEASURE`); the
+truth-based ones are computed beside them.
+
 Each claim C1..C7 gets a :class:`Verdict`: its id, whether it holds, and the numbers the
 verdict rests on. The criteria are fixed here (``ERROR_GROWTH``, ``FLAT_SPREAD`` and the
 experiment's ``WORKS_FAILURE_RATE``); the paper's thresholds come from :mod:`.paper`.
@@ -19,12 +25,16 @@ from agents import metrics
 from agents.replay import Recording
 
 from .experiment import CROWD_SIZE, DENSITY_PARAMS, WORKS_FAILURE_RATE, Pair, Plan, both
-from .jobs import Episode, Run
+from .jobs import REFERENCE_KEY, Episode, Run, reference_runs
 from .paper import FAIL_M, HIT_THRESHOLD, HITS, LARGE_FAIL_M, SAMPLING_THRESHOLD
 
 Array = NDArray[np.float64]
 Outcome = Literal["holds", "partly holds", "does not hold"]
+Against = Literal["reference", "truth"]
 StatsTable = Mapping[tuple[str, int], "Stats"]
+
+VERDICT_MEASURE: Against = "reference"  # the paper's claims are about its measure: error against its reference
+MEASURES: tuple[Against, ...] = ("reference", "truth")
 
 ERROR_GROWTH = 1.2  # C1: raw MCL's error "grows" when its mean from the threshold up is > 1.2x the mean below
 FLAT_SPREAD = 1.5  # C2: the far-point error "stays low" when its largest mean is < 1.5x its smallest
@@ -72,23 +82,33 @@ class Stats:
         return self.failure_rate < WORKS_FAILURE_RATE
 
 
-def stats_of(runs: Sequence[Run]) -> Stats:
-    """The statistics of one configuration's runs.
+def errors_against(run: Run, against: Against) -> tuple[Array, Array]:
+    """``(K,)`` position and heading errors of a run against the reference or the true pose."""
+    if against == "truth":
+        return run.errors_m, run.heading_errors_rad
+    if against == "reference":
+        return run.ref_errors_m, run.ref_heading_errors_rad
+    raise ValueError(f"against must be 'reference' or 'truth', got {against!r}")
+
+
+def stats_of(runs: Sequence[Run], against: Against = "truth") -> Stats:
+    """The statistics of one configuration's runs, their errors measured ``against`` the true or the reference pose.
 
     Raises:
         ValueError: without runs.
     """
     if not runs:
         raise ValueError("stats_of: no runs")
-    err = np.concatenate([r.errors_m for r in runs])
-    head = np.concatenate([r.heading_errors_rad for r in runs])
-    per_run_mean = [metrics.mean_sd(r.errors_m)[0] for r in runs]
-    fails = np.array([metrics.failure_count(r.errors_m, FAIL_M) for r in runs], dtype=np.float64)
+    errors = [errors_against(r, against) for r in runs]
+    err = np.concatenate([e for e, _ in errors])
+    head = np.concatenate([h for _, h in errors])
+    per_run_mean = [metrics.mean_sd(e)[0] for e, _ in errors]
+    fails = np.array([metrics.failure_count(e, FAIL_M) for e, _ in errors], dtype=np.float64)
     failed = err >= FAIL_M
     spread = metrics.over_seeds(per_run_mean)
     return Stats(
         runs=len(runs),
-        estimates=int(runs[0].errors_m.size),
+        estimates=int(errors[0][0].size),
         mean_m=float(np.mean(err)),
         sd_m=float(np.std(err)),
         seed_sd_m=spread.sd,
@@ -104,12 +124,18 @@ def stats_of(runs: Sequence[Run]) -> Stats:
     )
 
 
-def table_stats(runs: Sequence[Run]) -> dict[tuple[str, int], Stats]:
-    """Statistics per (configuration key, crowd size)."""
+def table_stats(runs: Sequence[Run], against: Against = "truth") -> dict[tuple[str, int], Stats]:
+    """Statistics per (configuration key, crowd size), errors measured ``against`` the true or the reference pose."""
     groups: dict[tuple[str, int], list[Run]] = {}
     for r in runs:
         groups.setdefault((r.key, r.crowd_size), []).append(r)
-    return {k: stats_of(sorted(v, key=lambda r: r.seed)) for k, v in groups.items()}
+    return {k: stats_of(sorted(v, key=lambda r: r.seed), against) for k, v in groups.items()}
+
+
+def reference_stats(episodes: Sequence[Episode]) -> dict[int, Stats]:
+    """Per crowd size, the reference pose's own error against the truth (how good the paper's yardstick is here)."""
+    st = table_stats(reference_runs(episodes), "truth")
+    return {n: s for (key, n), s in sorted(st.items(), key=lambda kv: kv[0][1]) if key == REFERENCE_KEY}
 
 
 def pair_stats(st: StatsTable, pair: Pair, crowd_size: int = CROWD_SIZE) -> tuple[Stats, Stats]:
@@ -288,7 +314,7 @@ class RunFacts:
         median_estimates: their median.
         duration_s, contacts, push_m: simulated seconds, contacts and push per run.
         window_points: points in the far-point filter's window at an update.
-        record_s, pass_s: seconds of recording and of the far-point pass per run.
+        record_s, pass_s, reference_s: seconds of recording, of the far-point pass and of the reference pass per run.
         steps: steps (LIDAR scans) per run.
         odometry_excess_m: odometry path length beyond the true one, per run.
         cpu_s: CPU seconds of all tasks (every episode and replay).
@@ -303,6 +329,7 @@ class RunFacts:
     window_points: float
     record_s: float
     pass_s: float
+    reference_s: float
     steps: int
     odometry_excess_m: float
     cpu_s: float
@@ -325,6 +352,7 @@ def run_facts(episodes: Sequence[Episode], runs: Sequence[Run]) -> RunFacts:
         window_points=mean(np.concatenate([ep.accumulated_points for ep in main])),
         record_s=mean([ep.record_s for ep in main]),
         pass_s=mean([ep.pass_s for ep in main]),
+        reference_s=mean([ep.reference_s for ep in main]),
         steps=int(np.mean([ep.recording.steps for ep in main])),
         odometry_excess_m=mean(excess),
         cpu_s=sum(ep.cpu_s for ep in episodes) + sum(r.cpu_s for r in runs),
@@ -334,30 +362,43 @@ def run_facts(episodes: Sequence[Episode], runs: Sequence[Run]) -> RunFacts:
 
 @dataclass(frozen=True)
 class DensityRow:
-    """One crowd size of the crowd-size sweep (``DENSITY_PARAMS``)."""
+    """One crowd size of the crowd-size sweep (``DENSITY_PARAMS``).
+
+    ``raw`` / ``far``: against the truth; ``raw_ref`` / ``far_ref``: against the reference;
+    ``reference``: the reference pose against the truth.
+    """
 
     people: int
     raw: Stats
     far: Stats
     raw_on_wall_pct: float
     far_on_wall_pct: float
+    raw_ref: Stats
+    far_ref: Stats
+    reference: Stats
+
+    def variant(self, far: bool, against: Against) -> Stats:
+        if against == "truth":
+            return self.far if far else self.raw
+        return self.far_ref if far else self.raw_ref
 
 
-def density_rows(st: StatsTable, episodes: Sequence[Episode]) -> list[DensityRow]:
+def density_rows(st: StatsTable, episodes: Sequence[Episode], st_ref: StatsTable) -> list[DensityRow]:
     pair = both(DENSITY_PARAMS)
+    ref = reference_stats(episodes)
     rows = []
     for n in sorted({ep.task.crowd_size for ep in episodes}):
         eps = [ep for ep in episodes if ep.task.crowd_size == n]
         on_wall = {k: float(beam_pct([ep.beams[k] for ep in eps])[0]) for k in ("raw", "far")}
-        rows.append(DensityRow(n, *pair_stats(st, pair, n), on_wall["raw"], on_wall["far"]))
+        rows.append(DensityRow(n, *pair_stats(st, pair, n), on_wall["raw"], on_wall["far"], *pair_stats(st_ref, pair, n), ref[n]))
     return rows
 
 
-def first_failing(rows: Sequence[DensityRow]) -> dict[bool, int | None]:
+def first_failing(rows: Sequence[DensityRow], against: Against = VERDICT_MEASURE) -> dict[bool, int | None]:
     """Per variant (far points?), the first crowd size at which it stops working (None: none)."""
     out: dict[bool, int | None] = {}
     for far in (False, True):
-        out[far] = next((r.people for r in rows if not (r.far if far else r.raw).works), None)
+        out[far] = next((r.people for r in rows if not r.variant(far, against).works), None)
     return out
 
 
@@ -408,15 +449,32 @@ def empty_room(st: StatsTable, episodes: Sequence[Episode]) -> EmptyRoom | None:
 
 
 def results_data(plan: Plan, st: StatsTable, runs: Sequence[Run], episodes: Sequence[Episode], identity_m: float,
-                 verdicts: Sequence[Mapping[str, Any]]) -> dict[str, Any]:  # fmt: skip
-    """Everything ``results.json`` holds: the plan, the statistics, the verdicts, every run's errors."""
+                 verdicts: Sequence[Mapping[str, Any]], st_ref: StatsTable,
+                 verdicts_truth: Sequence[Mapping[str, Any]]) -> dict[str, Any]:  # fmt: skip
+    """Everything ``results.json`` holds: the plan, the statistics (against the truth: ``stats``;
+    against the reference: ``stats_vs_reference``; the reference against the truth:
+    ``reference``), the verdicts (on the paper's measure, ``verdicts``; on the truth,
+    ``verdicts_vs_truth``), every run's errors against both."""
     return {
         "plan": dataclasses.asdict(plan),
         "estimates_per_run": sorted({int(ep.update_steps.size) for ep in main_episodes(episodes)}),
         "identity_max_difference_m": identity_m,
+        "verdict_measure": VERDICT_MEASURE,
         "stats": {f"{key}@{n}": dataclasses.asdict(s) for (key, n), s in st.items()},
+        "stats_vs_reference": {f"{key}@{n}": dataclasses.asdict(s) for (key, n), s in st_ref.items()},
+        "reference": {str(n): dataclasses.asdict(s) for n, s in reference_stats(episodes).items()},
         "verdicts": list(verdicts),
-        "runs": [{"key": r.key, "seed": r.seed, "crowd_size": r.crowd_size, "errors_m": r.errors_m.tolist()} for r in runs],
+        "verdicts_vs_truth": list(verdicts_truth),
+        "runs": [
+            {
+                "key": r.key,
+                "seed": r.seed,
+                "crowd_size": r.crowd_size,
+                "errors_m": r.errors_m.tolist(),
+                "ref_errors_m": r.ref_errors_m.tolist(),
+            }
+            for r in runs
+        ],  # fmt: skip
         "episodes": [
             {
                 "seed": ep.task.seed,
@@ -424,7 +482,8 @@ def results_data(plan: Plan, st: StatsTable, runs: Sequence[Run], episodes: Sequ
                 "contacts": ep.contacts,
                 "push_m": ep.push_m,
                 "updates": int(ep.update_steps.size),
+                "reference_errors_m": r.errors_m.tolist(),
             }
-            for ep in episodes
+            for ep, r in zip(episodes, reference_runs(episodes))
         ],  # fmt: skip
     }

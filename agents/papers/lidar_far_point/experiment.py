@@ -15,7 +15,7 @@ from typing import Any
 from agents.scenarios import OpenLoopDriver, polygon_commands, square_driver, square_vertices
 
 from . import world
-from .paper import HIT_SWEEP_SAMPLING, HITS, LAPS, SAMPLINGS, SPEED_MPS, UPDATE_TRAVEL_M
+from .paper import HIT_SWEEP_SAMPLING, HITS, LAPS, REFERENCE_LIDAR_HEIGHT_M, SAMPLINGS, SPEED_MPS, UPDATE_TRAVEL_M
 
 Params = tuple[tuple[str, Any], ...]
 
@@ -35,7 +35,15 @@ DENSITIES = (0, 8, 16, 24, 30)
 #: the fixed configuration of the crowd-size sweep (ours; see :func:`density_note`)
 DENSITY_PARAMS: Params = (("sampling", 0.5), ("hit_std_m", 0.5))
 #: the configuration of the real ``far_point_mcl`` pass (the MCL's shipped defaults)
-REFERENCE_PARAMS: Params = (("sampling", 0.1), ("hit_std_m", 0.2))
+PASS_PARAMS: Params = (("sampling", 0.1), ("hit_std_m", 0.2))
+#: the reference LIDAR the paper put above the crowd, added to the room under this name through
+#: the env's ``sensors`` keyword (:func:`env_kwargs`); the LIDAR under test is the room's own
+REFERENCE_SENSOR = "lidar_top"
+#: ours: the reference pose is ``mcl_lidar`` on the reference LIDAR's scans with its shipped
+#: parameters (the paper's MCL: the beam model; the paper does not say how its reference MCL
+#: was set), on the experiment's update schedule, from the known start pose
+REFERENCE_MCL_PARAMS: Params = ()
+REFERENCE_RNG_SALT = 0x70F  # ours: the reference MCL's own generator, independent of the configurations'
 AMCL_LF: Params = (
     ("model", "likelihood_field"), ("z_hit", 0.5), ("z_short", 0.0), ("z_max", 0.0), ("z_rand", 0.5), ("hit_std_m", 0.2),
 )  # fmt: skip
@@ -108,9 +116,14 @@ def both(params: Iterable[tuple[str, Any]]) -> Pair:
     return Config(False, p), Config(True, p)
 
 
-def reference_config() -> Config:
+def pass_config() -> Config:
     """The configuration of the real ``far_point_mcl`` pass."""
-    return Config(True, normalized(REFERENCE_PARAMS))
+    return Config(True, normalized(PASS_PARAMS))
+
+
+def reference_mcl_params() -> dict[str, Any]:
+    """The reference ``mcl_lidar``'s overrides: the experiment's update schedule, then ``REFERENCE_MCL_PARAMS``."""
+    return Config(False, normalized(REFERENCE_MCL_PARAMS)).mcl_params()
 
 
 def sampling_params(sampling: float) -> Params:
@@ -150,7 +163,7 @@ class Plan:
         """Every configuration run at the paper's crowd size, each once."""
         out: dict[str, Config] = {}
         pairs = [p for _, p in self.sampling_configs()] + [p for _, p in self.hit_configs()]
-        pairs += [p for _, p in self.amcl_configs()] + [both(DENSITY_PARAMS), both(REFERENCE_PARAMS)]
+        pairs += [p for _, p in self.amcl_configs()] + [both(DENSITY_PARAMS), both(PASS_PARAMS)]
         for pair in pairs:
             for c in pair:
                 out.setdefault(c.key, c)
@@ -183,9 +196,18 @@ def start_pose() -> tuple[float, float, float]:
     return (x, y, 0.0)
 
 
+def reference_lidar() -> dict[str, Any]:
+    """The reference LIDAR's fields: the room's LIDAR (fov, beams, range, noise) at the paper's reference height."""
+    lidar = world.lidar()
+    return {
+        "type": "lidar", "key": REFERENCE_SENSOR, "height_m": REFERENCE_LIDAR_HEIGHT_M, "fov_rad": lidar.fov_rad,
+        "beams": lidar.beams, "max_range_m": lidar.max_range_m, "range_std_m": lidar.range_std_m,
+    }  # fmt: skip
+
+
 def env_kwargs(crowd_size: int, steps: int) -> dict[str, Any]:
-    """``gym.make`` arguments of the experiment's room."""
-    return {"crowd_size": crowd_size, "max_episode_steps": steps}
+    """``gym.make`` arguments of the experiment's room: its crowd size, the time limit and the reference LIDAR."""
+    return {"crowd_size": crowd_size, "max_episode_steps": steps, "sensors": {REFERENCE_SENSOR: reference_lidar()}}
 
 
 def driver_factory(laps: int) -> Callable[[Any], OpenLoopDriver]:

@@ -14,23 +14,25 @@ from . import world
 from .analysis import DensityRow, Stats, StatsTable
 from .experiment import CROWD_SIZE, VARIANTS, Pair, Plan, both, density_note, hit_params, sampling_params
 from .jobs import Episode, Run
-from .paper import FAIL_M, HIT_SWEEP_SAMPLING, HIT_THRESHOLD, SAMPLING_THRESHOLD
+from .paper import FAIL_M, HIT_SWEEP_SAMPLING, HIT_THRESHOLD, REFERENCE_LIDAR_HEIGHT_M, SAMPLING_THRESHOLD
 
 Series = dict[str, tuple[np.ndarray, np.ndarray]]
 
 
-def _series(stats: dict[bool, Sequence[Stats]]) -> tuple[Series, Series]:
-    """Per variant: (mean error, its sd) and (failures per run, their sd over the runs)."""
+def _series(stats: dict[tuple[bool, str], Sequence[Stats]]) -> tuple[Series, Series]:
+    """Per (variant, measure): (mean error, its sd) and (failures per run, their sd over the runs)."""
     err: Series = {}
     fail: Series = {}
-    for far, ss in stats.items():
-        err[VARIANTS[far]] = (np.array([s.mean_m for s in ss]), np.array([s.sd_m for s in ss]))
-        fail[VARIANTS[far]] = (np.array([s.failures for s in ss]), np.array([s.failures_sd for s in ss]))
+    for (far, against), ss in stats.items():
+        label = f"{VARIANTS[far]}, vs {against}"
+        err[label] = (np.array([s.mean_m for s in ss]), np.array([s.sd_m for s in ss]))
+        fail[label] = (np.array([s.failures for s in ss]), np.array([s.failures_sd for s in ss]))
     return err, fail
 
 
-def sweep_figures(out: Path, plan: Plan, st: StatsTable) -> dict[str, Path]:
-    """Figs 7 and 8 (sampling), 10 and 11 (hit): error and failures per run against the swept value."""
+def sweep_figures(out: Path, plan: Plan, st: StatsTable, st_ref: StatsTable) -> dict[str, Path]:
+    """Figs 7 and 8 (sampling), 10 and 11 (hit): error and failures per run against the swept value,
+    measured against the reference (the paper's) and against the truth."""
     figs: dict[str, Path] = {}
     sweeps: tuple[tuple[str, list[tuple[float, Pair]], str, str, str], ...] = (
         ("sampling", plan.sampling_configs(), "sampling parameter", "Fig. 7", "Fig. 8"),
@@ -38,7 +40,8 @@ def sweep_figures(out: Path, plan: Plan, st: StatsTable) -> dict[str, Path]:
     )
     for name, points, xlabel, fig_e, fig_f in sweeps:
         xs = [x for x, _ in points]
-        err, fail = _series({far: [st[pair[int(far)].key, CROWD_SIZE] for _, pair in points] for far in (False, True)})
+        err, fail = _series({(far, against): [table[pair[int(far)].key, CROWD_SIZE] for _, pair in points]
+                             for against, table in (("reference", st_ref), ("truth", st)) for far in (False, True)})  # fmt: skip
         n = st[points[0][1][0].key, CROWD_SIZE]
         figs[f"{name}_error"] = plots.errorbar_sweep(
             out / f"{name}_error.png", xs, err, xlabel=xlabel, ylabel="position error [m]",
@@ -54,7 +57,8 @@ def sweep_figures(out: Path, plan: Plan, st: StatsTable) -> dict[str, Path]:
 def density_figures(out: Path, rows: Sequence[DensityRow]) -> dict[str, Path]:
     """Error and failures per run against the crowd size."""
     people = [r.people for r in rows]
-    err, fail = _series({False: [r.raw for r in rows], True: [r.far for r in rows]})
+    err, fail = _series({(far, against): [r.variant(far, against) for r in rows]
+                         for against in ("reference", "truth") for far in (False, True)})  # fmt: skip
     return {
         "density_error": plots.errorbar_sweep(out / "density_error.png", people, err, xlabel="people in the queues",
                                               ylabel="position error [m]",
@@ -85,7 +89,7 @@ def snapshot_figure(out: Path, episodes: Sequence[Episode]) -> dict[str, Path]:
 
 
 def trajectory_figure(out: Path, runs: Sequence[Run], episodes: Sequence[Episode]) -> dict[str, Path]:
-    """The paper's Figs 6 and 9 for our first seed: both variants where raw MCL is said to degrade."""
+    """The paper's Figs 6 and 9 for our first seed: both variants where raw MCL is said to degrade, and the reference."""
     ep0 = min((ep for ep in episodes if ep.task.crowd_size == CROWD_SIZE), key=lambda e: e.task.seed)
     estimates: dict[str, np.ndarray] = {}
     for label, params in ((f"sampling {SAMPLING_THRESHOLD:g}", sampling_params(SAMPLING_THRESHOLD)),
@@ -96,6 +100,7 @@ def trajectory_figure(out: Path, runs: Sequence[Run], episodes: Sequence[Episode
                 estimates[f"{c.variant}, {label}"] = r.estimates
     if not estimates:
         return {}
+    estimates[f"reference ({REFERENCE_LIDAR_HEIGHT_M:g} m LIDAR)"] = ep0.reference_estimates
     xmin, ymin, xmax, ymax = ep0.recording.landmark_map.bounds_m
     path = plots.trajectory_panels(
         out / "trajectories.png", ep0.recording.true_pose, estimates, np.zeros((0, 2)), (), (xmax - xmin, ymax - ymin),
@@ -106,10 +111,10 @@ def trajectory_figure(out: Path, runs: Sequence[Run], episodes: Sequence[Episode
 
 
 def make_figures(out: Path, plan: Plan, st: StatsTable, runs: Sequence[Run], episodes: Sequence[Episode],
-                 rows: Sequence[DensityRow]) -> dict[str, Path]:  # fmt: skip
+                 rows: Sequence[DensityRow], st_ref: StatsTable) -> dict[str, Path]:  # fmt: skip
     """Every figure of the report, by name, written into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     return {
-        **sweep_figures(out, plan, st), **density_figures(out, rows), **snapshot_figure(out, episodes),
+        **sweep_figures(out, plan, st, st_ref), **density_figures(out, rows), **snapshot_figure(out, episodes),
         **trajectory_figure(out, runs, episodes),
     }  # fmt: skip

@@ -1,14 +1,19 @@
-"""The runs: record each episode once, one real ``far_point_mcl`` pass over it, then the MCL replays.
+"""The runs: record each episode once, one real ``far_point_mcl`` pass and one reference pass over it, then the MCL replays.
 
 How the sweep stays affordable: each (seed, crowd size) episode is recorded once (the world
-does not depend on the localizer). The MCL weighs a scan only every 0.5 m of travel and the
-far-point filter uses odometry only, so neither the update steps nor the far-point scans
-depend on the MCL's parameters. One real ``far_point_mcl`` pass per episode
-(:func:`run_episode`) therefore yields the far-point scan of every update step; every
+does not depend on the localizer), with both LIDARs: the room's at 0.2 m, under test, and the
+reference LIDAR above the crowd (``experiment.REFERENCE_SENSOR``). The MCL weighs a scan only
+every 0.5 m of travel and the far-point filter uses odometry only, so neither the update steps
+nor the far-point scans depend on the MCL's parameters. One real ``far_point_mcl`` pass per
+episode (:func:`run_episode`) therefore yields the far-point scan of every update step; every
 configuration is then ``mcl_lidar`` fed the raw or the far-point scans at those steps
 (:func:`run_chunk`). Each replay checks that it weighed exactly those steps, and the pass's
 own estimates must equal the replay of the same configuration bit for bit
-(:func:`reference_identity`), so the result is ``far_point_mcl``'s.
+(:func:`pass_identity`), so the result is ``far_point_mcl``'s.
+
+The reference pose (the paper's yardstick): one ``mcl_lidar`` pass per episode on the
+reference LIDAR's scans, with its own generator, on the same update schedule (it must weigh
+the same steps); each configuration's error is measured against it and against the true pose.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from agents.replay import Recording, feed, odometry_deltas, record, replay_into,
 from agents.sweep import run_tasks
 from localizers.base import LandmarkMap, ScanMeasurement
 from localizers.geometry import between
+from localizers.mcl_lidar import LidarMCL
 from localizers.raycast import cast_rays
 from localizers.registry import make_localizer
 from localizers.scan_filter import FarPointMCL, far_points
@@ -35,6 +41,8 @@ from .experiment import (
     CROWD_SIZE,
     DENSITY_PARAMS,
     ENV_ID,
+    REFERENCE_RNG_SALT,
+    REFERENCE_SENSOR,
     RNG_SALT,
     WALL_TOL_M,
     Config,
@@ -43,7 +51,8 @@ from .experiment import (
     driver_factory,
     env_kwargs,
     episode_steps,
-    reference_config,
+    pass_config,
+    reference_mcl_params,
     start_pose,
 )
 
@@ -83,13 +92,15 @@ class Episode:
 
     Attributes:
         task: what was run.
-        recording: the :class:`agents.replay.Recording` without its LIDAR leaves.
-        scan_map: the map the LIDAR localizers get (cut at the LIDAR's height).
+        recording: the :class:`agents.replay.Recording` without its LIDAR leaves (both LIDARs').
+        scan_map: the map the LIDAR under test's localizers get (cut at its height).
         update_steps: ``(K,)`` steps at which the MCL weighs a scan.
         raw_scans: ``(K, B)`` the LIDAR's scans at those steps.
         far_scans: ``(K, B)`` the far-point scans handed to the MCL at those steps.
         angles_rad, max_range_m: the scan format.
-        reference_estimates: ``(K, 3)`` the real ``far_point_mcl`` pass (``REFERENCE_PARAMS``).
+        pass_estimates: ``(K, 3)`` the real ``far_point_mcl`` pass (``PASS_PARAMS``).
+        reference_estimates: ``(K, 3)`` the reference pose: ``mcl_lidar`` on the reference
+            LIDAR's scans (``REFERENCE_MCL_PARAMS``, its map cut at that LIDAR's height).
         beams: ``"raw"`` / ``"far"`` -> ``(K, 4)`` beams matching the empty room, short of
             it, past it, at maximum range (:func:`agents.metrics.beam_breakdown`).
         wall_bias_m: ``"raw"`` / ``"far"`` -> ``(K,)`` mean of ``z - z*`` over the beams on
@@ -99,6 +110,7 @@ class Episode:
         push_m: path length of our robot's motion that its commands do not explain.
         snapshot: Fig. 5 material (one episode only).
         record_s, pass_s: seconds spent recording and in the far-point pass.
+        reference_s: seconds of the reference pass.
         cpu_s: CPU seconds of the whole task.
     """
 
@@ -110,6 +122,7 @@ class Episode:
     far_scans: Array
     angles_rad: Array
     max_range_m: float
+    pass_estimates: Array
     reference_estimates: Array
     beams: dict[str, NDArray[np.int64]]
     wall_bias_m: dict[str, Array]
@@ -119,6 +132,7 @@ class Episode:
     snapshot: Snapshot | None = None
     record_s: float = 0.0
     pass_s: float = 0.0
+    reference_s: float = 0.0
     cpu_s: float = 0.0
 
 
@@ -176,16 +190,24 @@ def _world_xy(pose: Array, ranges_m: Array, angles_rad: Array) -> Array:
 
 
 class _UpdateLog:
-    """The far-point pass's observer: at each update step, the scans and how they compare with the empty room."""
+    """The far-point pass's observer: at each update step, the scans and how they compare with the empty room.
+
+    The empty room's range of a beam is cast from the true pose against the room's static
+    segments where they stand (the walls, the door, the furniture the LIDAR's plane cuts:
+    :func:`.world.true_walls_at` its height), not against the localizers' map, which has the
+    table elsewhere (``map_offset_m``) and would call the beams on its legs short or past.
+    """
 
     def __init__(self, rec: Recording, crowd_xy: Sequence[Array], snapshot: bool) -> None:
-        if rec.lidar is None or rec.lidar_angles_rad is None:
-            raise ValueError("the recording has no LIDAR")
-        self.lidar: NDArray[np.float32] = rec.lidar
-        self.angles = np.asarray(rec.lidar_angles_rad, dtype=np.float64)
-        self.max_range = rec.lidar_max_range_m
+        name = world.lidar_name()
+        meta = rec.sensors.get(name)
+        if meta is None or meta.get("type") != "lidar":
+            raise ValueError(f"the recording has no LIDAR {name!r}")
+        self.lidar: NDArray[np.float32] = rec.observations[meta["key"]]
+        self.angles = np.asarray(meta["beam_angles_rad"], dtype=np.float64)
+        self.max_range = float(meta["max_range_m"])
         self.truth = rec.true_pose
-        walls = rec.localizer_map("scan").walls_m  # what the LIDAR's plane cuts of the map
+        walls = world.true_walls_at(float(meta["height_m"]))  # what the LIDAR's plane cuts of the room
         self._segments = (np.ascontiguousarray(walls[:, :2]), np.ascontiguousarray(walls[:, 2:]), np.zeros((0, 2)), np.zeros(0))
         self._crowd_xy = crowd_xy
         self._want_snapshot = snapshot
@@ -234,32 +256,62 @@ def episode_rng(seed: int, crowd_size: int) -> np.random.Generator:
     return np.random.default_rng([seed, crowd_size, RNG_SALT])
 
 
+def reference_rng(seed: int, crowd_size: int) -> np.random.Generator:
+    """The reference MCL's generator of an episode (its own, not the configurations')."""
+    return np.random.default_rng([seed, crowd_size, REFERENCE_RNG_SALT])
+
+
+def reference_pass(rec: Recording, seed: int, crowd_size: int) -> tuple[Array, NDArray[np.int64]]:
+    """The reference pose: ``mcl_lidar`` on the reference LIDAR's scans from the known start pose.
+
+    Returns:
+        ``(T, 3)`` its estimates (NaN between its updates) and the ``(K,)`` steps it weighed.
+    """
+    loc = make_localizer("mcl_lidar", rec.localizer_map("scan", REFERENCE_SENSOR), dt_s=rec.dt_s,
+                         params=reference_mcl_params())  # fmt: skip
+    if not isinstance(loc, LidarMCL):
+        raise TypeError(f"mcl_lidar built a {type(loc).__name__}")
+    out = replay_into(loc, rec, reference_rng(seed, crowd_size), prior=start_prior(rec), measurement="scan", read="updates",
+                      sensor=REFERENCE_SENSOR)  # fmt: skip
+    assert out.updated is not None
+    return out.estimates, np.flatnonzero(out.updated).astype(np.int64)
+
+
 def run_episode(task: EpisodeTask) -> Episode:
-    """Record the episode, then run ``far_point_mcl`` over it and keep its far-point scans."""
+    """Record the episode, run ``far_point_mcl`` over it and keep its far-point scans, then the reference pass.
+
+    Raises:
+        RuntimeError: when the reference MCL weighed other steps than the far-point pass.
+    """
     t0 = time.perf_counter()
     c0 = time.process_time()
     rec, crowd_xy = record_episode(task.seed, task.crowd_size, task.laps)
     t1 = time.perf_counter()
     log = _UpdateLog(rec, crowd_xy, task.snapshot)
-    loc = make_localizer(
-        "far_point_mcl", rec.localizer_map("scan"), dt_s=rec.dt_s, params={"mcl": reference_config().mcl_params()}
-    )
+    lidar = world.lidar_name()
+    scan_map = rec.localizer_map("scan", lidar)
+    loc = make_localizer("far_point_mcl", scan_map, dt_s=rec.dt_s, params={"mcl": pass_config().mcl_params()})
     if not isinstance(loc, FarPointMCL):
         raise TypeError(f"far_point_mcl built a {type(loc).__name__}")
     out = replay_into(loc, rec, episode_rng(task.seed, task.crowd_size), prior=start_prior(rec), measurement="scan",
-                      read="updates", observer=log.observe)  # fmt: skip
+                      read="updates", observer=log.observe, sensor=lidar)  # fmt: skip
     update_steps = np.asarray(log.steps, dtype=np.int64)
     t2 = time.perf_counter()
+    reference, reference_steps = reference_pass(rec, task.seed, task.crowd_size)
+    if not np.array_equal(reference_steps, update_steps):
+        raise RuntimeError(f"episode seed {task.seed}: the reference MCL weighed other steps than the far-point pass")
+    t3 = time.perf_counter()
     return Episode(
         task=task,
-        recording=rec.without("lidar"),
-        scan_map=rec.localizer_map("scan"),
+        recording=rec.without("lidar"),  # both LIDARs' leaves (by type): the replays need the update scans only
+        scan_map=scan_map,
         update_steps=update_steps,
         raw_scans=log.lidar[update_steps].copy(),
         far_scans=np.stack(log.far),
         angles_rad=log.angles,
         max_range_m=log.max_range,
-        reference_estimates=out.estimates[update_steps],
+        pass_estimates=out.estimates[update_steps],
+        reference_estimates=reference[update_steps],
         beams={k: np.asarray(v, dtype=np.int64) for k, v in log.beams.items()},
         wall_bias_m={k: np.asarray(v) for k, v in log.bias.items()},
         accumulated_points=np.asarray(log.points, dtype=np.int64),
@@ -268,6 +320,7 @@ def run_episode(task: EpisodeTask) -> Episode:
         snapshot=log.snapshot,
         record_s=t1 - t0,
         pass_s=t2 - t1,
+        reference_s=t3 - t2,
         cpu_s=time.process_time() - c0,
     )
 
@@ -298,8 +351,10 @@ class Run:
         key: the configuration's key.
         seed, crowd_size: the episode.
         estimates: ``(K, 3)``.
-        errors_m: ``(K,)`` position errors.
-        heading_errors_rad: ``(K,)`` absolute heading errors.
+        errors_m: ``(K,)`` position errors against the true pose (ours).
+        heading_errors_rad: ``(K,)`` absolute heading errors against the true pose.
+        ref_errors_m: ``(K,)`` position errors against the reference pose (the paper's measure).
+        ref_heading_errors_rad: ``(K,)`` absolute heading errors against the reference pose.
         cpu_s: CPU seconds of the replay.
     """
 
@@ -309,6 +364,8 @@ class Run:
     estimates: Array
     errors_m: Array
     heading_errors_rad: Array
+    ref_errors_m: Array
+    ref_heading_errors_rad: Array
     cpu_s: float = 0.0
 
 
@@ -336,6 +393,7 @@ def run_chunk(task: ChunkTask) -> list[Run]:
     prior = start_prior(rec)
     streams = update_streams(ep)
     truth = rec.true_pose[ep.update_steps]
+    ref = ep.reference_estimates
     runs = []
     for c in task.configs:
         c0 = time.process_time()
@@ -346,7 +404,8 @@ def run_chunk(task: ChunkTask) -> list[Run]:
             raise RuntimeError(f"{c.key} on seed {ep.task.seed}: the MCL weighed other steps than the far-point pass")
         e = est[ep.update_steps]
         runs.append(Run(c.key, ep.task.seed, ep.task.crowd_size, e, metrics.position_errors(e, truth),
-                        metrics.heading_errors(e, truth), time.process_time() - c0))  # fmt: skip
+                        metrics.heading_errors(e, truth), metrics.position_errors(e, ref), metrics.heading_errors(e, ref),
+                        time.process_time() - c0))  # fmt: skip
     return runs
 
 
@@ -362,20 +421,35 @@ def chunk_tasks(episodes: Sequence[Episode], plan: Plan) -> list[ChunkTask]:
     return sorted(tasks, key=lambda t: -len(t.configs) * t.episode.recording.steps)  # longest first
 
 
-def reference_identity(episodes: Sequence[Episode], runs: Sequence[Run]) -> float:
+REFERENCE_KEY = "reference"  # the key of :func:`reference_runs`
+
+
+def reference_runs(episodes: Sequence[Episode]) -> list[Run]:
+    """The reference pose of each episode as a :class:`Run` against the truth (its errors
+    against itself are zeros): how good the paper's yardstick is in our room."""
+    out = []
+    for ep in episodes:
+        e, truth = ep.reference_estimates, ep.recording.true_pose[ep.update_steps]
+        zeros = np.zeros(e.shape[0])
+        out.append(Run(REFERENCE_KEY, ep.task.seed, ep.task.crowd_size, e, metrics.position_errors(e, truth),
+                       metrics.heading_errors(e, truth), zeros, zeros.copy()))  # fmt: skip
+    return out
+
+
+def pass_identity(episodes: Sequence[Episode], runs: Sequence[Run]) -> float:
     """Largest difference between each real ``far_point_mcl`` pass and its replay from the stored far-point scans.
 
     Raises:
         RuntimeError: when they differ (the replays would not be ``far_point_mcl``'s results).
     """
-    key = reference_config().key
+    key = pass_config().key
     by = {(r.seed, r.crowd_size): r for r in runs if r.key == key}
     worst = 0.0
     for ep in episodes:
         r = by.get((ep.task.seed, ep.task.crowd_size))
         if r is None:
             continue
-        worst = max(worst, float(np.max(np.abs(r.estimates - ep.reference_estimates))))
+        worst = max(worst, float(np.max(np.abs(r.estimates - ep.pass_estimates))))
     if worst != 0.0:
         raise RuntimeError(f"replayed far-point MCL differs from far_point_mcl by up to {worst} m")
     return worst
@@ -384,7 +458,7 @@ def reference_identity(episodes: Sequence[Episode], runs: Sequence[Run]) -> floa
 def run_all(plan: Plan, workers: int, ray_address: str | None) -> tuple[list[Episode], list[Run]]:
     """Both stages in worker processes (or on a Ray cluster): the episodes, then every replay."""
     episodes = run_tasks(run_episode, episode_tasks(plan), workers=workers, ray_address=ray_address,
-                         desc="lidar-far-point: record + far-point pass")  # fmt: skip
+                         desc="lidar-far-point: record + far-point and reference passes")  # fmt: skip
     chunks = run_tasks(run_chunk, chunk_tasks(episodes, plan), workers=workers, ray_address=ray_address,
                        desc="lidar-far-point: MCL replays")  # fmt: skip
     return episodes, [r for rs in chunks for r in rs]

@@ -8,7 +8,8 @@ env's interface touches one file. The env internals read here:
 - ``env.world.positions[env.world.member_rows]``: the people's positions at a step (Fig. 5);
 - ``load_world("crowded_room")``: ``size_m``, ``dt_s``, ``robot.radius_m`` / ``mass_kg``,
   its ``lidar`` sensor and its ``queues`` crowd (``radius_m``, ``left_x_m``, ``right_x_m``,
-  ``spacing_m``, ``step_period_s``).
+  ``spacing_m``, ``step_period_s``), its static segments where they stand and where the
+  localizers' map has them (``static_segments``, ``furniture``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from numpy.typing import NDArray
 
 from envs.config import WorldConfig, load_world
 from envs.crowds import QueuesConfig
-from envs.sensors import LidarConfig
+from envs.sensors import LidarConfig, OdometryConfig
 from localizers.mcl_lidar import LidarMCLParams
 from localizers.registry import LOCALIZER_CONFIG_DIR, load_params, params_path
 from localizers.scan_filter import FarPointMCLParams
@@ -36,11 +37,48 @@ def room() -> WorldConfig:
     return load_world(WORLD)
 
 
+def lidar_name() -> str:
+    """The name (and sensor) of the room's LIDAR, the one under test."""
+    found = room().sensors_of_type("lidar")
+    if len(found) != 1:
+        raise RuntimeError(f"world {WORLD!r} has {len(found)} lidars, the experiment expects one")
+    return next(iter(found))
+
+
 def lidar() -> LidarConfig:
     """The room's LIDAR."""
-    config = room().sensor_of_type("lidar")
+    config = room().sensors[lidar_name()]
     if not isinstance(config, LidarConfig):
         raise RuntimeError(f"world {WORLD!r} has no lidar")
+    return config
+
+
+def true_walls_at(height_m: float) -> NDArray[np.float64]:
+    """``(S, 4)`` the room's static segments where they stand (not where the map has them) that a
+    sensor at ``height_m`` sees: those spanning it (``[bottom, top)``, as the map is cut)."""
+    seg = room().static_segments(in_map=False)
+    keep = (seg[:, 4] <= height_m) & (height_m < seg[:, 5])
+    return np.ascontiguousarray(seg[keep, :4])
+
+
+def moved_furniture() -> list[tuple[str, float]]:
+    """``(name, metres)`` of each piece of furniture the localizers' map has elsewhere than where it stands."""
+    return [(f.name, float(np.hypot(*f.map_offset_m))) for f in room().furniture if any(f.map_offset_m) or f.map_offset_rad]
+
+
+def furniture_text(height_m: float | None = None, seen: bool = True) -> str:
+    """The room's furniture as ``the name (height)``; with ``height_m`` only the pieces a sensor at
+    that height sees (``seen``) or does not see (every piece spans the floor to its height, a
+    table's legs and top together)."""
+    names = [f"the {f.name} ({f.height_m:g} m)" for f in room().furniture if height_m is None or (height_m < f.height_m) == seen]
+    return " and ".join([", ".join(names[:-1]), names[-1]]) if len(names) > 1 else (names[0] if names else "none")
+
+
+def odometry() -> OdometryConfig:
+    """The room's odometry."""
+    config = room().sensor_of_type("odometry")
+    if not isinstance(config, OdometryConfig):
+        raise RuntimeError(f"world {WORLD!r} has no odometry")
     return config
 
 

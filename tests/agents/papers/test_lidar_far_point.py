@@ -1,4 +1,5 @@
-"""`crowdloc reproduce lidar-far-point`: the square path, the update count, failures, the replay shortcut, the report."""
+"""`crowdloc reproduce lidar-far-point`: the square path, the update count, failures, the replay shortcut, the
+reference pose of the second LIDAR, the report."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pytest
 
 from agents import metrics
 from agents.cli import build_parser, main
-from agents.papers.lidar_far_point import analysis, jobs
+from agents.papers.lidar_far_point import analysis, jobs, paper, world
 from agents.papers.lidar_far_point import experiment as ex
 from agents.replay import Recording, record, replay
 from agents.scenarios import square_driver, square_vertices
@@ -71,8 +72,9 @@ def test_square_driver_rejects_bad_arguments() -> None:
 
 @pytest.mark.parametrize("name", ["mcl_lidar", "far_point_mcl"])
 def test_one_estimate_per_half_metre_of_travel(lap: Recording, name: str) -> None:
-    params = ex.Config(False, ex.REFERENCE_PARAMS).mcl_params()
-    out = replay(lap, name, rng_seed=0, params=params if name == "mcl_lidar" else {"mcl": params}, read="updates")
+    params = ex.Config(False, ex.PASS_PARAMS).mcl_params()
+    out = replay(lap, name, rng_seed=0, params=params if name == "mcl_lidar" else {"mcl": params}, read="updates",
+                 sensor=world.lidar_name())  # fmt: skip
     assert out.updated is not None and out.updated[0]  # the first scan is weighed
     per_lap = int(out.updated[1:].sum())
     assert abs(per_lap - 4 * ex.SIDE_M / ex.UPDATE_TRAVEL_M) <= 1
@@ -93,7 +95,8 @@ def test_failure_count_on_hand_made_errors() -> None:
 
     def run(seed: int, errs: list[float]) -> jobs.Run:
         e = np.asarray(errs)
-        return jobs.Run("k", seed, 16, np.zeros((e.size, 3)), e, np.full(e.size, math.radians(90.0)))
+        head = np.full(e.size, math.radians(90.0))
+        return jobs.Run("k", seed, 16, np.zeros((e.size, 3)), e, head, 2 * e, head / 2)
 
     s = analysis.stats_of([run(0, [0.1, 0.3, 1.5, 4.0]), run(1, [0.1, 0.1, 0.1, 0.1]), run(2, [0.2, 1.0, 0.2, 0.2])])
     assert (s.runs, s.estimates, s.failures_total, s.large_total, s.failed_runs) == (3, 4, 3, 1, 2)
@@ -102,6 +105,13 @@ def test_failure_count_on_hand_made_errors() -> None:
     assert s.mean_m == pytest.approx(np.mean([0.1, 0.3, 1.5, 4.0, 0.1, 0.1, 0.1, 0.1, 0.2, 1.0, 0.2, 0.2]))
     assert s.failure_heading_deg == pytest.approx(90.0)
     assert analysis.stats_of([run(0, [0.1] * 200)]).works
+    # against the reference: the same statistics of the errors against it (here twice the truth's)
+    r = analysis.stats_of([run(0, [0.1, 0.3, 1.5, 4.0]), run(1, [0.1, 0.1, 0.1, 0.1]), run(2, [0.2, 1.0, 0.2, 0.2])],
+                          "reference")  # fmt: skip
+    assert (r.failures_total, r.large_total, r.failed_runs) == (3, 2, 2)  # 0.6 and 0.4 stay below 1 m; 3.0 is large
+    assert r.mean_m == pytest.approx(2 * s.mean_m) and r.failure_heading_deg == pytest.approx(45.0)
+    with pytest.raises(ValueError, match="against"):
+        analysis.stats_of([run(0, [0.1])], "odometry")  # type: ignore[arg-type]
 
 
 def test_options_and_the_default_plan() -> None:
@@ -116,6 +126,13 @@ def test_options_and_the_default_plan() -> None:
     assert len(keys) == len(set(keys))
     # 10 + 10 values with and without far points, (0.1, 0.2) shared, two AMCL rows, the density pair
     assert len(keys) == 2 * (10 + 10 - 1 + 2 + 1)
+    # every episode is recorded with the reference LIDAR: the room LIDAR's format at the paper's height
+    top = ex.env_kwargs(16, 100)["sensors"][ex.REFERENCE_SENSOR]
+    lidar = world.lidar()
+    assert top["height_m"] == paper.REFERENCE_LIDAR_HEIGHT_M and top["key"] == ex.REFERENCE_SENSOR
+    assert (top["fov_rad"], top["beams"], top["max_range_m"], top["range_std_m"]) == (
+        lidar.fov_rad, lidar.beams, lidar.max_range_m, lidar.range_std_m,
+    )  # fmt: skip
     assert all(c.mcl_params()["update_min_rotation_rad"] >= 2 * math.pi for c in plan.main_configs())
     quick = ex.make_plan(parse("reproduce", "lidar-far-point", "--quick"))
     assert (quick.seeds, quick.laps, len(quick.samplings), len(quick.hits), len(quick.densities)) == (2, 1, 3, 3, 3)
@@ -132,7 +149,7 @@ def small_square(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_replaying_stored_update_scans_equals_the_registered_localizers(small_square: None) -> None:
     ep = jobs.run_episode(jobs.EpisodeTask(seed=3, crowd_size=16, laps=1))
-    configs = (*ex.both((("sampling", 0.7), ("hit_std_m", 0.8))), *ex.both(ex.REFERENCE_PARAMS))
+    configs = (*ex.both((("sampling", 0.7), ("hit_std_m", 0.8))), *ex.both(ex.PASS_PARAMS))
     runs = {r.key: r for r in jobs.run_chunk(jobs.ChunkTask(ep, configs))}
     # the same episode, recorded again with every LIDAR scan, replayed the ordinary way
     steps = ex.episode_steps(1)
@@ -140,16 +157,51 @@ def test_replaying_stored_update_scans_equals_the_registered_localizers(small_sq
                   reset_options={"robot_pose": list(ex.start_pose())})  # fmt: skip
     np.testing.assert_array_equal(full.true_pose, ep.recording.true_pose)
     assert ep.update_steps.size >= 8
+    # the episode keeps neither LIDAR's leaves (the update scans are stored apart)
+    assert ep.recording.sensor_of("lidar") is None and set(full.sensors) - set(ep.recording.sensors) == {"lidar", "lidar_top"}
+    lidar = world.lidar_name()
     for c in configs:
         name = "far_point_mcl" if c.far else "mcl_lidar"
         params = {"mcl": c.mcl_params()} if c.far else c.mcl_params()
-        out = replay(full, name, rng_seed=[3, 16, ex.RNG_SALT], params=params, read="updates")
+        out = replay(full, name, rng_seed=[3, 16, ex.RNG_SALT], params=params, read="updates", sensor=lidar)
         assert out.updated is not None
         np.testing.assert_array_equal(np.flatnonzero(out.updated), ep.update_steps)
         np.testing.assert_array_equal(out.estimates[ep.update_steps], runs[c.key].estimates)
-    assert jobs.reference_identity([ep], list(runs.values())) == 0.0
+        ref_err = metrics.position_errors(runs[c.key].estimates, ep.reference_estimates)
+        np.testing.assert_array_equal(runs[c.key].ref_errors_m, ref_err)
+    assert jobs.pass_identity([ep], list(runs.values())) == 0.0
+    # the reference pose: mcl_lidar on the 1.9 m scans (its map cut at 1.9 m), the same update steps
+    assert full.sensors[ex.REFERENCE_SENSOR]["height_m"] == paper.REFERENCE_LIDAR_HEIGHT_M
+    seed = [3, 16, ex.REFERENCE_RNG_SALT]
+    top = replay(full, "mcl_lidar", rng_seed=seed, params=ex.reference_mcl_params(), read="updates", sensor=ex.REFERENCE_SENSOR)
+    assert top.updated is not None
+    np.testing.assert_array_equal(np.flatnonzero(top.updated), ep.update_steps)
+    np.testing.assert_array_equal(top.estimates[ep.update_steps], ep.reference_estimates)
+    low = replay(full, "mcl_lidar", rng_seed=seed, params=ex.reference_mcl_params(), read="updates", sensor=lidar)
+    assert not np.array_equal(low.estimates[ep.update_steps], ep.reference_estimates)  # not the 0.2 m LIDAR's
+    truth = full.true_pose[ep.update_steps]
+    assert np.max(metrics.position_errors(ep.reference_estimates, truth)) < 0.3  # above the crowd it tracks the truth
+    (ref_run,) = jobs.reference_runs([ep])
+    np.testing.assert_array_equal(ref_run.errors_m, metrics.position_errors(ep.reference_estimates, truth))
     # the processing changes what MCL sees: far-point scans differ from the raw ones
     assert not np.array_equal(ep.far_scans, ep.raw_scans.astype(np.float64))
+
+
+def test_the_empty_room_of_the_beam_statistic_is_the_true_room() -> None:
+    """The beams "on the wall" are cast against the room's segments where they stand at the LIDAR's height,
+    not against the map, which has the table 20 cm from where it stands."""
+    h = world.lidar().height_m
+    true_walls = world.true_walls_at(h)
+    mapped = world.room().static_segments(in_map=True)
+    mapped = mapped[(mapped[:, 4] <= h) & (h < mapped[:, 5]), :4]
+    assert true_walls.shape == mapped.shape
+    moved = np.any(true_walls != mapped, axis=1)
+    assert moved.sum() == 16  # the four legs of the table, four sides each
+    table = next(f for f in world.room().furniture if f.name == "table")
+    np.testing.assert_allclose(mapped[moved] - true_walls[moved], np.tile(table.map_offset_m, 2)[None].repeat(16, 0))
+    # at the reference's height: the walls, the door, the bevel and the pillar; neither the shelf nor the table
+    assert world.true_walls_at(paper.REFERENCE_LIDAR_HEIGHT_M).shape == (10, 4)
+    assert world.furniture_text(paper.REFERENCE_LIDAR_HEIGHT_M, seen=False) == "the shelf (1.8 m) and the table (0.72 m)"
 
 
 def _check_report(out: Path, printed: str) -> str:
@@ -165,6 +217,22 @@ def _check_report(out: Path, printed: str) -> str:
         assert re.search(rf"\| C{i} \| .* \| \*\*(holds|partly holds|does not hold)\*\* \|", report), i
     assert "AMCL-like" in report and "Crowd size" in report
     assert "wrote" in printed or "MCL runs" in printed
+    # both yardsticks in every sweep table, the verdicts on the paper's measure, the reference's own error
+    heads = [line for line in report.splitlines() if line.startswith("| sampling |") or line.startswith("| hit [m] |")]
+    assert len(heads) == 2
+    for head in heads:
+        assert head.count("error vs reference [m]") == 2 and head.count("error vs truth [m]") == 2
+        assert head.count("failures / run vs reference") == 2
+    assert "| verdict (vs reference) | vs truth |" in report
+    assert "Reference (the paper's): a second LIDAR at 1.9 m" in report and "Its own error against the truth" in report
+    assert "the simulator's true pose (the paper localized" not in report  # the old reference item
+    assert "exact square with an exact map" not in report
+    results = json.loads((out / "results.json").read_text())
+    assert results["verdict_measure"] == "reference"
+    assert set(results["stats_vs_reference"]) == set(results["stats"])
+    assert [v["against"] for v in results["verdicts"]] == ["reference"] * 7
+    assert [v["against"] for v in results["verdicts_vs_truth"]] == ["truth"] * 7
+    assert str(ex.CROWD_SIZE) in results["reference"]
     return report
 
 
@@ -177,6 +245,8 @@ def test_quick_run_writes_report_and_figures(tmp_path: Path, capsys: pytest.Capt
     assert [t[0].split("|")[1].strip() for t in tables] == ["sampling", "hit", "claim"]
     for t in tables:
         assert_aligned(t)
+    for t in tables[:2]:
+        assert "raw: error vs ref m" in t[0] and "far: error vs truth m" in t[0]
     # same seeds, same numbers as recorded before the architecture change
     pinned = json.loads((PINNED_DIR / "lidar_far_point_quick.json").read_text())
     assert_same_numbers(pinned, json.loads((out / "results.json").read_text()), "results", frozenset({"wall_s", "workers"}))
