@@ -118,6 +118,13 @@ class RobotConfig:
             f"({self.slip_max_total}), the cap on the lost fraction: raise the cap or lower the random slip",
         )
 
+    @property
+    def slips(self) -> bool:
+        """Whether any wheel slip is set (random, with acceleration or in contact)."""
+        return any(
+            v > 0 for v in (self.slip_probability, self.slip_per_accel_s2, self.slip_per_angular_accel_s2, self.slip_in_contact)
+        )
+
     def slip_fraction(self, accel_mps2: float, angular_accel_rps2: float, in_contact: bool, rng: np.random.Generator) -> float:
         """The fraction in ``[0, slip_max_total]`` of this step's commanded motion the wheels lose.
 

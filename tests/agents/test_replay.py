@@ -16,6 +16,7 @@ from agents.scenarios import SoccerDriver, exp1_driver, square_driver
 from localizers.base import BearingMeasurement, OdometryDelta, Overlay, PoseEstimate
 from localizers.registry import LOCALIZERS
 from localizers.wrappers import _SEED_SALT, bearing_measurement
+from tests.envs.exact import EXACT
 
 BEARING_LOCALIZERS = sorted(name for name, s in LOCALIZERS.items() if s.measurement == "bearings")
 SOCCER = {"crowd_size": 1, "camera": {"dropout_probability": 0.5}}
@@ -148,7 +149,10 @@ def test_landmark_subset_drops_the_other_bearings(recordings: dict[str, Recordin
 
 
 def test_noise_free_exp1_candidate_sets_fix_within_5_cm() -> None:
-    noise_free = {"camera": {"noise_std_rad": 0.0}, "odometry": {"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0}}
+    noise_free = {
+        "camera": {"noise_std_rad": 0.0},
+        "odometry": {"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0, **EXACT},
+    }
     rec = exp1(max_steps=10_000, **noise_free)
     out = replay(rec, "candidate_sets", rng_seed=0, landmark_subset=[1, 2])
     ff = metrics.first_fix(out.valid)

@@ -12,6 +12,7 @@ import envs  # noqa: F401
 from agents.replay import record
 from agents.scenarios import EXP1_VERTICES, PatrolDriver, ShoveDriver, SoccerDriver, exp1_driver, polygon_commands
 from localizers.geometry import compose, wrap_angle
+from tests.envs.exact import EXACT
 
 DT = 1.0 / 30.0
 
@@ -104,7 +105,7 @@ def test_shove_moves_the_robot_without_odometry_seeing_it() -> None:
     kwargs = {
         "crowd_size": 2,
         "crowd": {"soccer": {"ball": False}},
-        "odometry": {"alpha1": 0, "alpha2": 0, "alpha3": 0, "alpha4": 0},
+        "odometry": {"alpha1": 0, "alpha2": 0, "alpha3": 0, "alpha4": 0, **EXACT},
     }
     push_at = 3.0
     driver = ShoveDriver(PatrolDriver([(1.2, 1.2), (3.8, 1.2), (3.8, 3.5), (1.2, 3.5)]), push_at, duration_s=2.0)

@@ -163,14 +163,17 @@ def test_failures_count_valid_estimates_beyond_the_threshold(walk: Recording) ->
 
 #: trial values of a 3-trial candidate_sets study (crowd 4, 90 steps, train seeds 0 and 1, sampler
 #: seed 0) from tune before failures were counted (commit c09a14d): failure penalty 0 must repeat them
+#: in the world of then (``_THEN``: before the soccer field got systematic odometry and distractors)
 _OLD_TRIAL_VALUES = (0.04472797229968151, 0.4090362357923279, 0.05002703108544486)
+_THEN = ("--env-set", "odometry.wheel_diameter_ratio=1.0", "--env-set", "odometry.wheelbase_ratio=1.0",
+         "--env-set", "camera.distractors=[]")  # fmt: skip
 
 
 def _tiny(tmp_path: Path, *extra: str) -> list[float]:
     storage = f"sqlite:///{tmp_path / 'tuning.db'}"
     argv = ["tune", "candidate_sets", "--trials", "3", "--storage", storage, "--study-name", "tiny", "--out",
             str(tmp_path / "out"), "--crowd-size", "4", "--episode-steps", "90", "--train-seeds", "2", "--eval-seeds",
-            "2", "--quiet", *extra]  # fmt: skip
+            "2", "--quiet", *_THEN, *extra]  # fmt: skip
     assert main(argv) == 0
     study = optuna.load_study(study_name="tiny", storage=storage)
     return [float(t.value) for t in study.trials if t.value is not None]

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
+import crowdloc_configs
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.cli import build_parser, main
 from agents.evaluate import EvalSpec
@@ -62,10 +64,11 @@ def test_tune_lists_only_the_localizers_it_has_a_search_space_for(capsys: pytest
     with pytest.raises(SystemExit):
         build_parser(["tune", "--help"]).parse_args(["tune", "--help"])
     text = " ".join(capsys.readouterr().out.split())
-    assert (
-        "with a search space: mcl_bearing, candidate_sets" in text or "with a search space: candidate_sets, mcl_bearing" in text
-    )
-    assert "kalman," not in text
+    listed = re.search(r"with a search space: ([a-z_, ]+) \(not tunable: ([a-z_, ]+);", text)
+    assert listed is not None, text
+    shipped = {p.stem for p in crowdloc_configs.path("tuning").glob("*.yaml")}
+    assert set(listed.group(1).split(", ")) == shipped
+    assert set(listed.group(2).split(", ")) == {"dead_reckoning", "ceiling_target"}
 
 
 def test_a_localizer_that_is_neither_a_name_nor_a_localizer_is_refused_at_make() -> None:
@@ -76,7 +79,7 @@ def test_a_localizer_that_is_neither_a_name_nor_a_localizer_is_refused_at_make()
 def test_the_unknown_keyword_message_names_what_gym_make_also_takes() -> None:
     with pytest.raises(ConfigError) as exc:
         gym.make("crowdloc/RoboCupCrowded-v0", localiser="candidate_sets")
-    for word in ("'localiser'", "localizer, localizer_params, prior, belief_spread, max_episode_steps"):
+    for word in ("'localiser'", "localizer, localizer_params, prior, belief_spread, localizer_sensor, max_episode_steps"):
         assert word in str(exc.value)
 
 

@@ -15,6 +15,7 @@ from localizers.base import Overlay, PoseEstimate
 from localizers.registry import LOCALIZERS
 from localizers.schema import ConfigError
 from localizers.wrappers import LocalizationObservation, bearing_measurement, hypothesis_spread
+from tests.envs.exact import EXACT
 
 BEARING_LOCALIZERS = sorted(name for name, s in LOCALIZERS.items() if s.measurement == "bearings")
 SOCCER_IDS = ["crowdloc/RoboCupStatic-v0", "crowdloc/RoboCupCrowded-v0"]
@@ -118,7 +119,7 @@ def test_prior_start_gives_dead_reckoning_the_true_start_pose() -> None:
     env = gym.make(
         "crowdloc/RoboCupCrowded-v0",
         localizer="dead_reckoning",
-        odometry={"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0},
+        odometry={"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0, **EXACT},
         crowd_size=0,
     )
     obs, info = env.reset(seed=2)

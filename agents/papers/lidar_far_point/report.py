@@ -607,21 +607,24 @@ def odometry_text() -> str:
                       f"{o.wheelbase_ratio:g}, distance scale {o.distance_scale:g})")  # fmt: skip
     else:
         systematic = "no systematic error (wheel diameters, wheelbase and distance scale nominal)"
-    return f"the alpha model's zero-mean noise (alphas {alphas}), {systematic} and no wheel slip"
+    r = world.room().robot
+    if r.slips:
+        slip = (f"wheel slip ({100 * r.slip_per_accel_s2:g} % of the motion lost per m/s^2 of commanded acceleration, "
+                f"{100 * r.slip_per_angular_accel_s2:g} % per rad/s^2 of turn-rate change, {100 * r.slip_in_contact:g} % in "
+                f"contact, random slips with probability {r.slip_probability:g})")  # fmt: skip
+    else:
+        slip = "no wheel slip"
+    return f"the alpha model's zero-mean noise (alphas {alphas}), {systematic} and {slip}"
 
 
 def failure_mode_item() -> str:
-    """The differences' item on why gross failures are rare here: what the room and the odometry are like."""
+    """The differences' item on what the room and the odometry are like (from the world config)."""
     r = world.room()
     return (
-        "- Failure mode: with the queue as a false wall, raw MCL's estimate is pulled toward the queue along the side walls "
-        "(see the trajectories) more than it jumps away. The room is no exact square any more: it has "
-        f"{len(r.walls)} wall segments besides its four walls and {len(r.furniture)} pieces of furniture, and the map has "
-        f"{moved_text()}. Our odometry, though, has {odometry_text()} in this world (pushes by contacts are the only "
-        "motion it misses), and the robot tracks from the known start pose, so a scan that matches the map in most of its "
-        f"{world.lidar().beams} beams keeps the particles near the truth; gross failures (the paper's > "
-        f"{paper.LARGE_FAIL_M:g} m, ~{paper.LARGE_FAIL_HEADING_DEG:g} deg) need a wider particle spread than the swept motion "
-        "noise gives here."
+        f"- The room and the robot: besides its four walls the room has {len(r.walls)} wall segments and "
+        f"{len(r.furniture)} pieces of furniture, and the map has {moved_text()}. The odometry has {odometry_text()}: the "
+        "systematic errors and the slip are motion it misreads, pushes by contacts motion it misses. The robot tracks "
+        "from the known start pose (the paper's did too), so a filter only fails by losing track on the way."
     )
 
 
