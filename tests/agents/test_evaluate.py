@@ -335,7 +335,8 @@ def test_cli_takes_conditions_from_a_training_config_and_env_set(tmp_path: Path)
     )
     result = run_cli(args)
     trained = load_train_config("ppo_candidate_sets")
-    assert result.spec.env_kwargs == {**trained.env_kwargs, "camera": {"fov_rad": 1.0, "max_range_m": 4}}
+    camera = {**trained.env_kwargs["camera"], "fov_rad": 1.0, "max_range_m": 4}  # --env-set merges into the section
+    assert result.spec.env_kwargs == {**trained.env_kwargs, "camera": camera}
     assert result.spec.reward == trained.reward
     with pytest.raises(ConfigError, match="differs from the env of --conditions"):
         run_cli(build_parser(["eval"]).parse_args(["eval", "--conditions", "ppo_candidate_sets", "--env-id",
