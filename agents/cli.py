@@ -185,6 +185,7 @@ def _add_reproduce(sub: argparse._SubParsersAction[argparse.ArgumentParser], arg
         exp = experiments.add_parser(name, help=summary, description=summary)
         exp.set_defaults(command_parser=exp)
         exp.add_argument("--out", type=Path, default=DEFAULT_RESULTS / name, help=f"output folder (default results/{name})")
+        exp.add_argument("--overwrite", action="store_true", help="replace an existing report in --out")
         if name == chosen:  # import only the experiment being run (they pull in plotting and more)
             importlib.import_module(module).add_arguments(exp)
 
@@ -312,7 +313,9 @@ def _run_tune(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 def _run_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.papers import EXPERIMENTS
+    from agents.util import refuse_to_overwrite
 
+    refuse_to_overwrite(Path(args.out) / "report.md", args.overwrite)  # before minutes of work, not after
     try:
         Path(args.out).mkdir(parents=True, exist_ok=True)
     except OSError as exc:

@@ -100,6 +100,13 @@ def markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> list
     return lines
 
 
+def refuse_to_overwrite(report: Path, overwrite: bool) -> None:
+    """Raise :class:`ConfigError` when ``report`` exists and the user did not ask to replace it
+    (``--overwrite``): a command never overwrites a user's results unasked."""
+    if report.exists() and not overwrite:
+        raise ConfigError(f"{report} exists; give --overwrite to replace it (or another --out)")
+
+
 def text_table(header: Sequence[str], rows: Iterable[Sequence[str]], align: str | None = None) -> str:
     """``rows`` under ``header`` as an aligned plain-text table for the console: rich's markdown
     form, without colour or markup, each column as wide as its widest cell, whatever the terminal's

@@ -41,7 +41,7 @@ from agents.tune.objective import (
 )
 from agents.tune.report import write_report
 from agents.tune.space import UNTUNED, SearchSpace, load_search_space, tunable_localizers
-from agents.util import flatten, nest, seed_int
+from agents.util import flatten, nest, refuse_to_overwrite, seed_int
 from localizers.registry import spec
 from localizers.schema import ConfigError
 
@@ -330,8 +330,7 @@ def tune(config: TuneConfig) -> TuneResult:
     """
     plan = plan_study(config)
     setup = plan.setup
-    if (plan.out / "report.md").exists() and not config.overwrite:
-        raise ConfigError(f"{plan.out / 'report.md'} exists; pass --overwrite to replace it, or --out for another folder")
+    refuse_to_overwrite(plan.out / "report.md", config.overwrite)
     _set_log_level(config.verbose)
     study = _open_study(config, plan)
     first_new = len(study.trials)

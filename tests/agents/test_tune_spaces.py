@@ -204,7 +204,7 @@ def test_report_is_not_overwritten_without_overwrite(tmp_path: Path, capsys: pyt
     with pytest.raises(SystemExit) as exc:
         _tiny(tmp_path)
     assert exc.value.code == 2
-    assert "report.md exists; pass --overwrite" in capsys.readouterr().err
+    assert "report.md exists; give --overwrite" in capsys.readouterr().err
     assert (tmp_path / "out" / "report.md").read_text() == "mine"
 
 

@@ -180,3 +180,15 @@ def test_a_bad_first_seed_names_the_flag(capsys: pytest.CaptureFixture[str], tmp
     assert not (tmp_path / "eval").exists()  # nothing run, nothing written
     with pytest.raises(ConfigError, match=rf"^first_seed must be an integer from 0 to {2**30}, got {value}$"):
         EvalSpec(policies=("spin",), first_seed=int(value))  # the Python API names its keyword
+
+
+@pytest.mark.parametrize("experiment", ["bearing-candidates", "lidar-far-point", "ceiling-target"])
+def test_reproduce_never_replaces_a_report_unasked(experiment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from agents.cli import main
+
+    (tmp_path / "report.md").write_text("mine")
+    with pytest.raises(SystemExit) as exc:
+        main(["reproduce", experiment, "--quick", "--out", str(tmp_path)])
+    assert exc.value.code == 2
+    assert "report.md exists; give --overwrite to replace it" in capsys.readouterr().err
+    assert (tmp_path / "report.md").read_text() == "mine"

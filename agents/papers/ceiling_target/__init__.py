@@ -37,7 +37,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=min(2, os.cpu_count() or 1),
         help="worker processes for the drives (default min(2, cpu count))",
     )
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing report in --out")
 
 
 def run(args: argparse.Namespace) -> Path:

@@ -21,9 +21,8 @@ import numpy as np
 
 from agents.plots import save_figure
 from agents.sweep import run_tasks
-from agents.util import jsonable, markdown_table, text_table, write_run_record
+from agents.util import jsonable, markdown_table, refuse_to_overwrite, text_table, write_run_record
 from localizers.registry import load_params
-from localizers.schema import ConfigError
 
 from . import paper, static
 from .drive import DriveResult, DriveTask, drive, summarize
@@ -282,8 +281,7 @@ def summary(results: dict[str, Any]) -> str:
 
 def run_and_report(out: Path, seeds: int, densities: Sequence[int], workers: int, overwrite: bool, start: float) -> Path:
     report = out / "report.md"
-    if report.exists() and not overwrite:
-        raise ConfigError(f"{report} exists; give --overwrite to replace it (or another --out)")
+    refuse_to_overwrite(report, overwrite)
     results = run_parts(seeds, densities, workers)
     out.mkdir(parents=True, exist_ok=True)
     figs = figures(out, results)
