@@ -141,10 +141,13 @@ class WorldFacts:
     landmarks: int
     landmark_names: tuple[str, ...]
     odometry_alphas: tuple[float, float, float, float]
+    odometry_systematic: tuple[float, float, float]  # wheel diameter ratio, wheelbase ratio, distance scale (1: none)
     slip_probability: float
+    slips: bool  # any wheel slip (random, with acceleration or in contact)
     camera_noise_deg: float
     dropout: float  # camera dropout probability
     false_rate: float  # camera false-detection probability per slot and frame
+    distractors: int  # objects of a landmark's colour beyond the field (persistent false detections)
     crowd: int  # crowd robots besides ours
     max_speed_mps: float  # our robot's command limit
     dt_s: float
@@ -164,10 +167,13 @@ def world_facts(world: WorldConfig) -> WorldFacts:
         landmarks=len(world.landmarks),
         landmark_names=tuple(lm.name for lm in world.landmarks),
         odometry_alphas=odometry.alphas,
+        odometry_systematic=(odometry.wheel_diameter_ratio, odometry.wheelbase_ratio, odometry.distance_scale),
         slip_probability=world.robot.slip_probability,
+        slips=world.robot.slips,
         camera_noise_deg=math.degrees(camera.noise_std_rad),
         dropout=camera.dropout_probability,
         false_rate=camera.false_detection_probability,
+        distractors=len(camera.distractors),
         crowd=soccer.count,
         max_speed_mps=world.robot.max_speed_mps,
         dt_s=world.dt_s,

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from agents.papers.bearing_candidates.analysis import Exp1Stats, Exp2Stats, PushStudy, Row, SweepStudy
-from agents.papers.bearing_candidates.conditions import Conditions, eq1_error_sigmas
+from agents.papers.bearing_candidates.conditions import Conditions, WorldFacts, eq1_error_sigmas
 from agents.papers.bearing_candidates.jobs import (
     CASSINI_BEARINGS,
     EXP1_CS_PARAMS,
@@ -77,6 +77,30 @@ def _exp1_shipped(sh: Row, cond: Conditions, exp2_detected: float | None) -> str
     )
 
 
+def odometry_text(world: WorldFacts) -> str:
+    """The odometry's errors in a study's world, from its facts."""
+    e_d, e_b, k = world.odometry_systematic
+    systematic = (
+        "no systematic error"
+        if (e_d, e_b, k) == (1.0, 1.0, 1.0)
+        else f"systematic errors (wheel diameter ratio {e_d:g}, wheelbase ratio {e_b:g}, distance scale {k:g})"
+    )
+    slip = "wheel slip" if world.slips else "no slip"
+    return f"the alpha model (alpha1 = {world.odometry_alphas[0]:g}), {systematic}, {slip}"
+
+
+def misidentified_text(world: WorldFacts) -> str:
+    """What the camera gets wrong in a study's world, from its facts."""
+    parts = []
+    if world.false_rate:
+        parts.append(f"a random false bearing w.p. {world.false_rate:g} per slot and frame")
+    if world.distractors:
+        parts.append(
+            f"{world.distractors} objects of a landmark's colour beyond the field, reported while their landmark is out of view"
+        )
+    return "false detections: " + " and ".join(parts) if parts else "no landmark is ever misidentified"
+
+
 def exp1_discussion(exp1: Exp1Stats, cond: Conditions, exp2_detected: float | None) -> list[str]:
     """What differs from Table 1, with the ratios, and why."""
     r = _rows_by_key(exp1.rows)
@@ -85,8 +109,8 @@ def exp1_discussion(exp1: Exp1Stats, cond: Conditions, exp2_detected: float | No
     geo, world = cond.exp1, cond.worlds["exp1"]
     assert geo is not None
     p = PAPER["exp1"]
-    order = "better" if cs.pos_mm[0] < min(kf.pos_mm[0], mp.pos_mm[0]) else "worse"
-    slip = "no slip" if world.slip_probability == 0 else f"slip probability {world.slip_probability:g}"
+    better = cs.pos_mm[0] < min(kf.pos_mm[0], mp.pos_mm[0])
+    baselines_better = kf.pos_mm[0] < p["kalman"][0][0] and mp.pos_mm[0] < p["mcl_bearing_paper"][0][0]
     a, b = (p.name for p in geo.posts)
     return [
         _exp1_proposed(cs, cond),
@@ -94,12 +118,12 @@ def exp1_discussion(exp1: Exp1Stats, cond: Conditions, exp2_detected: float | No
         f"- **(3) Kalman** {kf.pos_mm[0]:.0f} mm / {kf.head_deg[0]:.1f} deg ({versus(kf.pos_mm[0], p['kalman'][0][0])} / "
         f"{versus(kf.head_deg[0], p['kalman'][1][0])}) and **(4) MCL (paper)** {mp.pos_mm[0]:.0f} mm / "
         f"{mp.head_deg[0]:.1f} deg ({versus(mp.pos_mm[0], p['mcl_bearing_paper'][0][0])} / "
-        f"{versus(mp.head_deg[0], p['mcl_bearing_paper'][1][0])}) are much better than the paper's, so (5) is {order} "
-        "than both here, unlike in the paper. The reason is the odometry: the paper's encoder wheel had large rotation "
-        "errors (its dead-reckoning path drifts away from the loop), ours is the unbiased alpha model "
-        f"(alpha1 = {world.odometry_alphas[0]:g}, no systematic error, {slip}), and dead reckoning alone stays at "
-        f"{dr.pos_mm[0]:.0f} mm. Both baselines also see {geo.pole.name} on {geo.pole_seen}, the Kalman filter starts "
-        "from the known pose, and nothing is ever misidentified.",
+        f"{versus(mp.head_deg[0], p['mcl_bearing_paper'][1][0])}); (5) is "
+        + ("better than both here, as in the paper. " if better else "not better than both here, unlike in the paper. ")
+        + ("Both baselines are better than the paper's. " if baselines_better else "")
+        + f"Our odometry: {odometry_text(world)}; dead reckoning alone reaches {dr.pos_mm[0]:.0f} mm (the paper's "
+        f"encoder wheel had large rotation errors). Both baselines also see {geo.pole.name} on {geo.pole_seen}, and the "
+        f"Kalman filter starts from the known pose; {misidentified_text(world)}.",
         f"- **Like for like** (not in the paper): given only {a} and {b}, the paper's MCL reaches {m2.pos_mm[0]:.0f} mm "
         f"and the reference MCL {mr2.pos_mm[0]:.0f} mm, against {cs.pos_mm[0]:.0f} mm for (5): with two landmarks the "
         "candidate sets are the better method, which is the paper's claim.",
@@ -113,7 +137,7 @@ def _exp2_accuracy(rows: dict[str, Row], detected: float, cond: Conditions) -> s
     p = PAPER["exp2"]
     world = cond.worlds["exp2"]
     ordered = cs.pos_mm[0] <= mp.pos_mm[0] < kf.pos_mm[0]
-    false = "reports no false detection" if world.false_rate == 0 else f"reports a false bearing w.p. {world.false_rate:g}"
+    false = misidentified_text(world)
     return (
         f"- **(5) candidate sets** {cs.pos_mm[0]:.0f} mm / {cs.head_deg[0]:.1f} deg "
         f"({versus(cs.pos_mm[0], p['candidate_sets'][0][0])} / {versus(cs.head_deg[0], p['candidate_sets'][1][0])}) and "
@@ -121,7 +145,7 @@ def _exp2_accuracy(rows: dict[str, Row], detected: float, cond: Conditions) -> s
         f"({versus(mp.pos_mm[0], p['mcl_bearing_paper'][0][0])} / {versus(mp.head_deg[0], p['mcl_bearing_paper'][1][0])}) "
         "are several times more accurate than in the paper. The paper measured against method (2) run on all vision "
         "data, whose own error is part of its numbers; ours is the simulator's exact pose. Our camera has "
-        f"{world.camera_noise_deg:g} deg Gaussian noise, identifies every landmark correctly and {false} here, on a "
+        f"{world.camera_noise_deg:g} deg Gaussian noise ({false}), on a "
         f"{field(world.size_m)} field where {count_range(detected)} of {world.landmarks} landmarks remain after the random subset, "
         f"so most frames allow a Cassini fix. With >= {CASSINI_BEARINGS} bearings every new set is the handful of "
         "Cassini solutions and is determined at once, so (5) behaves like a temporally smoothed, outlier-gated "
