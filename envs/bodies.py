@@ -127,15 +127,16 @@ def _cut(
     z_hi: NDArray[np.float64],
     radius: NDArray[np.float64],
     kind: NDArray[np.int64],
+    keep: NDArray[np.bool_],
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
-    """Indices, centres and radii of the parts that span ``height``, in part order."""
+    """Indices, centres and radii of the parts that span ``height`` (among those ``keep`` marks), in part order."""
     n = xy.shape[0]
     index = np.empty(n, dtype=np.int64)
     centres = np.empty((n, 2))
     radii = np.empty(n)
     k = 0
     for p in range(n):
-        if not (z_lo[p] <= height < z_hi[p]):
+        if not (keep[p] and z_lo[p] <= height < z_hi[p]):
             continue
         r = radius[p]
         if kind[p] == BALL:
@@ -203,6 +204,17 @@ class Layout(NamedTuple):
     z_hi: NDArray[np.float64]
     radius: NDArray[np.float64]
     occludes: NDArray[np.bool_]
+    every: NDArray[np.bool_]  # all true: the mask that keeps every part
+
+    @property
+    def upright(self) -> bool:
+        """Whether no part leans (no legs): then which parts a height cuts, and their radii,
+        stay the same between resets, and only the bodies' positions move the sections."""
+        return not bool(np.any(self.kind == LEG))
+
+
+#: per (height, mask) of an upright layout: the parts cut there and their radii
+_UprightCut = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_]]
 
 
 class Figures:
@@ -211,10 +223,17 @@ class Figures:
     Made by :meth:`FigureModel.pose`; a snapshot of the world holds one.
     """
 
-    def __init__(self, layout: Layout, xy: NDArray[np.float64], slope: NDArray[np.float64]) -> None:
+    def __init__(
+        self,
+        layout: Layout,
+        xy: NDArray[np.float64],
+        slope: NDArray[np.float64],
+        upright_cuts: dict[tuple[float, bool], _UprightCut] | None = None,
+    ) -> None:
         self.layout = layout
         self.xy = xy
         self.slope = slope
+        self._upright_cuts = upright_cuts  # shared by every step's figures of an upright layout
         self._sections: dict[float, Section] = {}
         self._occluders: dict[float, Section] = {}
 
@@ -222,26 +241,28 @@ class Figures:
         """The discs cut at ``height_m`` (cached per height), in part order: body rows ascending."""
         found = self._sections.get(height_m)
         if found is None:
-            m = self.layout
-            index, centres, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind)
-            found = Section(centres, radii, m.row[index], m.occludes[index])
-            for array in found:
-                array.setflags(write=False)
-            self._sections[height_m] = found
+            found = self._sections[height_m] = self._cut(height_m, False)
         return found
 
     def occluders(self, height_m: float) -> Section:
         """The discs at ``height_m`` that block a camera's sight lines (cached per height)."""
         found = self._occluders.get(height_m)
         if found is None:
-            s = self.section(height_m)
-            if s.occludes.all():
-                found = s
-            else:
-                keep = s.occludes
-                found = Section(s.centres[keep], s.radii[keep], s.rows[keep], s.occludes[keep])
-            self._occluders[height_m] = found
+            found = self._occluders[height_m] = self._cut(height_m, True)
         return found
+
+    def _cut(self, height_m: float, occluders_only: bool) -> Section:
+        m = self.layout
+        keep = m.occludes if occluders_only else m.every
+        if self._upright_cuts is None:
+            index, centres, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind, keep)
+            return Section(centres, radii, m.row[index], m.occludes[index])  # fresh arrays: read, never write
+        cut = self._upright_cuts.get((height_m, occluders_only))
+        if cut is None:  # once per height between resets: which parts, and their radii there
+            index, _, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind, keep)
+            cut = self._upright_cuts[(height_m, occluders_only)] = (index, radii, m.row[index], m.occludes[index])
+        index, radii, rows, occludes = cut
+        return Section(self.xy[index], radii, rows, occludes)
 
 
 class FigureModel:
@@ -265,6 +286,7 @@ class FigureModel:
         self._hip_m = np.zeros(self.body_count)
         self._cadence = np.zeros(self.body_count)
         self._max_step = np.zeros(self.body_count)
+        self._empty: Figures | None = None
         self._build(None)
 
     @property
@@ -312,9 +334,14 @@ class FigureModel:
             z_hi,
             radius,
             np.asarray(columns[8], dtype=np.bool_),
+            np.ones(len(parts), dtype=np.bool_),
         )
         for array in self.layout:
             array.setflags(write=False)
+        #: an upright layout's cuts by (height, occluders only), valid until the next layout
+        self._upright_cuts: dict[tuple[float, bool], _UprightCut] | None = {} if self.layout.upright else None
+        self._no_slope = np.zeros((len(parts), 2))
+        self._no_slope.setflags(write=False)
 
     def reset(self, rng: np.random.Generator, velocities: NDArray[np.float64]) -> None:
         """New sizes for every person (drawn from ``rng`` only when there are people), standing still.
@@ -348,5 +375,11 @@ class FigureModel:
     def pose(self, positions: NDArray[np.float64]) -> Figures:
         """The :class:`Figures` of the bodies at ``positions`` ``(B, 2)`` in their current gait."""
         m = self.layout
+        if not m.row.size:  # nothing but our robot: one empty figure, its sections cached for good
+            if self._empty is None or self._empty.layout is not m:
+                self._empty = Figures(m, np.zeros((0, 2)), np.zeros((0, 2)))
+            return self._empty
+        if self._upright_cuts is not None:  # no legs: each part stands at its body's centre
+            return Figures(m, positions[m.row], self._no_slope, self._upright_cuts)
         xy, slope = _pose_parts(positions, m.row, m.kind, m.lateral, m.swing_sign, self.heading, self.swing_tan)
         return Figures(m, xy, slope)

@@ -101,6 +101,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         self._last_info: dict[str, Any] = {}
         self._still_s = 0.0
         self._last_command = (0.0, 0.0)  # the last step's commanded (speed m/s, turn rate rad/s)
+        self._slips = self.config.robot.slips  # whether any wheel slip is set
 
     # ------------------------------------------------------------------ gym API
     def reset(
@@ -149,8 +150,10 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         rc = self.config.robot
         last_v, last_omega = self._last_command
         self._last_command = (v, omega)
-        in_contact = rc.slip_in_contact > 0 and self.world.robot_touching()
-        lost = rc.slip_fraction(abs(v - last_v) / dt, abs(omega - last_omega) / dt, in_contact, self._world_rng)
+        lost = 0.0
+        if self._slips:  # (nothing is drawn when no slip is set)
+            in_contact = rc.slip_in_contact > 0 and self.world.robot_touching()
+            lost = rc.slip_fraction(abs(v - last_v) / dt, abs(omega - last_omega) / dt, in_contact, self._world_rng)
         slip = 1.0 - lost
         heading = theta + half
         velocity = np.array([v * slip * math.cos(heading), v * slip * math.sin(heading)])

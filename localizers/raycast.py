@@ -59,6 +59,22 @@ def _ray_circle(ox: float, oy: float, dx: float, dy: float, cx: float, cy: float
     return proj - math.sqrt(h2)
 
 
+@numba.njit(cache=True, inline="always")
+def _beam_spans(rel_angles: NDArray[np.float64], rel: float, half: float) -> NDArray[np.int64]:
+    """``(3, 2)`` index ranges ``[lo, hi)`` of the beams within ``half`` of the direction ``rel``
+    (radians past the first beam, in ``[0, 2 pi)``): the interval itself, and a turn lower and
+    higher (an interval straddling the first beam shows up a turn lower, i.e. the beams just
+    after it, and one a turn higher, the last beams of a full-turn scan). Widened by 1e-9 rad:
+    an extra beam costs one exact test, a missed one a wrong range."""
+    out = np.empty((3, 2), dtype=np.int64)
+    two_pi = 2.0 * math.pi
+    for k in range(3):
+        centre = rel + (k - 1) * two_pi
+        out[k, 0] = np.searchsorted(rel_angles, centre - half - 1e-9)
+        out[k, 1] = np.searchsorted(rel_angles, centre + half + 1e-9, side="right")
+    return out
+
+
 @numba.njit(cache=True)
 def cast_rays(
     origin: NDArray[np.float64],
@@ -70,6 +86,11 @@ def cast_rays(
     radii: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """First-hit range of each ray, ``max_range`` where nothing is hit within it.
+
+    Every segment and circle covers an angular interval seen from the origin; only the beams
+    inside it are tested (found by binary search over the beam angles relative to the first,
+    so uneven spacing works too), so the cost grows with the beams each obstacle covers rather
+    than beams times obstacles. A segment through the origin is tested against every beam.
 
     Args:
         origin: ``(2,)`` ray origin (world frame).
@@ -84,24 +105,41 @@ def cast_rays(
     """
     n = angles.shape[0]
     out = np.full(n, max_range)
+    if n == 0:
+        return out
     ox = origin[0]
     oy = origin[1]
     dirx = np.cos(angles)
     diry = np.sin(angles)
-    for i in range(n):
-        best = out[i]
-        for s in range(seg_a.shape[0]):
-            t = _ray_segment(ox, oy, dirx[i], diry[i], seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
-            if t < best:
-                best = t
-        out[i] = best
-    if n == 0:
-        return out
-    # Circles cover a narrow angular interval: test only the beams inside it, found by binary
-    # search over the beam angles relative to the first (so uneven spacing works too).
     a0 = angles[0]
     two_pi = 2.0 * math.pi
     rel_angles = angles - a0
+    for s in range(seg_a.shape[0]):
+        ax = seg_a[s, 0] - ox
+        ay = seg_a[s, 1] - oy
+        bx = seg_b[s, 0] - ox
+        by = seg_b[s, 1] - oy
+        if (
+            min(math.sqrt(ax * ax + ay * ay), math.sqrt(bx * bx + by * by)) >= max_range
+            and _segment_gap(ax, ay, bx, by) >= max_range
+        ):
+            continue
+        cross = ax * by - ay * bx
+        if abs(cross) < _EPS and ax * bx + ay * by <= 0.0:  # the origin lies on the segment
+            for i in range(n):
+                t = _ray_segment(ox, oy, dirx[i], diry[i], seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
+                if t < out[i]:
+                    out[i] = t
+            continue
+        first = math.atan2(ay, ax)
+        span = (math.atan2(by, bx) - first + math.pi) % two_pi - math.pi  # from a to b, within half a turn
+        rel = (first + 0.5 * span - a0) % two_pi
+        spans = _beam_spans(rel_angles, rel, 0.5 * abs(span))
+        for k in range(3):
+            for i in range(spans[k, 0], spans[k, 1]):
+                t = _ray_segment(ox, oy, dirx[i], diry[i], seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
+                if t < out[i]:
+                    out[i] = t
     for c in range(centres.shape[0]):
         wx = centres[c, 0] - ox
         wy = centres[c, 1] - oy
@@ -113,21 +151,26 @@ def cast_rays(
             for i in range(n):
                 out[i] = 0.0
             continue
-        half = math.asin(r / d)
-        centre_angle = math.atan2(wy, wx)
-        rel = (centre_angle - a0) % two_pi
-        # rel is in [0, 2 pi): an interval straddling the first beam also shows up a turn lower
-        # (the beams just after it), and one a turn higher (the last beams of a full-turn scan)
-        for turn in range(-1, 2):
-            centre_rel = rel + turn * two_pi
-            # widened by 1e-9 rad: an extra beam costs one exact test, a missed one a wrong range
-            lo = np.searchsorted(rel_angles, centre_rel - half - 1e-9)
-            hi = np.searchsorted(rel_angles, centre_rel + half + 1e-9, side="right")
-            for i in range(lo, hi):
+        rel = (math.atan2(wy, wx) - a0) % two_pi
+        spans = _beam_spans(rel_angles, rel, math.asin(r / d))
+        for k in range(3):
+            for i in range(spans[k, 0], spans[k, 1]):
                 t = _ray_circle(ox, oy, dirx[i], diry[i], centres[c, 0], centres[c, 1], r)
                 if t < out[i]:
                     out[i] = t
     return out
+
+
+@numba.njit(cache=True, inline="always")
+def _segment_gap(ax: float, ay: float, bx: float, by: float) -> float:
+    """Distance from the origin to the segment from ``(ax, ay)`` to ``(bx, by)`` (origin-relative)."""
+    ex = bx - ax
+    ey = by - ay
+    l2 = ex * ex + ey * ey
+    t = 0.0 if l2 <= 0.0 else min(1.0, max(0.0, -(ax * ex + ay * ey) / l2))
+    px = ax + t * ex
+    py = ay + t * ey
+    return math.sqrt(px * px + py * py)
 
 
 @numba.njit(cache=True)

@@ -204,6 +204,10 @@ class BearingCamera(SensorBase):
             [state.landmark_radius_m[slot[d.landmark]] if d.radius_m is None else d.radius_m for d in ds], dtype=np.float64
         )
         self.distractor_max_range_m = np.array([min(d.max_range_m, config.max_range_m) for d in ds], dtype=np.float64)
+        # the landmarks, then the distractors: one sight-line test a frame for both
+        self._targets_xy = np.vstack([state.landmark_xy, self.distractor_xy])
+        self._targets_radius_m = np.concatenate([state.landmark_radius_m, self.distractor_radius_m])
+        self._targets_max_range_m = np.concatenate([self.max_range_m, self.distractor_max_range_m])
 
     def space(self) -> spaces.Box:
         return spaces.Box(-1.0, 1.0, shape=(3 * self.count,), dtype=np.float32)
@@ -236,19 +240,22 @@ class BearingCamera(SensorBase):
 
     def true_visibility(self, state: WorldState) -> NDArray[np.bool_]:
         """``(L,)`` landmarks in the field of view whose line of sight is clear and within range (no dropout)."""
-        return self._in_view(state, state.landmark_xy, state.landmark_radius_m, self.max_range_m)
+        return self._views(state)[: self.count]
 
     def distractors_in_view(self, state: WorldState) -> NDArray[np.bool_]:
         """``(D,)`` distractors the camera would see now (in config order), whether or not their landmark is in view."""
-        if not self.distractor_slot.size:
-            return np.zeros(0, dtype=np.bool_)
-        return self._in_view(state, self.distractor_xy, self.distractor_radius_m, self.distractor_max_range_m)
+        return self._views(state)[self.count :]
+
+    def _views(self, state: WorldState) -> NDArray[np.bool_]:
+        """``(L + D,)`` :meth:`_in_view` of the landmarks, then of the distractors, in one test."""
+        return self._in_view(state, self._targets_xy, self._targets_radius_m, self._targets_max_range_m)
 
     def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
         cfg = self.config
         draws = rng.random((3, self.count))  # dropout, false detection, false bearing
         noise = rng.standard_normal((self.count,)) * cfg.noise_std_rad
-        visible = self.true_visibility(state)
+        views = self._views(state)
+        visible = views[: self.count]
         obs, chosen = _bearing_slots(
             state.positions[0],
             state.angles[0],
@@ -260,7 +267,7 @@ class BearingCamera(SensorBase):
             cfg.false_detection_probability,
             self.distractor_xy,
             self.distractor_slot,
-            self.distractors_in_view(state),
+            views[self.count :],
         )
         # fixed shapes (one flag per landmark), so that vector envs can stack the infos
         return obs.reshape(-1), {
