@@ -37,7 +37,6 @@ class WorldState(NamedTuple):
         radii_m: ``(B,)`` body footprint radii.
         crowd_rows: rows of the crowd's members (robots, people).
         ball_row: the ball's row, or -1 without a ball.
-        occluder_rows: rows whose discs block a camera's sight lines; ``occluder_radius_m`` their radii.
         seg_a, seg_b: ``(S, 2)`` wall segments (static; they occlude and collide);
             ``seg_bottom_m``, ``seg_top_m``: ``(S,)`` the heights they span.
         figures: every body's parts by height (:mod:`envs.bodies`); :meth:`section` cuts them.
@@ -53,8 +52,6 @@ class WorldState(NamedTuple):
     radii_m: NDArray[np.float64]
     crowd_rows: Rows
     ball_row: int
-    occluder_rows: Rows
-    occluder_radius_m: NDArray[np.float64]
     seg_a: NDArray[np.float64]
     seg_b: NDArray[np.float64]
     seg_bottom_m: NDArray[np.float64]
@@ -99,7 +96,3 @@ class WorldState(NamedTuple):
     def walls_at(self, height_m: float) -> NDArray[np.bool_]:
         """``(S,)`` the static segments a sensor at ``height_m`` sees: those spanning it (``bottom <= h < top``)."""
         return (self.seg_bottom_m <= height_m) & (height_m < self.seg_top_m)
-
-    @property
-    def occluder_xy(self) -> NDArray[np.float64]:
-        return self.positions[self.occluder_rows]

@@ -6,7 +6,8 @@ and contacts. Scripted drivers steer through the public control methods
 (:meth:`World.place_body`, :meth:`World.place_crowd_member`, :meth:`World.crowd_named`).
 
 Pymunk does the dynamics and contacts only. After every physics step the world exports
-its state as numpy arrays (``positions``, ``velocities``, occluder circles, wall segments),
+its state as numpy arrays (``positions``, ``velocities``, wall segments, every body's parts by
+height: :mod:`envs.bodies`),
 which the sensors ray-cast against; no per-ray pymunk query is made anywhere.
 
 Body state moves in and out of pymunk through ``pymunk.batch`` in one call each way.
@@ -79,7 +80,6 @@ class World:
             each crowd's bodies in config order (its members, then e.g. its ball).
         angles: ``(B,)``; ``velocities``: ``(B, 2)``.
         member_rows, ball_rows: rows of every crowd member (robots, people) and of the balls.
-        occluder_rows: rows of ``positions`` whose circles block sight.
         contacts: the :class:`ContactEvent` s of the last step only; ``contact_count``: how
             many the episode has had.
     """
@@ -119,8 +119,6 @@ class World:
         self.radii_m = np.asarray([config.robot.radius_m] + [b.radius_m for b in self._specs], dtype=np.float64)
         #: every body's vertical profile (:mod:`envs.bodies`): what the sensors see at their heights
         self.figure_model = FigureModel([(b.shape, b.radius_m, b.height_m, b.occludes, b.person) for b in self._specs])
-        self.occluder_rows = _as_slice(np.flatnonzero([False] + [b.occludes for b in self._specs]))
-        self._occluder_radius_m = self.radii_m[self.occluder_rows].copy()
         self._others = _as_slice(np.concatenate([[0], self.member_rows]).astype(np.int64))  # the robot and every member
         statics = (
             self.seg_a,
@@ -132,7 +130,7 @@ class World:
             self.landmark_max_range_m,
             self.radii_m,
         )
-        for static in (*statics, self._occluder_radius_m):
+        for static in statics:
             static.setflags(write=False)  # shared by every snapshot
         self._state_buffer = pbatch.Buffer()
         # per body (vx, vy, omega, fx, fy), the layout pymunk.batch expects for _FIELDS_COMMAND
@@ -372,8 +370,6 @@ class World:
                 radii_m=self.radii_m,
                 crowd_rows=self.crowd_rows,
                 ball_row=self.ball_row,
-                occluder_rows=self.occluder_rows,
-                occluder_radius_m=self._occluder_radius_m,
                 seg_a=self.seg_a,
                 seg_b=self.seg_b,
                 seg_bottom_m=self.seg_bottom_m,
