@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envs.bodies import Figures, Section
+from localizers.geometry import spanning
 
 #: body rows: a slice where they are consecutive (views), else an index array
 Rows = slice | NDArray[np.int64]
@@ -95,4 +96,4 @@ class WorldState(NamedTuple):
 
     def walls_at(self, height_m: float) -> NDArray[np.bool_]:
         """``(S,)`` the static segments a sensor at ``height_m`` sees: those spanning it (``bottom <= h < top``)."""
-        return (self.seg_bottom_m <= height_m) & (height_m < self.seg_top_m)
+        return spanning(self.seg_bottom_m, self.seg_top_m, height_m)

@@ -17,6 +17,8 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from localizers.geometry import spanning
+
 
 class MeasurementError(ValueError):
     """A measurement handed to a localizer is malformed (NaN, out of range, wrong shape)."""
@@ -83,7 +85,7 @@ class LandmarkMap:
         if not math.isfinite(height_m):
             raise ValueError(f"LandmarkMap.at_height: height_m must be finite, got {height_m!r}")
         h = self.heights
-        keep = (h[:, 0] <= height_m) & (height_m < h[:, 1])
+        keep = spanning(h[:, 0], h[:, 1], height_m)
         if keep.all():
             return self
         return dataclasses.replace(self, walls_m=self.walls_m[keep], wall_heights_m=h[keep])

@@ -125,6 +125,12 @@ def in_field_of_view(
     return np.abs(wrap_angle(bearing)) <= 0.5 * fov_rad
 
 
+def spanning(bottom: ArrayLike, top: ArrayLike, height_m: float) -> NDArray[np.bool_]:
+    """Which of the height intervals ``[bottom, top)`` contain ``height_m``: the walls, furniture
+    and body parts a horizontal plane at that height cuts (a sensor mounted there sees them)."""
+    return np.asarray((np.asarray(bottom) <= height_m) & (height_m < np.asarray(top)))
+
+
 def ring_directions(count: int) -> NDArray[np.float64]:
     """``(count,)`` directions spread evenly around a full turn, from 0 counter-clockwise: the
     layout of a sensor ring (the sonar's cone centres, relative to the heading)."""

@@ -119,6 +119,7 @@ def cast_rays(
         ay = seg_a[s, 1] - oy
         bx = seg_b[s, 0] - ox
         by = seg_b[s, 1] - oy
+        # out of reach (the end points first: a cheap necessary condition of the gap test)
         if (
             min(math.sqrt(ax * ax + ay * ay), math.sqrt(bx * bx + by * by)) >= max_range
             and _segment_gap(ax, ay, bx, by) >= max_range

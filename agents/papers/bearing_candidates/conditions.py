@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from agents.papers.bearing_candidates.jobs import BASELINES, EXP1_PAIR, STUDIES, Job, shipped
+from agents.papers.world_text import odometry_text
 from envs.crowds import SoccerConfig
 from envs.sensors import BearingCameraConfig, OdometryConfig
 
@@ -141,9 +142,8 @@ class WorldFacts:
     landmarks: int
     landmark_names: tuple[str, ...]
     odometry_alphas: tuple[float, float, float, float]
-    odometry_systematic: tuple[float, float, float]  # wheel diameter ratio, wheelbase ratio, distance scale (1: none)
+    odometry: str  # its errors in words (agents.papers.world_text.odometry_text)
     slip_probability: float
-    slips: bool  # any wheel slip (random, with acceleration or in contact)
     camera_noise_deg: float
     dropout: float  # camera dropout probability
     false_rate: float  # camera false-detection probability per slot and frame
@@ -167,9 +167,8 @@ def world_facts(world: WorldConfig) -> WorldFacts:
         landmarks=len(world.landmarks),
         landmark_names=tuple(lm.name for lm in world.landmarks),
         odometry_alphas=odometry.alphas,
-        odometry_systematic=(odometry.wheel_diameter_ratio, odometry.wheelbase_ratio, odometry.distance_scale),
+        odometry=odometry_text(odometry, world.robot),
         slip_probability=world.robot.slip_probability,
-        slips=world.robot.slips,
         camera_noise_deg=math.degrees(camera.noise_std_rad),
         dropout=camera.dropout_probability,
         false_rate=camera.false_detection_probability,

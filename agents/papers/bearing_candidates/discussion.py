@@ -77,18 +77,6 @@ def _exp1_shipped(sh: Row, cond: Conditions, exp2_detected: float | None) -> str
     )
 
 
-def odometry_text(world: WorldFacts) -> str:
-    """The odometry's errors in a study's world, from its facts."""
-    e_d, e_b, k = world.odometry_systematic
-    systematic = (
-        "no systematic error"
-        if (e_d, e_b, k) == (1.0, 1.0, 1.0)
-        else f"systematic errors (wheel diameter ratio {e_d:g}, wheelbase ratio {e_b:g}, distance scale {k:g})"
-    )
-    slip = "wheel slip" if world.slips else "no slip"
-    return f"the alpha model (alpha1 = {world.odometry_alphas[0]:g}), {systematic}, {slip}"
-
-
 def misidentified_text(world: WorldFacts) -> str:
     """What the camera gets wrong in a study's world, from its facts."""
     parts = []
@@ -121,7 +109,7 @@ def exp1_discussion(exp1: Exp1Stats, cond: Conditions, exp2_detected: float | No
         f"{versus(mp.head_deg[0], p['mcl_bearing_paper'][1][0])}); (5) is "
         + ("better than both here, as in the paper. " if better else "not better than both here, unlike in the paper. ")
         + ("Both baselines are better than the paper's. " if baselines_better else "")
-        + f"Our odometry: {odometry_text(world)}; dead reckoning alone reaches {dr.pos_mm[0]:.0f} mm (the paper's "
+        + f"Our odometry: {world.odometry}; dead reckoning alone reaches {dr.pos_mm[0]:.0f} mm (the paper's "
         f"encoder wheel had large rotation errors). Both baselines also see {geo.pole.name} on {geo.pole_seen}, and the "
         f"Kalman filter starts from the known pose; {misidentified_text(world)}.",
         f"- **Like for like** (not in the paper): given only {a} and {b}, the paper's MCL reaches {m2.pos_mm[0]:.0f} mm "

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from agents.papers import before
+from agents.papers.world_text import odometry_text
 from agents.util import jsonable, text_table
 
 from . import experiment, paper, world
@@ -599,31 +600,12 @@ def differences_section(c: Context) -> Lines:
     return lines
 
 
-def odometry_text() -> str:
-    """What our odometry's errors are, from the world config."""
-    o = world.odometry()
-    alphas = ", ".join(f"{a:g}" for a in o.alphas)
-    if o.systematic:
-        systematic = (f"systematic errors set (wheel diameter ratio {o.wheel_diameter_ratio:g}, wheelbase ratio "
-                      f"{o.wheelbase_ratio:g}, distance scale {o.distance_scale:g})")  # fmt: skip
-    else:
-        systematic = "no systematic error (wheel diameters, wheelbase and distance scale nominal)"
-    r = world.room().robot
-    if r.slips:
-        slip = (f"wheel slip ({100 * r.slip_per_accel_s2:g} % of the motion lost per m/s^2 of commanded acceleration, "
-                f"{100 * r.slip_per_angular_accel_s2:g} % per rad/s^2 of turn-rate change, {100 * r.slip_in_contact:g} % in "
-                f"contact, random slips with probability {r.slip_probability:g})")  # fmt: skip
-    else:
-        slip = "no wheel slip"
-    return f"the alpha model's zero-mean noise (alphas {alphas}), {systematic} and {slip}"
-
-
 def failure_mode_item() -> str:
     """The differences' item on what the room and the odometry are like (from the world config)."""
     r = world.room()
     return (
         f"- The room and the robot: besides its four walls the room has {len(r.walls)} wall segments and "
-        f"{len(r.furniture)} pieces of furniture, and the map has {moved_text()}. The odometry has {odometry_text()}: the "
+        f"{len(r.furniture)} pieces of furniture, and the map has {moved_text()}. The odometry has {odometry_text(world.odometry(), r.robot)}: the "
         "systematic errors and the slip are motion it misreads, pushes by contacts motion it misses. The robot tracks "
         "from the known start pose (the paper's did too), so a filter only fails by losing track on the way."
     )

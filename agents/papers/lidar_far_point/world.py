@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from envs.config import WorldConfig, load_world
 from envs.crowds import QueuesConfig
 from envs.sensors import LidarConfig, OdometryConfig
+from localizers.geometry import spanning
 from localizers.mcl_lidar import LidarMCLParams
 from localizers.registry import LOCALIZER_CONFIG_DIR, load_params, params_path
 from localizers.scan_filter import FarPointMCLParams
@@ -57,8 +58,7 @@ def true_walls_at(height_m: float) -> NDArray[np.float64]:
     """``(S, 4)`` the room's static segments where they stand (not where the map has them) that a
     sensor at ``height_m`` sees: those spanning it (``[bottom, top)``, as the map is cut)."""
     seg = room().static_segments(in_map=False)
-    keep = (seg[:, 4] <= height_m) & (height_m < seg[:, 5])
-    return np.ascontiguousarray(seg[keep, :4])
+    return np.ascontiguousarray(seg[spanning(seg[:, 4], seg[:, 5], height_m), :4])
 
 
 def moved_furniture() -> list[tuple[str, float]]:
