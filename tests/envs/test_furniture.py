@@ -76,6 +76,8 @@ def test_at_height_keeps_the_walls_spanning_the_height() -> None:
     assert lmap.at_height(1.9).walls_m.tolist() == walls[:1].tolist()
     assert lmap.at_height(0.71).walls_m.shape == (3, 4)
     assert LandmarkMap(np.zeros((0, 2)), (), (0, 0, 5, 5), walls).at_height(100.0).walls_m.shape == (3, 4)
+    with pytest.raises(ValueError, match="height_m must be finite, got nan"):
+        lmap.at_height(math.nan)
     with pytest.raises(ValueError, match="bottom < top"):
         LandmarkMap(np.zeros((0, 2)), (), (0, 0, 5, 5), walls, wall_heights_m=np.array([[0, 2.5], [2, 1.8], [0, 1]]))
 
@@ -119,3 +121,26 @@ def test_repeated_furniture_names_are_refused() -> None:
     piece = FurnitureConfig("box", "box", 3.0, 3.0, (0.5, 0.5), 1.0)
     with pytest.raises(ConfigError, match="furniture names repeat"):
         dataclasses.replace(room, furniture=(piece, piece))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"lidar": {"height_m": -0.1}}, "lidar.height_m must be finite and >= 0, got -0.1"),
+        ({"lidar": {"height_m": math.inf}}, "lidar.height_m must be finite and >= 0, got inf"),
+        ({"sonar": {"height_m": math.nan}}, "sonar.height_m must be finite and >= 0, got nan"),
+    ],
+)
+def test_a_sensor_height_must_be_a_height(kwargs: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        gym.make("crowdloc/CrowdedRoom-v0", **kwargs)
+
+
+def test_a_camera_height_must_be_a_height() -> None:
+    with pytest.raises(ConfigError, match="camera.height_m must be finite and >= 0, got -1"):
+        gym.make("crowdloc/RoboCupStatic-v0", camera={"height_m": -1.0})
+
+
+def test_a_wall_height_must_be_positive() -> None:
+    with pytest.raises(ConfigError, match="wall_height_m must be > 0, got 0"):
+        dataclasses.replace(load_world("crowded_room"), wall_height_m=0.0)
