@@ -213,8 +213,8 @@ class Layout(NamedTuple):
         return not bool(np.any(self.kind == LEG))
 
 
-#: per (height, mask) of an upright layout: the parts cut there and their radii
-_UprightCut = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_]]
+#: per (height, mask) of an upright layout: the rows of the parts cut there, their radii there, whether they occlude
+_UprightCut = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]
 
 
 class Figures:
@@ -226,16 +226,33 @@ class Figures:
     def __init__(
         self,
         layout: Layout,
-        xy: NDArray[np.float64],
-        slope: NDArray[np.float64],
+        xy: NDArray[np.float64] | None,
+        slope: NDArray[np.float64] | None,
         upright_cuts: dict[tuple[float, bool], _UprightCut] | None = None,
+        positions: NDArray[np.float64] | None = None,
     ) -> None:
         self.layout = layout
-        self.xy = xy
-        self.slope = slope
+        self._xy = xy
+        self._slope = slope
+        self._positions = positions  # an upright layout's body positions: its parts stand at their centres
         self._upright_cuts = upright_cuts  # shared by every step's figures of an upright layout
         self._sections: dict[float, Section] = {}
         self._occluders: dict[float, Section] = {}
+
+    @property
+    def xy(self) -> NDArray[np.float64]:
+        """``(P, 2)`` every part's reference point."""
+        if self._xy is None:
+            assert self._positions is not None
+            self._xy = self._positions[self.layout.row]
+        return self._xy
+
+    @property
+    def slope(self) -> NDArray[np.float64]:
+        """``(P, 2)`` every part's shift of its centre per metre up."""
+        if self._slope is None:
+            self._slope = np.zeros((self.layout.row.size, 2))
+        return self._slope
 
     def section(self, height_m: float) -> Section:
         """The discs cut at ``height_m`` (cached per height), in part order: body rows ascending."""
@@ -260,9 +277,10 @@ class Figures:
         cut = self._upright_cuts.get((height_m, occluders_only))
         if cut is None:  # once per height between resets: which parts, and their radii there
             index, _, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind, keep)
-            cut = self._upright_cuts[(height_m, occluders_only)] = (index, radii, m.row[index], m.occludes[index])
-        index, radii, rows, occludes = cut
-        return Section(self.xy[index], radii, rows, occludes)
+            cut = self._upright_cuts[(height_m, occluders_only)] = (m.row[index], radii, m.occludes[index])
+        rows, radii, occludes = cut
+        assert self._positions is not None
+        return Section(self._positions[rows], radii, rows, occludes)
 
 
 class FigureModel:
@@ -380,6 +398,6 @@ class FigureModel:
                 self._empty = Figures(m, np.zeros((0, 2)), np.zeros((0, 2)))
             return self._empty
         if self._upright_cuts is not None:  # no legs: each part stands at its body's centre
-            return Figures(m, positions[m.row], self._no_slope, self._upright_cuts)
+            return Figures(m, None, self._no_slope, self._upright_cuts, positions)
         xy, slope = _pose_parts(positions, m.row, m.kind, m.lateral, m.swing_sign, self.heading, self.swing_tan)
         return Figures(m, xy, slope)

@@ -256,25 +256,19 @@ class BearingCamera(SensorBase):
         noise = rng.standard_normal((self.count,)) * cfg.noise_std_rad
         views = self._views(state)
         visible = views[: self.count]
-        obs, chosen = _bearing_slots(
+        obs, distracted, false = _bearing_slots(
             state.positions[0],
             state.angles[0],
-            state.landmark_xy,
-            visible,
+            self._targets_xy,
+            views,
+            self.distractor_slot,
             draws,
             noise,
             cfg.dropout_probability,
             cfg.false_detection_probability,
-            self.distractor_xy,
-            self.distractor_slot,
-            views[self.count :],
         )
         # fixed shapes (one flag per landmark), so that vector envs can stack the infos
-        return obs.reshape(-1), {
-            "visible_landmarks": visible,
-            "false_detections": draws[1] < cfg.false_detection_probability,
-            "distractor_detections": chosen >= 0,
-        }
+        return obs.reshape(-1), {"visible_landmarks": visible, "false_detections": false, "distractor_detections": distracted}
 
     def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None:
         """Sight lines to the landmarks truly in view and to the distractors reported, the
@@ -333,40 +327,42 @@ def _nearest_in_view(
 def _bearing_slots(
     origin: NDArray[np.float64],
     heading: float,
-    landmark_xy: NDArray[np.float64],
-    visible: NDArray[np.bool_],
+    targets_xy: NDArray[np.float64],
+    in_view: NDArray[np.bool_],
+    distractor_slot: NDArray[np.int64],
     draws: NDArray[np.float64],
     noise: NDArray[np.float64],
     dropout: float,
     false_rate: float,
-    distractor_xy: NDArray[np.float64],
-    distractor_slot: NDArray[np.int64],
-    distractor_in_view: NDArray[np.bool_],
-) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
-    """Fill the ``(L, 3)`` camera slots; also ``(L,)`` the distractor reported in each slot (its row, -1 for none).
+) -> tuple[NDArray[np.float32], NDArray[np.bool_], NDArray[np.bool_]]:
+    """Fill the ``(L, 3)`` camera slots; also ``(L,)`` which slots hold a distractor and which
+    a random false detection.
 
-    Per slot, first match wins: a random false detection; nothing when the slot drops out
-    (a missed detection drops the slot, whichever object would have filled it); the landmark
-    when visible; the nearest distractor in view of that landmark; else the slot stays zero.
+    ``targets_xy`` and ``in_view`` hold the ``L`` landmarks, then the distractors. Per slot,
+    first match wins: a random false detection; nothing when the slot drops out (a missed
+    detection drops the slot, whichever object would have filled it); the landmark when
+    visible; the nearest distractor in view of that landmark; else the slot stays zero.
     """
-    n = landmark_xy.shape[0]
+    n = draws.shape[1]
     obs = np.zeros((n, 3), dtype=np.float32)
-    nearest = _nearest_in_view(origin, distractor_xy, distractor_slot, distractor_in_view, n)
-    chosen = np.full(n, -1, dtype=np.int64)
+    nearest = _nearest_in_view(origin, targets_xy[n:], distractor_slot, in_view[n:], n)
+    distracted = np.zeros(n, dtype=np.bool_)
+    false = np.zeros(n, dtype=np.bool_)
     for j in range(n):
         if draws[1, j] < false_rate:
+            false[j] = True
             bearing = (draws[2, j] * 2.0 - 1.0) * math.pi
         elif draws[0, j] < dropout:
             continue
-        elif visible[j]:
-            bearing = math.atan2(landmark_xy[j, 1] - origin[1], landmark_xy[j, 0] - origin[0]) - heading + noise[j]
+        elif in_view[j]:
+            bearing = math.atan2(targets_xy[j, 1] - origin[1], targets_xy[j, 0] - origin[0]) - heading + noise[j]
         elif nearest[j] >= 0:
-            d = nearest[j]
-            chosen[j] = d
-            bearing = math.atan2(distractor_xy[d, 1] - origin[1], distractor_xy[d, 0] - origin[0]) - heading + noise[j]
+            d = n + nearest[j]
+            distracted[j] = True
+            bearing = math.atan2(targets_xy[d, 1] - origin[1], targets_xy[d, 0] - origin[0]) - heading + noise[j]
         else:
             continue
         obs[j, 0] = 1.0
         obs[j, 1] = math.cos(bearing)
         obs[j, 2] = math.sin(bearing)
-    return obs, chosen
+    return obs, distracted, false
