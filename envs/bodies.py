@@ -5,8 +5,8 @@ has a vertical profile, and every sensor a mounting height at which it sees the 
 horizontal cross-section. This module is the one description of that profile; the range
 sensors, the cameras and the renderer read it, none of them keeps its own.
 
-**Parts.** A body is made of upright parts, each a disc of a radius over a height interval
-``[z_lo, z_hi)``:
+**Parts.** A body is made of upright parts, each a disc of a radius (or, for a car, a box)
+over a height interval ``[z_lo, z_hi)``:
 
 - ``column``: one disc of the footprint radius from the floor to ``height_m`` (a soccer
   robot's body, a pole; ``inf``: as tall as anything a sensor looks at);
@@ -17,14 +17,21 @@ sensors, the cameras and the renderer read it, none of them keeps its own.
   and back with the gait while the person walks and still (upright, beside the other) while
   the person stands: at height ``z`` its centre lies ``(z_hip - z) tan(alpha)`` ahead of the
   hip, ``alpha`` the leg's swing angle. So a LIDAR at 0.2 m sees two leg discs whose gap
-  changes with the gait phase, one at 1.2 m sees the torso and one above the head nothing.
+  changes with the gait phase, one at 1.2 m sees the torso and one above the head nothing;
+- ``car``: boxes that turn with the body's heading (:class:`CarConfig`): four wheels below
+  the sill (a wheel's section at height ``z`` is a chord ``2 sqrt(r^2 - (z - r)^2)`` long
+  and the tyre's width wide), the lower body from the sill to the beltline and the cabin
+  from there to the roof. A LIDAR at 0.2 m sees the four wheels and, between them, under
+  the car; one at 0.6 m sees the body's sides, one over the roof nothing. Its footprint box
+  is what collides (the other shapes collide by their footprint disc).
 
 Each part is stored as a reference point ``xy`` at height ``z_ref`` and a ``slope`` (the
 horizontal shift of its centre per metre up), so its centre at height ``z`` is
 ``xy + slope (z - z_ref)``; a column and a ball have zero slope.
 
-**Sections.** :meth:`Figures.section` gives the discs cut at one height: centres, radii, the
-body row each belongs to and whether it blocks a camera's view. The world makes one
+**Sections.** :meth:`Figures.section` gives the discs cut at one height (centres, radii, the
+body row each belongs to and whether it blocks a camera's view) and the sides of the boxes
+cut there, as segments. The world makes one
 :class:`Figures` per step (lazily, when a sensor asks) and caches each height's section.
 
 **Gait.** A walking person (speed above :data:`STAND_SPEED_MPS`) faces its direction of
@@ -55,7 +62,7 @@ STAND_SPEED_MPS = 0.05
 #: proportions of the stature: hip joint (leg pivot), crotch (top of the legs), shoulders (top of the torso)
 HIP_FRACTION, CROTCH_FRACTION, SHOULDER_FRACTION = 0.53, 0.47, 0.82
 #: the shapes a body can have (``BodySpec.shape``)
-SHAPES = ("column", "ball", "person")
+SHAPES = ("column", "ball", "person", "car")
 #: part kinds
 LEG, TORSO, HEAD, COLUMN, BALL = 0, 1, 2, 3, 4
 
@@ -102,19 +109,145 @@ class PersonConfig:
         )
 
 
+@dataclass(frozen=True)
+class CarConfig:
+    """A car's body and wheels, in its own frame (x forward along its heading, y to its left).
+
+    Sizes are those of a mid-size hatchback. The lower body is a box of ``length_m x width_m``
+    from ``sill_m`` to ``beltline_m``; the cabin a box of ``cabin_length_m x cabin_width_m``
+    centred ``cabin_offset_m`` ahead of the car's centre (negative: behind it), from the
+    beltline to the roof at ``height_m``; the four wheels stand ``wheelbase_m`` apart along
+    the car and ``track_m`` apart across it (centre to centre), each ``wheel_width_m`` wide,
+    seen below the sill (above it they are inside the body). The car turns to face its
+    direction of travel at up to ``turn_rate_rps``.
+    """
+
+    length_m: float = 4.4
+    width_m: float = 1.8
+    height_m: float = 1.45
+    sill_m: float = 0.3
+    beltline_m: float = 0.95
+    cabin_length_m: float = 2.4
+    cabin_width_m: float = 1.6
+    cabin_offset_m: float = -0.2
+    wheel_radius_m: float = 0.32
+    wheel_width_m: float = 0.2
+    wheelbase_m: float = 2.65
+    track_m: float = 1.55
+    turn_rate_rps: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in (
+            "length_m", "width_m", "height_m", "sill_m", "beltline_m", "cabin_length_m", "cabin_width_m",
+            "wheel_radius_m", "wheel_width_m", "wheelbase_m", "track_m", "turn_rate_rps",
+        ):  # fmt: skip
+            value = getattr(self, name)
+            check(math.isfinite(value) and value > 0, f"car.{name} must be finite and > 0, got {value}")
+        check(math.isfinite(self.cabin_offset_m), f"car.cabin_offset_m must be finite, got {self.cabin_offset_m}")
+        check(
+            self.sill_m < self.beltline_m < self.height_m,
+            f"car: sill_m {self.sill_m} < beltline_m {self.beltline_m} < height_m {self.height_m} must hold",
+        )
+        check(
+            self.sill_m <= 2 * self.wheel_radius_m,
+            f"car.sill_m {self.sill_m} is above the wheels' tops (2 x wheel_radius_m {self.wheel_radius_m}): the body would float",
+        )
+        check(
+            0.5 * self.wheelbase_m + self.wheel_radius_m <= 0.5 * self.length_m
+            and 0.5 * self.track_m + 0.5 * self.wheel_width_m <= 0.5 * self.width_m,
+            f"car: the wheels (wheelbase_m {self.wheelbase_m}, track_m {self.track_m}, wheel_radius_m "
+            f"{self.wheel_radius_m}, wheel_width_m {self.wheel_width_m}) must lie inside the body "
+            f"({self.length_m} x {self.width_m} m)",
+        )
+        check(
+            0.5 * self.cabin_length_m + abs(self.cabin_offset_m) <= 0.5 * self.length_m and self.cabin_width_m <= self.width_m,
+            f"car: the cabin ({self.cabin_length_m} x {self.cabin_width_m} m, {self.cabin_offset_m} m ahead of the centre) "
+            f"must lie inside the body ({self.length_m} x {self.width_m} m)",
+        )
+
+    @property
+    def bounding_radius_m(self) -> float:
+        """The radius of the circle around the footprint box (what a crowd member's ``radius_m`` must cover)."""
+        return math.hypot(0.5 * self.length_m, 0.5 * self.width_m)
+
+    def footprint(self, x: float, y: float, heading: float) -> NDArray[np.float64]:
+        """``(4, 2)`` the footprint box's corners (counter-clockwise) for a car at ``(x, y)`` facing ``heading``."""
+        c, s = math.cos(heading), math.sin(heading)
+        local = 0.5 * np.array(
+            [
+                [self.length_m, -self.width_m],
+                [self.length_m, self.width_m],
+                [-self.length_m, self.width_m],
+                [-self.length_m, -self.width_m],
+            ]
+        )
+        return np.array([x, y]) + local @ np.array([[c, s], [-s, c]])
+
+    def boxes(self) -> list[tuple[float, float, float, float, float, float, float]]:
+        """Its parts as ``(forward, lateral, half length, half width, wheel radius or 0, z_lo, z_hi)``."""
+        body = (0.0, 0.0, 0.5 * self.length_m, 0.5 * self.width_m, 0.0, self.sill_m, self.beltline_m)
+        cabin = (
+            self.cabin_offset_m,
+            0.0,
+            0.5 * self.cabin_length_m,
+            0.5 * self.cabin_width_m,
+            0.0,
+            self.beltline_m,
+            self.height_m,
+        )
+        r, w = self.wheel_radius_m, 0.5 * self.wheel_width_m
+        wheels = [
+            (f * 0.5 * self.wheelbase_m, side * 0.5 * self.track_m, r, w, r, 0.0, self.sill_m)
+            for f in (1.0, -1.0)
+            for side in (1.0, -1.0)
+        ]
+        return [*wheels, body, cabin]
+
+
+def turn_to_travel(
+    angles: NDArray[np.float64], velocities: NDArray[np.float64], dt: float, max_rate: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """``(n,)`` turn rates that bring bodies at ``angles`` ``(n,)`` to face their ``velocities``
+    ``(n, 2)`` within one step of ``dt``, at most ``max_rate`` ``(n,)`` rad/s either way; zero
+    for a body slower than :data:`STAND_SPEED_MPS` (a parked car keeps its heading)."""
+    want = np.arctan2(velocities[:, 1], velocities[:, 0])
+    error = (want - angles + math.pi) % (2.0 * math.pi) - math.pi
+    moving = np.hypot(velocities[:, 0], velocities[:, 1]) > STAND_SPEED_MPS
+    return np.where(moving, np.clip(error / dt, -max_rate, max_rate), 0.0)
+
+
+#: shared, read-only: a section without box sides
+_NO_POINTS = np.zeros((0, 2))
+_NO_ROWS = np.zeros(0, dtype=np.int64)
+_NO_POINTS.setflags(write=False)
+_NO_ROWS.setflags(write=False)
+
+
 class Section(NamedTuple):
-    """The discs a horizontal plane cuts through the bodies (and static columns) at one height.
+    """What a horizontal plane cuts through the bodies at one height: discs, and box sides.
 
     Attributes:
         centres: ``(K, 2)``; ``radii``: ``(K,)``.
-        rows: ``(K,)`` the body row each disc belongs to (-1: static scenery).
+        rows: ``(K,)`` the body row each disc belongs to.
         occludes: ``(K,)`` whether the disc blocks a camera's sight line.
+        seg_a, seg_b: ``(S, 2)`` the ends of the sides of the boxes cut (a car's body, its
+            wheels), four per box; ``seg_rows``: ``(S,)`` the body row of each.
     """
 
     centres: NDArray[np.float64]
     radii: NDArray[np.float64]
     rows: NDArray[np.int64]
     occludes: NDArray[np.bool_]
+    seg_a: NDArray[np.float64] = _NO_POINTS
+    seg_b: NDArray[np.float64] = _NO_POINTS
+    seg_rows: NDArray[np.int64] = _NO_ROWS
+
+    def walls(self, seg_a: NDArray[np.float64], seg_b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The static walls ``seg_a, seg_b`` ``(W, 2)`` a sensor sees at this height, followed
+        by the box sides of the section (the walls themselves, no copy, when there are none)."""
+        if not self.seg_a.shape[0]:
+            return seg_a, seg_b
+        return np.concatenate((seg_a, self.seg_a)), np.concatenate((seg_b, self.seg_b))
 
 
 @numba.njit(cache=True)
@@ -154,6 +287,59 @@ def _cut(
         radii[k] = r
         k += 1
     return index[:k], centres[:k], radii[:k]
+
+
+@numba.njit(cache=True)
+def _cut_boxes(
+    height: float,
+    positions: NDArray[np.float64],
+    angles: NDArray[np.float64],
+    row: NDArray[np.int64],
+    offset: NDArray[np.float64],
+    half: NDArray[np.float64],
+    wheel_r: NDArray[np.float64],
+    z_lo: NDArray[np.float64],
+    z_hi: NDArray[np.float64],
+    keep: NDArray[np.bool_],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """The sides ``(4K, 2)`` ends a, ends b and ``(4K,)`` rows of the boxes that span ``height``.
+
+    Box ``p`` sits ``offset[p]`` (forward, left) from its body's centre in the body's frame,
+    with half sizes ``half[p]`` (along, across); a wheel (``wheel_r > 0``) is as long as its
+    chord at ``height``.
+    """
+    n = row.shape[0]
+    a = np.empty((4 * n, 2))
+    b = np.empty((4 * n, 2))
+    rows = np.empty(4 * n, dtype=np.int64)
+    k = 0
+    for p in range(n):
+        if not (keep[p] and z_lo[p] <= height < z_hi[p]):
+            continue
+        hl = half[p, 0]
+        if wheel_r[p] > 0.0:
+            dz = height - wheel_r[p]
+            hl = math.sqrt(max(wheel_r[p] * wheel_r[p] - dz * dz, 0.0))
+            if hl <= 0.0:
+                continue
+        hw = half[p, 1]
+        body = row[p]
+        c = math.cos(angles[body])
+        s = math.sin(angles[body])
+        cx = positions[body, 0] + offset[p, 0] * c - offset[p, 1] * s
+        cy = positions[body, 1] + offset[p, 0] * s + offset[p, 1] * c
+        # corners counter-clockwise: front right, front left, rear left, rear right
+        xs = (hl, hl, -hl, -hl)
+        ys = (-hw, hw, hw, -hw)
+        for i in range(4):
+            j = (i + 1) % 4
+            a[k + i, 0] = cx + xs[i] * c - ys[i] * s
+            a[k + i, 1] = cy + xs[i] * s + ys[i] * c
+            b[k + i, 0] = cx + xs[j] * c - ys[j] * s
+            b[k + i, 1] = cy + xs[j] * s + ys[j] * c
+            rows[k + i] = body
+        k += 4
+    return a[:k], b[:k], rows[:k]
 
 
 @numba.njit(cache=True)
@@ -213,6 +399,19 @@ class Layout(NamedTuple):
         return not bool(np.any(self.kind == LEG))
 
 
+class BoxLayout(NamedTuple):
+    """Every box part's static facts (a car's body, cabin and wheels), in body-row order."""
+
+    row: NDArray[np.int64]  # (Q,) the body row it belongs to
+    offset: NDArray[np.float64]  # (Q, 2) its centre (forward, left) of the body's centre, in the body's frame
+    half: NDArray[np.float64]  # (Q, 2) half its length (along the body) and width
+    wheel_r: NDArray[np.float64]  # (Q,) a wheel's radius (its length is its chord at the height), 0 for a box
+    z_lo: NDArray[np.float64]
+    z_hi: NDArray[np.float64]
+    occludes: NDArray[np.bool_]
+    every: NDArray[np.bool_]
+
+
 #: per (height, mask) of an upright layout: the rows of the parts cut there, their radii there, whether they occlude
 _UprightCut = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]
 
@@ -230,18 +429,22 @@ class Figures:
         slope: NDArray[np.float64] | None,
         upright_cuts: dict[tuple[float, bool], _UprightCut] | None = None,
         positions: NDArray[np.float64] | None = None,
+        boxes: BoxLayout | None = None,
+        angles: NDArray[np.float64] | None = None,
     ) -> None:
         self.layout = layout
         self._xy = xy
         self._slope = slope
-        self._positions = positions  # an upright layout's body positions: its parts stand at their centres
+        self._positions = positions  # the bodies' positions (an upright layout's parts stand at their centres; boxes)
         self._upright_cuts = upright_cuts  # shared by every step's figures of an upright layout
+        self._boxes = boxes  # None: no box parts
+        self._angles = angles  # the bodies' headings (the boxes turn with them)
         self._sections: dict[float, Section] = {}
         self._occluders: dict[float, Section] = {}
 
     @property
     def xy(self) -> NDArray[np.float64]:
-        """``(P, 2)`` every part's reference point."""
+        """``(P, 2)`` every disc part's reference point."""
         if self._xy is None:
             assert self._positions is not None
             self._xy = self._positions[self.layout.row]
@@ -249,26 +452,36 @@ class Figures:
 
     @property
     def slope(self) -> NDArray[np.float64]:
-        """``(P, 2)`` every part's shift of its centre per metre up."""
+        """``(P, 2)`` every disc part's shift of its centre per metre up."""
         if self._slope is None:
             self._slope = np.zeros((self.layout.row.size, 2))
         return self._slope
 
     def section(self, height_m: float) -> Section:
-        """The discs cut at ``height_m`` (cached per height), in part order: body rows ascending."""
+        """The discs and box sides cut at ``height_m`` (cached per height), in part order: body rows ascending."""
         found = self._sections.get(height_m)
         if found is None:
             found = self._sections[height_m] = self._cut(height_m, False)
         return found
 
     def occluders(self, height_m: float) -> Section:
-        """The discs at ``height_m`` that block a camera's sight lines (cached per height)."""
+        """The discs and box sides at ``height_m`` that block a camera's sight lines (cached per height)."""
         found = self._occluders.get(height_m)
         if found is None:
             found = self._occluders[height_m] = self._cut(height_m, True)
         return found
 
     def _cut(self, height_m: float, occluders_only: bool) -> Section:
+        discs = self._cut_discs(height_m, occluders_only)
+        q = self._boxes
+        if q is None:
+            return discs
+        assert self._positions is not None and self._angles is not None
+        keep = q.occludes if occluders_only else q.every
+        a, b, rows = _cut_boxes(height_m, self._positions, self._angles, q.row, q.offset, q.half, q.wheel_r, q.z_lo, q.z_hi, keep)
+        return discs._replace(seg_a=a, seg_b=b, seg_rows=rows)
+
+    def _cut_discs(self, height_m: float, occluders_only: bool) -> Section:
         m = self.layout
         keep = m.occludes if occluders_only else m.every
         if self._upright_cuts is None:
@@ -283,17 +496,22 @@ class Figures:
         return Section(self._positions[rows], radii, rows, occludes)
 
 
+#: what a body's shape is sized by: a person's ranges, a car's sizes, or nothing (column, ball)
+Sizes = PersonConfig | CarConfig | None
+
+
 class FigureModel:
     """Every body's parts, their sizes (drawn per reset) and the people's gait state.
 
     Args:
         shapes: per body row after our robot (row 1 on), ``(shape, footprint radius,
-            height_m, occludes, person config or None)``.
+            height_m, occludes, sizes)``: sizes a :class:`PersonConfig` for a person, a
+            :class:`CarConfig` for a car, None otherwise.
 
     The robot (row 0) has no parts: its own sensors sit on it.
     """
 
-    def __init__(self, shapes: list[tuple[str, float, float, bool, PersonConfig | None]]) -> None:
+    def __init__(self, shapes: list[tuple[str, float, float, bool, Sizes]]) -> None:
         self.shapes = shapes
         self.body_count = 1 + len(shapes)
         self.person_rows = np.array([i + 1 for i, s in enumerate(shapes) if s[0] == "person"], dtype=np.int64)
@@ -305,6 +523,7 @@ class FigureModel:
         self._cadence = np.zeros(self.body_count)
         self._max_step = np.zeros(self.body_count)
         self._empty: Figures | None = None
+        self.boxes = _box_layout(shapes)
         self._build(None)
 
     @property
@@ -312,17 +531,18 @@ class FigureModel:
         return self.person_rows.size > 0
 
     def _build(self, rng: np.random.Generator | None) -> None:
-        """Lay out the parts; people get sizes from ``rng`` (mid-range sizes without one)."""
+        """Lay out the disc parts; people get sizes from ``rng`` (mid-range sizes without one)."""
         # one tuple per part: (row, kind, lateral, swing sign, z_ref, z_lo, z_hi, radius, occludes)
         parts: list[tuple[int, int, float, float, float, float, float, float, bool]] = []
-        for i, (shape, r, height, occ, person) in enumerate(self.shapes):
+        for i, (shape, r, height, occ, sizes) in enumerate(self.shapes):
             b = i + 1
             if shape == "column":
                 parts.append((b, COLUMN, 0.0, 0.0, 0.0, -math.inf, height, r, occ))
             elif shape == "ball":
                 parts.append((b, BALL, 0.0, 0.0, r, 0.0, 2.0 * r, r, occ))
-            else:
-                assert person is not None
+            elif shape == "person":
+                person = sizes
+                assert isinstance(person, PersonConfig)
 
                 def draw(lo_hi: tuple[float, float]) -> float:
                     return float(rng.uniform(*lo_hi)) if rng is not None else 0.5 * (lo_hi[0] + lo_hi[1])
@@ -340,6 +560,7 @@ class FigureModel:
                 self._hip_m[b] = hip
                 self._cadence[b] = person.cadence_hz
                 self._max_step[b] = person.max_step_m
+            # a car has box parts only (_box_layout)
         columns = list(zip(*parts)) if parts else [()] * 9
         lateral, sign, z_ref, z_lo, z_hi, radius = (np.asarray(c, dtype=np.float64) for c in columns[2:8])
         self.layout = Layout(
@@ -390,14 +611,44 @@ class FigureModel:
         amplitude = np.where(walking, np.arcsin(np.minimum(step / (2.0 * self._hip_m[rows]), 1.0)), 0.0)
         self.swing_tan[rows] = np.tan(amplitude * np.sin(self.phase[rows]))
 
-    def pose(self, positions: NDArray[np.float64]) -> Figures:
-        """The :class:`Figures` of the bodies at ``positions`` ``(B, 2)`` in their current gait."""
+    def pose(self, positions: NDArray[np.float64], angles: NDArray[np.float64] | None = None) -> Figures:
+        """The :class:`Figures` of the bodies at ``positions`` ``(B, 2)`` in their current gait;
+        ``angles`` ``(B,)``: their headings, which the box parts (cars) turn with (needed only
+        when there are box parts)."""
         m = self.layout
-        if not m.row.size:  # nothing but our robot: one empty figure, its sections cached for good
+        boxes = self.boxes
+        if boxes is not None and angles is None:
+            raise ValueError("FigureModel.pose: the bodies include cars, whose boxes turn with the heading: pass angles")
+        if not m.row.size and boxes is None:  # nothing but our robot: one empty figure, its sections cached for good
             if self._empty is None or self._empty.layout is not m:
                 self._empty = Figures(m, np.zeros((0, 2)), np.zeros((0, 2)))
             return self._empty
         if self._upright_cuts is not None:  # no legs: each part stands at its body's centre
-            return Figures(m, None, self._no_slope, self._upright_cuts, positions)
+            return Figures(m, None, self._no_slope, self._upright_cuts, positions, boxes, angles)
         xy, slope = _pose_parts(positions, m.row, m.kind, m.lateral, m.swing_sign, self.heading, self.swing_tan)
-        return Figures(m, xy, slope)
+        return Figures(m, xy, slope, None, positions, boxes, angles)
+
+
+def _box_layout(shapes: list[tuple[str, float, float, bool, Sizes]]) -> BoxLayout | None:
+    """The box parts of the cars among ``shapes`` (fixed sizes: made once), None without any."""
+    parts = []
+    for i, (shape, _, _, occ, sizes) in enumerate(shapes):
+        if shape == "car":
+            assert isinstance(sizes, CarConfig)
+            parts += [(i + 1, box, occ) for box in sizes.boxes()]
+    if not parts:
+        return None
+    geometry = np.array([box for _, box, _ in parts], dtype=np.float64)  # (Q, 7): forward, lateral, hl, hw, r, z_lo, z_hi
+    layout = BoxLayout(
+        np.array([row for row, _, _ in parts], dtype=np.int64),
+        np.ascontiguousarray(geometry[:, 0:2]),
+        np.ascontiguousarray(geometry[:, 2:4]),
+        np.ascontiguousarray(geometry[:, 4]),
+        np.ascontiguousarray(geometry[:, 5]),
+        np.ascontiguousarray(geometry[:, 6]),
+        np.array([occ for _, _, occ in parts], dtype=np.bool_),
+        np.ones(len(parts), dtype=np.bool_),
+    )
+    for array in layout:
+        array.setflags(write=False)
+    return layout

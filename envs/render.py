@@ -194,6 +194,12 @@ class Canvas:
         (c0, r0), (c1, r1) = self._pt((min(x0, x1), max(y0, y1))), self._pt((max(x0, x1), min(y0, y1)))
         pygame.draw.rect(self.surface, color, pygame.Rect(c0, r0, max(1, c1 - c0), max(1, r1 - r0)), width_px)
 
+    def polygon(self, corners: ArrayLike, color: Color, width_px: int = 0) -> None:
+        """Polygon through the world points ``corners`` ``(K, 2)``; ``width_px=0`` fills it."""
+        points = [self._pt(c) for c in np.asarray(corners, dtype=np.float64)]
+        if len(points) >= 3:
+            pygame.draw.polygon(self.surface, color, points, width_px)
+
     def pose(self, x: float, y: float, theta: float, color: Color, radius_m: float | None = None, width_px: int = 2) -> None:
         """A pose as a circle outline with a heading line from its centre past the rim."""
         if not all(math.isfinite(v) for v in (x, y, theta)):

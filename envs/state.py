@@ -87,11 +87,11 @@ class WorldState(NamedTuple):
         return float(self.radii_m[0])
 
     def section(self, height_m: float) -> Section:
-        """The discs of every body (not our robot) cut by the horizontal plane at ``height_m``."""
+        """The discs and box sides of every body (not our robot) cut by the horizontal plane at ``height_m``."""
         return self.figures.section(height_m)
 
     def occluders(self, height_m: float) -> Section:
-        """The discs at ``height_m`` that block a camera's sight lines."""
+        """The discs and box sides at ``height_m`` that block a camera's sight lines."""
         return self.figures.occluders(height_m)
 
     def walls_at(self, height_m: float) -> NDArray[np.bool_]:

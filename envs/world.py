@@ -24,7 +24,7 @@ import pymunk
 import pymunk.batch as pbatch
 from numpy.typing import NDArray
 
-from envs.bodies import FigureModel, Figures
+from envs.bodies import FigureModel, Figures, turn_to_travel
 from envs.config import BOUNDARY_SEGMENTS, WorldConfig
 from envs.crowds import BodySpec, Crowd, build_crowd
 from envs.state import Rows, WorldState, robot_pose
@@ -118,7 +118,10 @@ class World:
         self.ball_row = int(self.ball_rows[0]) if self.ball_rows.size else -1
         self.radii_m = np.asarray([config.robot.radius_m] + [b.radius_m for b in self._specs], dtype=np.float64)
         #: every body's vertical profile (:mod:`envs.bodies`): what the sensors see at their heights
-        self.figure_model = FigureModel([(b.shape, b.radius_m, b.height_m, b.occludes, b.person) for b in self._specs])
+        self.figure_model = FigureModel([(b.shape, b.radius_m, b.height_m, b.occludes, b.sizes) for b in self._specs])
+        #: rows of the cars: their footprint is a box that turns to face their travel
+        self.car_rows = np.array([i + 1 for i, b in enumerate(self._specs) if b.shape == "car"], dtype=np.int64)
+        self._car_turn_rate = np.array([b.car.turn_rate_rps for b in self._specs if b.shape == "car" and b.car is not None])
         self._others = _as_slice(np.concatenate([[0], self.member_rows]).astype(np.int64))  # the robot and every member
         statics = (
             self.seg_a,
@@ -186,9 +189,9 @@ class World:
         for lm, (x, y), r in zip(config.landmarks, self.landmark_xy, self.landmark_radius_m):
             if not lm.collides:
                 continue
-            shape = pymunk.Circle(self.space.static_body, float(r), (float(x), float(y)))
-            shape.collision_type = LANDMARK
-            self.space.add(shape)
+            pole = pymunk.Circle(self.space.static_body, float(r), (float(x), float(y)))
+            pole.collision_type = LANDMARK
+            self.space.add(pole)
 
         rc = config.robot
         self.robot_body = pymunk.Body(rc.mass_kg, pymunk.moment_for_circle(rc.mass_kg, 0, rc.radius_m))
@@ -199,8 +202,13 @@ class World:
         self.bodies: list[pymunk.Body] = []  # per row after the robot
         member = 0
         for spec in self._specs:
-            body = pymunk.Body(spec.mass_kg, pymunk.moment_for_circle(spec.mass_kg, 0, spec.radius_m))
-            shape = pymunk.Circle(body, spec.radius_m)
+            shape: pymunk.Shape
+            if spec.shape == "car" and spec.car is not None:  # a box that contacts do not spin (it steers to its travel)
+                body = pymunk.Body(spec.mass_kg, math.inf)
+                shape = pymunk.Poly.create_box(body, (spec.car.length_m, spec.car.width_m))
+            else:
+                body = pymunk.Body(spec.mass_kg, pymunk.moment_for_circle(spec.mass_kg, 0, spec.radius_m))
+                shape = pymunk.Circle(body, spec.radius_m)
             shape.friction = spec.friction
             if spec.elasticity:
                 shape.elasticity = spec.elasticity
@@ -302,21 +310,29 @@ class World:
         self.space.reindex_shapes_for_body(self.robot_body)
         self.read_state()
 
-    def place_body(self, row: int, xy: tuple[float, float], velocity: tuple[float, float] = (0.0, 0.0)) -> None:
-        """Teleport the body in ``row`` (scripted set-ups: a referee's ball, a shove); odometry does not see it."""
+    def place_body(
+        self, row: int, xy: tuple[float, float], velocity: tuple[float, float] = (0.0, 0.0), angle: float | None = None
+    ) -> None:
+        """Teleport the body in ``row`` (scripted set-ups: a referee's ball, a shove, a parked
+        car turned to ``angle``; None keeps its heading); odometry does not see it."""
         if not 1 <= row < self.body_count:
             raise IndexError(f"body row {row} does not exist (rows 1..{self.body_count - 1} are the crowds' bodies)")
+        if angle is not None and not math.isfinite(angle):
+            raise ValueError(f"place_body: angle must be finite, got {angle}")
         body = self.bodies[row - 1]
         body.position = (float(xy[0]), float(xy[1]))
         body.velocity = (float(velocity[0]), float(velocity[1]))
+        if angle is not None:
+            body.angle = float(angle)
         self.space.reindex_shapes_for_body(body)
         self.read_state()
 
-    def place_crowd_member(self, index: int, xy: tuple[float, float], hold: bool = True) -> None:
-        """Teleport crowd member ``index`` (counted over every crowd's members, in order); ``hold`` freezes it there."""
+    def place_crowd_member(self, index: int, xy: tuple[float, float], hold: bool = True, angle: float | None = None) -> None:
+        """Teleport crowd member ``index`` (counted over every crowd's members, in order); ``hold``
+        freezes it there; ``angle`` turns it (a car; None keeps its heading)."""
         crowd, i = self.crowd_of_member(index)
         crowd.hold(i, hold)
-        self.place_body(int(self.member_rows[index]), xy)
+        self.place_body(int(self.member_rows[index]), xy, angle=angle)
 
     def crowd_named(self, name: str) -> Crowd:
         """The crowd called ``name`` in the world config (its public control methods)."""
@@ -355,7 +371,7 @@ class World:
     def figures(self) -> Figures:
         """Every body's parts at the current step (made once per step, on first use)."""
         if self._figures is None:
-            self._figures = self.figure_model.pose(self.positions)
+            self._figures = self.figure_model.pose(self.positions, self.angles)
         return self._figures
 
     def snapshot(self) -> WorldState:
@@ -416,6 +432,9 @@ class World:
                 body.position = (float(xy[0]), float(xy[1]))
                 cmd[row, 0:2] = 0.0
                 self.space.reindex_shapes_for_body(body)
+        if self.car_rows.size:
+            cars = self.car_rows
+            cmd[cars, 2] = turn_to_travel(self.angles[cars], self.velocities[cars], dt, self._car_turn_rate)
         pbatch.set_space_bodies(self.space, _FIELDS_COMMAND, self._command_buffer)
         self.contacts = []  # a new list: one handed out for the last step is never changed
         self.space.step(dt)

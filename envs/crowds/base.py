@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from envs.bodies import PersonConfig
+from envs.bodies import CarConfig, PersonConfig
 from envs.plugins import Entry, Registry
 from envs.state import Rows, WorldState
 from localizers.schema import check
@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 ConfigT = TypeVar("ConfigT", bound="CrowdConfig")
 
 #: the vertical profiles a crowd's members may have (:mod:`envs.bodies`)
-MEMBER_SHAPES = ("column", "person")
+MEMBER_SHAPES = ("column", "person", "car")
 
 #: a member's body as the crowd sees it: (x, y, radius) already taken at placement time
 Taken = list[tuple[float, float, float]]
@@ -49,8 +49,11 @@ class CrowdConfig:
     are that type's fields, checked by the strict loader.
 
     ``shape`` is the members' vertical profile (:mod:`envs.bodies`): ``"column"``, a disc of
-    ``radius_m`` up to ``height_m`` (a robot), or ``"person"``, legs, torso and head sized by
-    ``person``; the footprint disc of ``radius_m`` is what collides either way.
+    ``radius_m`` up to ``height_m`` (a robot), ``"person"``, legs, torso and head sized by
+    ``person``, whose footprint disc of ``radius_m`` is what collides either way, or ``"car"``,
+    a body and wheels sized by ``car``, whose footprint box collides; a car's ``radius_m`` is
+    the disc its neighbours keep clear of when they steer and are placed, so it must cover
+    the box (at least ``car.bounding_radius_m``).
     """
 
     type_name: ClassVar[str] = ""
@@ -62,6 +65,7 @@ class CrowdConfig:
     shape: str = "column"
     height_m: float = math.inf  # a column's height (inf: taller than any sensor)
     person: PersonConfig = field(default_factory=PersonConfig)  # body sizes and gait when shape is "person"
+    car: CarConfig = field(default_factory=CarConfig)  # body and wheels when shape is "car"
 
     @classmethod
     def __from_config__(cls, value: Any, where: str) -> CrowdConfig:
@@ -76,6 +80,11 @@ class CrowdConfig:
         check(self.speed_mps > 0, f"crowd.speed_mps must be > 0, got {self.speed_mps}")
         check(self.shape in MEMBER_SHAPES, f"crowd.shape must be one of {', '.join(MEMBER_SHAPES)}, got {self.shape!r}")
         check(self.height_m > 0, f"crowd.height_m must be > 0, got {self.height_m}")
+        check(
+            self.shape != "car" or self.radius_m >= self.car.bounding_radius_m,
+            f"crowd.radius_m {self.radius_m} is too small for shape 'car': it must cover the car's footprint box "
+            f"({self.car.length_m} x {self.car.width_m} m), at least car.bounding_radius_m {self.car.bounding_radius_m:.4g}",
+        )
 
     def top_speeds(self) -> tuple[tuple[str, float, float], ...]:
         """``(body, top speed m/s, radius m)`` of each kind of body this crowd moves.
@@ -94,11 +103,12 @@ class BodySpec:
     Attributes:
         kind: ``"crowd"`` (a member: robot, person; force-driven toward the velocity the crowd
             wants) or ``"ball"`` (its velocity is set directly); also the contact kind.
-        radius_m, mass_kg: the footprint disc and its mass.
+        radius_m, mass_kg: the footprint disc (a car's: the disc around its box) and its mass.
         occludes: whether it blocks a camera's sight lines.
         friction, elasticity: pymunk shape settings.
         shape: its vertical profile (:data:`envs.bodies.SHAPES`): ``"column"`` up to
-            ``height_m``, ``"ball"`` (a sphere of ``radius_m``) or ``"person"`` sized by ``person``.
+            ``height_m``, ``"ball"`` (a sphere of ``radius_m``), ``"person"`` sized by ``person``
+            or ``"car"`` sized by ``car`` (its footprint box collides, not the disc).
     """
 
     kind: str
@@ -110,6 +120,16 @@ class BodySpec:
     shape: str = "column"
     height_m: float = math.inf
     person: PersonConfig | None = None
+    car: CarConfig | None = None
+
+    def __post_init__(self) -> None:
+        check(self.shape != "person" or self.person is not None, "BodySpec: shape 'person' needs person sizes (a PersonConfig)")
+        check(self.shape != "car" or self.car is not None, "BodySpec: shape 'car' needs car sizes (a CarConfig)")
+
+    @property
+    def sizes(self) -> PersonConfig | CarConfig | None:
+        """What its shape is sized by (:data:`envs.bodies.Sizes`)."""
+        return self.person if self.shape == "person" else self.car if self.shape == "car" else None
 
 
 class Commands(NamedTuple):
@@ -155,7 +175,11 @@ class Crowd:
         """The crowd's bodies, members first (override to add a ball or other bodies)."""
         c = self.config
         person = c.person if c.shape == "person" else None
-        return [BodySpec("crowd", float(r), c.mass_kg, shape=c.shape, height_m=c.height_m, person=person) for r in self.radii_m]
+        car = c.car if c.shape == "car" else None
+        return [
+            BodySpec("crowd", float(r), c.mass_kg, shape=c.shape, height_m=c.height_m, person=person, car=car)
+            for r in self.radii_m
+        ]
 
     def attach(self, rows: NDArray[np.int64]) -> None:
         """Called by the world with the rows of :meth:`bodies`."""
@@ -183,8 +207,16 @@ class Crowd:
         return Commands(np.zeros((self.count, 2)))
 
     def draw(self, canvas: Any, state: WorldState) -> None:
-        """Draw the crowd's bodies (members as filled, outlined discs)."""
-        for xy, r in zip(state.positions[self.member_rows], state.radii_m[self.member_rows]):
+        """Draw the crowd's bodies: members as filled, outlined discs, cars as their footprint boxes."""
+        rows = self.member_rows
+        if self.config.shape == "car":
+            for (x, y), heading in zip(state.positions[rows], state.angles[rows]):
+                corners = self.config.car.footprint(float(x), float(y), float(heading))
+                canvas.polygon(corners, self.fill, 0)
+                canvas.polygon(corners, self.outline, 1)
+                canvas.line(0.5 * (corners[0] + corners[1]), (x, y), self.outline, 1)  # the front
+            return
+        for xy, r in zip(state.positions[rows], state.radii_m[rows]):
             canvas.circle(xy[0], xy[1], r, self.fill, 0)
             canvas.circle(xy[0], xy[1], r, self.outline, 1)
 

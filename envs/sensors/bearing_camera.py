@@ -221,16 +221,17 @@ class BearingCamera(SensorBase):
         """``(n,)`` points with a clear line of sight, within range and inside the field of view.
 
         A sight line is blocked by the walls and by the bodies' sections at the camera's
-        height (a person's torso, a robot's body; not a ball below the lens).
+        height (a person's torso, a robot's body, a car; not a ball below the lens).
         """
         occluders = state.occluders(self.config.height_m)
+        seg_a, seg_b = occluders.walls(self._seg_a, self._seg_b)  # with the sides of a car's body
         clear = sight_lines_clear(
             state.positions[0],
             xy,
             radius_m,
             max_range_m,
-            self._seg_a,
-            self._seg_b,
+            seg_a,
+            seg_b,
             occluders.centres,
             occluders.radii,
         )

@@ -38,8 +38,8 @@ class RangeConfig(Protocol):
 class RangeSensor(SensorBase):
     """Rays cast from the robot's centre in the horizontal plane at the sensor's ``height_m``;
     they hit the walls that reach above it and the sections of everything that moves there
-    (:meth:`envs.state.WorldState.section`: a person's legs, torso or head, the ball), not
-    landmark poles. Subclasses say where the rays go and how they become readings.
+    (:meth:`envs.state.WorldState.section`: a person's legs, torso or head, the ball, a car's
+    wheels or body), not landmark poles. Subclasses say where the rays go and how they become readings.
 
     Attributes:
         relative_angles: ``(R,)`` ray directions relative to the heading, ascending, spanning less than a turn.
@@ -82,12 +82,13 @@ class RangeSensor(SensorBase):
     def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
         cfg = self.config
         section = state.section(cfg.height_m)
+        seg_a, seg_b = section.walls(self._seg_a, self._seg_b)  # with the sides of a car's body or wheels
         rays = cast_rays(
             state.positions[0],
             self.relative_angles + state.robot_pose[2],
             cfg.max_range_m,
-            self._seg_a,
-            self._seg_b,
+            seg_a,
+            seg_b,
             section.centres,
             section.radii,
         )

@@ -173,5 +173,5 @@ def test_bad_person_sizes_are_refused(field: str, value: object, message: str) -
 
 
 def test_an_unknown_shape_is_refused() -> None:
-    with pytest.raises(ConfigError, match="crowd.shape must be one of column, person, got 'cube'"):
+    with pytest.raises(ConfigError, match="crowd.shape must be one of column, person, car, got 'cube'"):
         gym.make("crowdloc/CrowdedRoom-v0", crowd={"queues": {"shape": "cube"}})
