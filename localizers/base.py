@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from localizers.geometry import spanning
+from localizers.schema import check
 
 
 class MeasurementError(ValueError):
@@ -320,6 +321,24 @@ def checked_bearings(owner: str, measurement: BearingMeasurement, landmark_count
     if not isinstance(measurement, BearingMeasurement):
         raise MeasurementError(f"{owner}: expected a BearingMeasurement, got {type(measurement).__name__}")
     return measurement.validated(landmark_count, source=owner)
+
+
+#: the default position spread (m) past which a localizer stops claiming a pose (``max_spread_m``)
+DEFAULT_MAX_SPREAD_M = 1.0
+
+
+def check_max_spread(owner: str, value: float) -> float:
+    """``value`` as a ``max_spread_m`` (a finite number of metres > 0, or ``inf``: never give up),
+    else a :class:`~localizers.schema.ConfigError` naming ``owner`` and the value."""
+    check(not math.isnan(value) and value > 0.0, f"{owner}.max_spread_m must be > 0 m (inf: no limit), got {value!r}")
+    return float(value)
+
+
+def within_spread(covariance: NDArray[np.float64], max_spread_m: float) -> bool:
+    """Whether a pose with this ``(3, 3)`` covariance may be claimed: its position spread
+    ``sqrt(P_xx + P_yy)`` is finite and at most ``max_spread_m``."""
+    spread = math.sqrt(max(float(covariance[0, 0]) + float(covariance[1, 1]), 0.0))
+    return math.isfinite(spread) and spread <= max_spread_m
 
 
 def finite_covariance(estimate: PoseEstimate) -> NDArray[np.float64] | None:
