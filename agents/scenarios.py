@@ -559,3 +559,36 @@ class ShoveDriver:
                 away = _unit(robot - world.positions[crowd.rows[index]])
                 crowd.send(index, robot + away * self.overshoot_m)
         return self.inner.act(env)
+
+
+def kidnap(world: World, rng: np.random.Generator, min_distance_m: float = 2.0, attempts: int = 10_000) -> NDArray[np.float64]:
+    """Carry our robot away: teleport it to a random free pose at least ``min_distance_m`` from
+    where it stands, with a random heading (odometry does not see it). Returns the new pose.
+
+    The pose is drawn uniformly over the arena (``WorldConfig.arena_m``), heading uniform,
+    until the robot's disc fits there (:meth:`envs.world.World.robot_placement_problem`) and
+    no crowd member's footprint disc overlaps it.
+
+    Raises:
+        ValueError: when ``min_distance_m`` is not a finite number >= 0, or no such pose was
+            found in ``attempts`` draws (the arena is too small for the distance).
+    """
+    if not (math.isfinite(min_distance_m) and min_distance_m >= 0.0):
+        raise ValueError(f"kidnap: min_distance_m must be a finite number of metres >= 0, got {min_distance_m!r}")
+    here = world.positions[0].copy()
+    xmin, ymin, xmax, ymax = world.config.arena_m
+    others, radii = world.positions[1:], world.radii_m[1:]
+    r = world.config.robot.radius_m
+    for _ in range(attempts):
+        x, y, theta = rng.uniform(xmin, xmax), rng.uniform(ymin, ymax), rng.uniform(-math.pi, math.pi)
+        if math.hypot(x - here[0], y - here[1]) < min_distance_m or world.robot_placement_problem(x, y) is not None:
+            continue
+        if others.shape[0] and np.any(np.hypot(others[:, 0] - x, others[:, 1] - y) < radii + r):
+            continue
+        pose = np.array([x, y, theta])
+        world.set_robot_pose(pose)
+        return pose
+    raise ValueError(
+        f"kidnap: no free pose at least {min_distance_m:g} m from {here.round(3).tolist()} in {attempts} draws "
+        f"over arena {world.config.arena_m} of world {world.config.name!r}"
+    )

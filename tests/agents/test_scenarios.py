@@ -10,7 +10,7 @@ import pytest
 
 import envs  # noqa: F401
 from agents.replay import record
-from agents.scenarios import EXP1_VERTICES, PatrolDriver, ShoveDriver, SoccerDriver, exp1_driver, polygon_commands
+from agents.scenarios import EXP1_VERTICES, PatrolDriver, ShoveDriver, SoccerDriver, exp1_driver, kidnap, polygon_commands
 from localizers.geometry import compose, wrap_angle
 from tests.envs.exact import EXACT
 
@@ -123,3 +123,25 @@ def test_shove_moves_the_robot_without_odometry_seeing_it() -> None:
     assert np.hypot(*(dr_before[:2] - before[:2])) < 1e-3  # nothing touched the robot before
     assert np.hypot(*(pose[:2] - rec.true_pose[-1, :2])) > 0.3
     assert rec.contacts[k:].sum() >= 1
+
+
+def test_kidnap_carries_the_robot_far_to_a_free_pose_and_odometry_does_not_see_it() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", crowd_size=10)
+    env.reset(seed=4)
+    world = env.unwrapped.world
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        before = world.robot_pose.copy()
+        pose = kidnap(world, rng, 2.0)
+        np.testing.assert_allclose(world.robot_pose, pose, atol=1e-9)
+        assert np.hypot(*(pose[:2] - before[:2])) >= 2.0
+        assert world.robot_placement_problem(pose[0], pose[1]) is None
+        gaps = np.hypot(*(world.positions[1:] - pose[:2]).T) - world.radii_m[1:] - world.radii_m[0]
+        assert gaps.min() >= 0.0
+    obs, *_ = env.step(np.zeros(2, dtype=np.float32))
+    np.testing.assert_allclose(obs["odometry"], 0.0, atol=1e-6)  # standing still after the jump: no motion read
+    with pytest.raises(ValueError, match="no free pose at least 50 m"):
+        kidnap(world, rng, 50.0, attempts=20)
+    with pytest.raises(ValueError, match="min_distance_m must be a finite"):
+        kidnap(world, rng, float("nan"))
+    env.close()

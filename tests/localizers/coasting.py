@@ -41,7 +41,9 @@ def blank(measurement: Any) -> Any:
     if isinstance(measurement, BearingMeasurement):
         return BearingMeasurement.empty()
     if isinstance(measurement, ScanMeasurement):
-        return ScanMeasurement(np.full_like(measurement.ranges_m, measurement.max_range_m), measurement.angles_rad, measurement.max_range_m)
+        return ScanMeasurement(
+            np.full_like(measurement.ranges_m, measurement.max_range_m), measurement.angles_rad, measurement.max_range_m
+        )
     raise TypeError(f"no blank frame for {type(measurement).__name__}")
 
 

@@ -34,7 +34,7 @@ def test_coasting_widens_the_spread_at_least_as_fast_as_the_odometry_noise(name:
     if not run.start.valid:
         assert not valid.any(), f"{name}: without a fix it must not claim one while coasting"
         return
-    start_var = run.start.position_spread_m ** 2
+    start_var = run.start.position_spread_m**2
     grown = run.spreads[valid] ** 2 - start_var
     needed = SLACK * run.reference[valid] ** 2
     short = grown < needed
