@@ -151,6 +151,11 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         metavar="KEY=VALUE",
         help="a condition on top, e.g. --env-set camera.fov_rad=1.5708 or --env-set prior=none (repeatable)",
     )
+    kid = ev.add_argument_group("kidnapping", "carry the robot away mid-episode and score each localizer's recovery")
+    kid.add_argument("--kidnap-at-s", type=float, metavar="S", help="teleport the robot at S s after the reset (default: never)")
+    kid.add_argument("--kidnap-m", type=float, metavar="M", help="at least this far from where it stood (default 2.0)")
+    kid.add_argument("--recover-m", type=float, metavar="M", help="a pose this close to the truth is a recovery (default 0.2)")
+    kid.add_argument("--recover-window-s", type=float, metavar="S", help="look for the recovery this long (default 30)")
     ev.add_argument("--workers", type=positive_int, help="local worker processes (default: the core count)")
     ev.add_argument("--ray-address", help="run the episodes on this Ray cluster (e.g. auto)")
     ev.add_argument("--gif-cell", metavar="POLICY,LOCALIZER,CROWD", help="the episode to animate (default: the first)")

@@ -29,6 +29,7 @@ from __future__ import annotations
 from agents.evaluate.bearings import BEARING_METRICS, bearing_metrics, bound_rmse_along
 from agents.evaluate.cli import parse_gif_cell, run_cli, spec_from_args
 from agents.evaluate.episode import Episode, Rollout, episode_metrics, rollout, run_episode
+from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap, kidnap_metrics
 from agents.evaluate.outputs import (
     NO_COVARIANCE,
     format_stat,
@@ -77,6 +78,7 @@ METRIC_KEYS = tuple(m.key for m in METRICS)
 __all__ = [
     "BEARING_METRICS",
     "CORE_METRICS",
+    "KIDNAP_METRICS",
     "NO_COVARIANCE",
     "METRICS",
     "METRIC_KEYS",
@@ -86,6 +88,7 @@ __all__ = [
     "EpisodeContext",
     "EvalResult",
     "EvalSpec",
+    "Kidnap",
     "MetricInfo",
     "MetricPlugin",
     "PluginOutput",
@@ -102,6 +105,7 @@ __all__ = [
     "episode_metrics",
     "evaluate",
     "format_stat",
+    "kidnap_metrics",
     "localizer_metrics",
     "metric_infos",
     "metric_plugins",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from agents.evaluate.kidnap import Kidnap
 from agents.evaluate.outputs import summary_markdown, write_outputs
 from agents.evaluate.spec import Cell, EvalSpec, check_first_seed
 from agents.evaluate.stats import EvalResult, evaluate
@@ -43,7 +44,26 @@ def spec_from_args(args: Any) -> EvalSpec:
     conditions["env_kwargs"] = merge_nested(conditions.get("env_kwargs", {}), nest(parse_overrides(args.env_set)))
     chosen = {k: v for k, v in given.items() if v is not None}
     return EvalSpec(**{k: v for k, v in {**conditions, **chosen}.items() if v is not None}, seeds=args.seeds,
-                    first_seed=args.first_seed, episode_steps=args.episode_steps)  # fmt: skip
+                    first_seed=args.first_seed, episode_steps=args.episode_steps, kidnap=kidnap_from_args(args))  # fmt: skip
+
+
+#: the kidnap's flags besides --kidnap-at-s, and the Kidnap fields they set
+_KIDNAP_FLAGS = {"kidnap_m": "min_distance_m", "recover_m": "recover_m", "recover_window_s": "window_s"}
+
+
+def kidnap_from_args(args: Any) -> Kidnap | None:
+    """The :class:`Kidnap` of ``--kidnap-at-s`` and its companion flags, None without it.
+
+    Raises:
+        ConfigError: a companion flag without ``--kidnap-at-s``, or a bad value.
+    """
+    at_s = getattr(args, "kidnap_at_s", None)
+    given = {field: getattr(args, flag) for flag, field in _KIDNAP_FLAGS.items() if getattr(args, flag, None) is not None}
+    if at_s is None:
+        check(not given, f"--{', --'.join(f.replace('_', '-') for f in _KIDNAP_FLAGS if getattr(args, f, None) is not None)} "
+                         "only applies with --kidnap-at-s")  # fmt: skip
+        return None
+    return Kidnap(at_s=at_s, **given)
 
 
 def run_cli(args: Any) -> EvalResult:

@@ -26,7 +26,8 @@ The core metrics of every episode (``t0`` = the first step with a valid estimate
 - ``episode_return``: sum of the active-localization rewards.
 
 The metric plug-ins of the localizer's measurement kind (:mod:`agents.evaluate.plugins`; for
-bearings :mod:`agents.evaluate.bearings`) add theirs.
+bearings :mod:`agents.evaluate.bearings`) add theirs; with ``EvalSpec.kidnap`` the robot is
+carried away mid-episode and the recovery is scored (:mod:`agents.evaluate.kidnap`).
 """
 
 from __future__ import annotations
@@ -41,9 +42,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from agents import metrics
+from agents.evaluate.kidnap import KIDNAP_SALT, kidnap_metrics
 from agents.evaluate.plugins import EpisodeContext, MetricPlugin, Track, localizer_kind, metric_plugins
 from agents.evaluate.spec import PPO_PREFIX, Cell, EvalSpec, load_ppo, policy_seed
 from agents.rewards import ActiveLocalizationReward
+from agents.scenarios import kidnap as carry_away
 from localizers.registry import spec as localizer_spec
 
 
@@ -77,6 +80,7 @@ class Rollout:
     collected: Mapping[str, NDArray[Any]]  # the plug-ins' per-step values, stacked
     context: EpisodeContext
     frames: list[NDArray[np.uint8]]
+    jump_index: int | None = None  # with a kidnap: the first row recorded after the jump (None: no jump)
 
 
 class _PPOPolicy:
@@ -179,6 +183,8 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
 
     keep(0, info)
     step, done = 0, False
+    kidnap, jump_index = spec.kidnap, None
+    kidnap_rng = np.random.default_rng([cell.seed, KIDNAP_SALT])
     while not done:
         obs, reward, terminated, truncated, info = env.step(act(obs))
         step += 1
@@ -186,9 +192,12 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
         recorder.rewards.append(float(reward))
         keep(step, info)
         done = bool(terminated or truncated)
+        if kidnap is not None and jump_index is None and not done and float(info["time_s"]) >= kidnap.at_s - 1e-9:
+            carry_away(base.world, kidnap_rng, kidnap.min_distance_m)  # type: ignore[attr-defined]
+            jump_index = step + 1
     env.close()
     collected = {name: np.stack(values) for name, values in recorder.collected.items()}
-    return Rollout(recorder.track(), collected, context, frames)
+    return Rollout(recorder.track(), collected, context, frames, jump_index)
 
 
 def episode_metrics(track: Track) -> dict[str, float]:
@@ -219,6 +228,8 @@ def run_episode(spec: EvalSpec, cell: Cell) -> Episode:
     played = rollout(spec, cell)
     track = played.track
     values = episode_metrics(track)
+    if spec.kidnap is not None:
+        values.update(kidnap_metrics(track, spec.kidnap, played.jump_index))
     series: dict[str, NDArray[Any]] = dict(played.collected)
     for plugin in metric_plugins(localizer_kind(cell.localizer)):
         got, arrays = plugin.compute(track, played.collected, played.context)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -14,6 +15,7 @@ import numpy as np
 from gymnasium import spaces
 
 import envs  # registers the crowdloc ids
+from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
 from agents.policies import FIXED_POLICIES
 from agents.rewards import RewardWeights
@@ -66,6 +68,8 @@ class EvalSpec:
         reward: the reward weights reported as the episode return.
         bootstrap_resamples: bootstrap resamples per confidence interval.
         bootstrap_seed: seeds the bootstrap's generator.
+        kidnap: carry the robot away mid-episode and score the recovery
+            (:mod:`agents.evaluate.kidnap`); None: no kidnapping.
 
     Raises:
         ConfigError: naming the bad value (unknown policy or localizer, missing PPO file, a
@@ -84,6 +88,7 @@ class EvalSpec:
     reward: RewardWeights = field(default_factory=RewardWeights)
     bootstrap_resamples: int = 2000
     bootstrap_seed: int = 0
+    kidnap: Kidnap | None = None
 
     def __post_init__(self) -> None:
         for name in ("policies", "localizers", "crowd_sizes"):  # lists from Python callers become tuples
@@ -93,6 +98,13 @@ class EvalSpec:
         given = self.env_kwargs.get("world")
         where = f"world {world.name!r} ({self.env_id}" + (f" with world={str(given)!r})" if given else ")")
         self._check_sensors(world, where)
+        if self.kidnap is not None:
+            check(isinstance(self.kidnap, Kidnap), f"kidnap must be a Kidnap, got {type(self.kidnap).__name__} {self.kidnap!r}")
+            length_s = self.episode_steps * world.dt_s
+            check(length_s >= self.kidnap.ends_s - 1e-9,
+                  f"an episode of {self.episode_steps} steps ({length_s:g} s) ends before the kidnap's recovery window "
+                  f"does (at_s {self.kidnap.at_s:g} + window_s {self.kidnap.window_s:g} = {self.kidnap.ends_s:g} s): "
+                  f"raise episode_steps to at least {math.ceil(self.kidnap.ends_s / world.dt_s - 1e-9)}")  # fmt: skip
         ppo = [policy for policy in self.policies if policy.startswith(PPO_PREFIX)]
         if ppo:
             env = gym.make(self.env_id, localizer=self.localizers[0], **dict(self.env_kwargs))
@@ -147,8 +159,10 @@ class EvalSpec:
 
     @property
     def metrics(self) -> tuple[MetricInfo, ...]:
-        """The metric rows of this grid: the core ones and those of its localizers' kinds."""
-        return localizer_metrics(self.localizers)
+        """The metric rows of this grid: the core ones, those of its localizers' kinds and, with a
+        kidnap, the recovery's (:data:`agents.evaluate.kidnap.KIDNAP_METRICS`)."""
+        rows = localizer_metrics(self.localizers)
+        return rows + KIDNAP_METRICS if self.kidnap is not None else rows
 
     @property
     def eval_seeds(self) -> tuple[int, ...]:
