@@ -251,6 +251,14 @@ class Section(NamedTuple):
 
 
 @numba.njit(cache=True)
+def _half_chord(radius: float, centre_z: float, height: float) -> float:
+    """Half the chord a horizontal plane at ``height`` cuts through a circle of ``radius``
+    centred at ``centre_z`` in a vertical plane (a ball's section radius, a wheel's half length); 0 outside it."""
+    dz = height - centre_z
+    return math.sqrt(max(radius * radius - dz * dz, 0.0))
+
+
+@numba.njit(cache=True)
 def _cut(
     height: float,
     xy: NDArray[np.float64],
@@ -273,8 +281,7 @@ def _cut(
             continue
         r = radius[p]
         if kind[p] == BALL:
-            dz = height - z_ref[p]
-            r = math.sqrt(max(r * r - dz * dz, 0.0))
+            r = _half_chord(r, z_ref[p], height)
             if r <= 0.0:
                 continue
         index[k] = p
@@ -317,9 +324,8 @@ def _cut_boxes(
         if not (keep[p] and z_lo[p] <= height < z_hi[p]):
             continue
         hl = half[p, 0]
-        if wheel_r[p] > 0.0:
-            dz = height - wheel_r[p]
-            hl = math.sqrt(max(wheel_r[p] * wheel_r[p] - dz * dz, 0.0))
+        if wheel_r[p] > 0.0:  # a wheel standing on the floor: its centre at the height of its radius
+            hl = _half_chord(wheel_r[p], wheel_r[p], height)
             if hl <= 0.0:
                 continue
         hw = half[p, 1]
