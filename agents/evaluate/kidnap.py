@@ -4,9 +4,10 @@ At the first step at or after ``at_s`` the robot is teleported to a random free 
 ``min_distance_m`` from where it stood (:func:`agents.scenarios.kidnap`; odometry does not see
 it, the localizer is not told). From the jump on, over ``window_s``:
 
-- ``recovered``: 1 if the localizer claims a pose within ``recover_m`` of the truth again
-  within the window, else 0;
-- ``recovery_s``: the time from the jump to that first good pose (NaN when not recovered: the
+- ``recovered``: 1 if the localizer is back for good within the window: it claims a pose
+  within ``recover_m`` of the truth and, from then to the end of the window, no claimed pose
+  is more than ``wrong_m`` off; else 0 (passing near the truth on the way elsewhere is no recovery);
+- ``recovery_s``: the time from the jump to that good pose (NaN when not recovered: the
   tables average the recovered episodes, with their count);
 - ``wrong_valid_s``: seconds of the window in which it claimed a pose more than ``wrong_m``
   off (a confident wrong pose: what a localizer that knows it is lost avoids);
@@ -82,10 +83,12 @@ def kidnap_metrics(track: Track, kidnap: Kidnap, jump_index: int | None) -> dict
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     error = track.position_errors[rows]  # NaN where no pose is claimed
     valid = track.valid[rows]
-    good = np.flatnonzero(valid & (error < kidnap.recover_m))
+    wrong = valid & (error > kidnap.wrong_m)
+    after = int(np.flatnonzero(wrong)[-1]) + 1 if wrong.any() else 0  # past the last confident wrong pose
+    good = np.flatnonzero(valid & (error < kidnap.recover_m) & (np.arange(rows.size) >= after))
     return {
         "recovered": float(good.size > 0),
         "recovery_s": float(t[rows[good[0]]] - jump_s) if good.size else math.nan,
-        "wrong_valid_s": float(np.sum(valid & (error > kidnap.wrong_m))) * dt,
+        "wrong_valid_s": float(np.sum(wrong)) * dt,
         "lost_s": float(np.sum(~valid)) * dt,
     }

@@ -30,6 +30,13 @@ def test_the_metrics_of_a_hand_made_kidnapping() -> None:
     # a window that closes before the good pose: not recovered, and nothing after it counts
     short = kidnap_metrics(hand_made(valid, errors), Kidnap(at_s=2.0, window_s=4.0), jump_index=3)
     assert short["recovered"] == 0.0 and math.isnan(short["recovery_s"]) and short["lost_s"] == 2.0
+    # passing near the truth and wandering off again is no recovery: only the good pose after the last wrong one counts
+    errors = [0.0, 0.0, 0.0, 3.0, 0.1, 2.0, 0.0, 0.1, 0.5, 0.1]
+    valid = [True] * 10
+    wander = kidnap_metrics(hand_made(valid, errors), Kidnap(at_s=2.0, window_s=6.0), jump_index=3)
+    assert wander == {"recovered": 1.0, "recovery_s": 4.0, "wrong_valid_s": 2.0, "lost_s": 0.0}
+    again_off = kidnap_metrics(hand_made(valid, [*errors[:9], 1.5]), Kidnap(at_s=2.0, window_s=7.0), jump_index=3)
+    assert again_off["recovered"] == 0.0 and again_off["wrong_valid_s"] == 3.0
     # no jump (the episode ended first): no values
     assert all(math.isnan(v) for v in kidnap_metrics(hand_made(valid, errors), Kidnap(), None).values())
 
