@@ -312,6 +312,9 @@ class ReplayResult:
         valid: ``(T,)`` whether the localizer claimed a pose.
         fed: ``(T, L)`` landmark slots handed to it (true or false detections; ``(T, 0)``
             for scans).
+        covariances: ``(T, 3, 3)`` the reported covariances of the estimates (NaN where the
+            estimate is NaN, or its covariance is not ``3 x 3``), for
+            :func:`agents.metrics.pose_nees`.
         updated: ``(T,)`` steps at which the localizer weighed its measurement, for
             localizers that count their updates (an ``updates`` attribute), else None.
     """
@@ -319,6 +322,7 @@ class ReplayResult:
     estimates: NDArray[np.float64]
     valid: NDArray[np.bool_]
     fed: NDArray[np.bool_]
+    covariances: NDArray[np.float64]
     updated: NDArray[np.bool_] | None = None
 
 
@@ -337,7 +341,7 @@ def feed(
     prior: PoseEstimate | None = None,
     read: str = "every_step",
     observer: Callable[[int, Localizer, bool], None] | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_] | None]:
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_] | None, NDArray[np.float64]]:
     """Step a localizer through a measurement stream as the online wrapper does.
 
     ``reset(rng, prior)``, ``update(stream[0])``, then per step ``t >= 1``
@@ -357,9 +361,9 @@ def feed(
             figures; it must not change the localizer).
 
     Returns:
-        ``(T, 3)`` estimates (NaN where invalid or not read), ``(T,)`` validity and the
+        ``(T, 3)`` estimates (NaN where invalid or not read), ``(T,)`` validity, the
         ``(T,)`` steps at which the measurement was weighed (None without an ``updates``
-        counter).
+        counter) and the ``(T, 3, 3)`` covariances of the estimates (NaN where there is none).
     """
     if read not in ("every_step", "updates"):
         raise ValueError(f"read must be 'every_step' or 'updates', got {read!r}")
@@ -372,6 +376,7 @@ def feed(
     est = np.full((T, 3), np.nan)
     valid = np.zeros(T, dtype=bool)
     updated = np.zeros(T, dtype=bool)
+    cov = np.full((T, 3, 3), np.nan)
     localizer.reset(rng, prior)
     for t in range(T):
         if t:
@@ -385,9 +390,11 @@ def feed(
             if e.valid:
                 valid[t] = True
                 est[t] = (e.x_m, e.y_m, e.theta_rad)
+                if np.shape(e.covariance) == (3, 3):
+                    cov[t] = e.covariance
         if observer is not None:
             observer(t, localizer, weighed)
-    return est, valid, updated if counts else None
+    return est, valid, updated if counts else None, cov
 
 
 def replay_into(
@@ -421,8 +428,9 @@ def replay_into(
             raise ValueError(f"landmark_subset applies to bearing measurements, not {measurement!r}")
         fed_stream = restricted(fed_stream, recording.landmark_map.count, landmark_subset)
     fed = fed_slots(fed_stream, recording.landmark_map.count)
-    est, valid, updated = feed(localizer, odometry_deltas(recording), fed_stream, rng, prior=prior, read=read, observer=observer)
-    return ReplayResult(est, valid, fed, updated)
+    est, valid, updated, cov = feed(localizer, odometry_deltas(recording), fed_stream, rng, prior=prior, read=read,
+                                    observer=observer)  # fmt: skip
+    return ReplayResult(est, valid, fed, cov, updated)
 
 
 def replay(

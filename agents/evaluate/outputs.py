@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from agents.consistency import NO_COVARIANCE, reports_covariance
 from agents.evaluate.episode import rollout
 from agents.evaluate.plugins import Array, MetricInfo, localizer_kind, plugins_for
 from agents.evaluate.spec import Cell, EvalSpec
@@ -64,17 +65,6 @@ def read_tum(path: Path) -> tuple[Array, Array]:
 
 
 # --------------------------------------------------------------------------- tables
-#: what the tables show for a consistency metric of a localizer that reports no covariance
-NO_COVARIANCE = "no covariance"
-
-
-def reports_covariance(localizer: str) -> bool:
-    """Whether ``localizer``'s covariance is its own measure of uncertainty (``LocalizerSpec.covariance``)."""
-    from localizers.registry import spec
-
-    return spec(localizer).covariance
-
-
 def _cell_value(info: MetricInfo, localizer: str, value: Any) -> Any:
     """``value``, or :data:`NO_COVARIANCE` for a consistency metric of a localizer without one."""
     return NO_COVARIANCE if info.covariance and not reports_covariance(localizer) else value

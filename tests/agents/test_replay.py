@@ -213,3 +213,30 @@ def test_a_recording_holds_every_sensor_by_key_with_its_metadata(room: Recording
     assert set(smaller.observations) == {"odometry"} and smaller.lidar is None and room.lidar is not None
     with pytest.raises(ValueError, match="updates counter"):
         replay(exp1(max_steps=3), "candidate_sets", rng_seed=0, read="updates")
+
+
+class Blinker(Spy):
+    """A localizer with a pose every other step, its covariance ``(t + 1) I`` at step ``t``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.t = -1
+
+    def update(self, measurement: BearingMeasurement) -> None:
+        self.t += 1
+
+    @property
+    def estimate(self) -> PoseEstimate:
+        if self.t % 2:
+            return PoseEstimate.invalid()
+        return PoseEstimate(0.0, 0.0, 0.0, (self.t + 1.0) * np.eye(3), True)
+
+
+def test_the_replay_keeps_each_estimates_covariance(recordings: dict[str, Recording]) -> None:
+    rec = recordings["soccer"]
+    out = replay_into(Blinker(), rec, np.random.default_rng(0))
+    assert out.covariances.shape == (rec.steps, 3, 3)
+    steps = np.arange(rec.steps)
+    np.testing.assert_array_equal(out.valid, steps % 2 == 0)
+    np.testing.assert_array_equal(out.covariances[out.valid], (steps[out.valid] + 1.0)[:, None, None] * np.eye(3))
+    assert np.isnan(out.covariances[~out.valid]).all()  # no pose, no covariance

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import metrics
+from agents import consistency, metrics
 from agents.papers.bearing_candidates.jobs import (
     EXP1_METHODS,
     EXP1_OURS,
@@ -39,6 +39,7 @@ from agents.papers.bearing_candidates.jobs import (
     SWEEP_WARMUP_S,
     JobResult,
     Method,
+    MethodRun,
     Plan,
 )
 
@@ -63,6 +64,10 @@ class Row:
     bound_mm: float
     ratio: float
     seeds: int
+    covariance: bool  # the localizer reports one (LocalizerSpec.covariance): the NEES columns are meaningful
+    nees_median: float  # over the steps of every seed whose errors the row counts (valid, from the first fix)
+    inside_95: float  # share of those steps inside the reported 95 % region
+    covariance_missing: float  # share of those steps without a usable covariance (left out of the two above)
 
 
 def references(methods: Sequence[Method]) -> dict[str, str]:
@@ -77,13 +82,33 @@ def _nanmedian(values: Sequence[float]) -> float:
     return float(np.median(v)) if v.size else float("nan")
 
 
+def counted(run: MethodRun, start: int | None, stop: int | None = None) -> NDArray[np.bool_]:
+    """``(T,)`` the steps whose errors a statistic from ``start`` (None: none) to ``stop`` counts: those with a pose."""
+    mask = np.zeros(run.valid.size, dtype=bool)
+    if start is not None:
+        mask[start:stop] = run.valid[start:stop]
+    return mask
+
+
+Span = tuple[int | None, int | None]  # (start, stop) of a statistic's steps; start None: no steps
+
+
+def fit_over(runs: Sequence[MethodRun], spans: Sequence[Span]) -> metrics.Consistency:
+    """NEES of the runs over the steps of :func:`counted` in each run's span, every run's steps pooled."""
+    return consistency.pooled([r.nees for r in runs], [counted(r, *span) for r, span in zip(runs, spans, strict=True)])
+
+
 def study_rows(results: Sequence[JobResult], methods: Sequence[Method], reference: Mapping[str, str]) -> list[Row]:
     """Per-method statistics "from the first fix of method (5) on" over the seeds.
 
-    ``reference[key]`` names the method whose first fix starts the statistics of ``key``.
+    ``reference[key]`` names the method whose first fix starts the statistics of ``key``;
+    the NEES is over the same steps as the errors, all seeds' steps pooled.
     """
     rows = []
     for m in methods:
+        fit = fit_over(
+            [r.runs[m.key] for r in results], [(metrics.first_fix(r.runs[reference[m.key]].valid), None) for r in results]
+        )
         per: dict[str, list[float]] = {k: [] for k in ("pm", "ps", "hm", "hs", "ffd", "fft", "av", "fail", "bnd", "ratio")}
         for r in results:
             run = r.runs[m.key]
@@ -109,6 +134,7 @@ def study_rows(results: Sequence[JobResult], methods: Sequence[Method], referenc
                 _nanmedian(per["pm"]), (s["ffd"].mean, s["ffd"].sd, s["ffd"].n), _nanmedian(per["ffd"]),
                 s["fft"].mean, s["av"].mean, s["fail"].mean,
                 s["bnd"].mean, s["ratio"].mean, len(results),
+                consistency.reports_covariance(m.localizer), fit.nees_median, fit.inside_95, consistency.missing_share(fit),
             )
         )  # fmt: skip
     return rows
@@ -126,12 +152,16 @@ def per_seed(
             run = r.runs[m.key]
             t0 = metrics.first_fix(r.runs[reference[m.key]].valid)
             ff = metrics.first_fix(run.valid)
+            fit = fit_over([run], [(t0, None)])
             rows.append({
                 "seed": r.job.seed,
                 "position_mm": metrics.mean_sd(run.position_error_m * 1000.0, t0),
                 "heading_deg": metrics.mean_sd(np.degrees(run.heading_error_rad), t0),
                 "first_fix_mm": metrics.travelled(r.truth)[ff] * 1000.0 if ff is not None else None,
                 "availability": metrics.availability(run.valid),
+                "nees_median": fit.nees_median,
+                "inside_95": fit.inside_95,
+                "covariance_missing": consistency.missing_share(fit),
             })  # fmt: skip
         out[m.key] = rows
     return out
@@ -146,12 +176,17 @@ class SweepCell:
         avail: seed mean and sd of the availability.
         fail: seed mean of the share of steps with error >= ``FAIL_M``.
         seeds: runs at this value.
+        nees_median, inside_95: the NEES over the window's steps with a pose, all seeds pooled.
+        covariance_missing: share of those steps without a usable covariance (left out of the two).
     """
 
     err: tuple[float, float, int]
     avail: tuple[float, float]
     fail: float
     seeds: int
+    nees_median: float
+    inside_95: float
+    covariance_missing: float
 
 
 def sweep_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> dict[str, dict[float, SweepCell]]:
@@ -161,15 +196,18 @@ def sweep_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> dict
     for m in methods:
         for p in points:
             runs = [r for r in results if r.job.point == p]
-            err, av, fail = [], [], []
+            err, av, fail, spans = [], [], [], []
             for r in runs:
                 run = r.runs[m.key]
                 start = int(np.searchsorted(r.time_s - r.time_s[0], SWEEP_WARMUP_S))
+                spans.append((start, None))
                 err.append(metrics.mean_sd(run.position_error_m * 1000.0, start)[0])
                 av.append(metrics.availability(run.valid, start))
                 fail.append(metrics.failure_rate(run.position_error_m, start, FAIL_M))
             e, a, f = metrics.over_seeds(err), metrics.over_seeds(av), metrics.over_seeds(fail)
-            out[m.key][p] = SweepCell((e.mean, e.sd, e.n), (a.mean, a.sd), f.mean, len(runs))
+            fit = fit_over([r.runs[m.key] for r in runs], spans)
+            out[m.key][p] = SweepCell((e.mean, e.sd, e.n), (a.mean, a.sd), f.mean, len(runs), fit.nees_median, fit.inside_95,
+                                      consistency.missing_share(fit))  # fmt: skip
     return out
 
 
@@ -185,6 +223,8 @@ class PushStats:
             within the shove and ``PUSH_PEAK_S`` after it.
         before_mm: seed mean of the mean error over ``PUSH_BEFORE_S`` before the shove.
         peak_mm: seed mean of the peak error within the shove and ``PUSH_PEAK_S`` after it.
+        fit_before, fit_peak: the NEES over the steps with a pose of those two windows, all
+            seeds pooled (does the covariance grow when the pose is lost?).
     """
 
     curve: tuple[Array, Array, Array]
@@ -192,6 +232,8 @@ class PushStats:
     lost: NDArray[np.bool_]
     before_mm: float
     peak_mm: float
+    fit_before: metrics.Consistency
+    fit_peak: metrics.Consistency
 
     @property
     def recover_when_lost_s(self) -> Array:
@@ -211,6 +253,8 @@ def push_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> tuple
     out: dict[str, PushStats] = {}
     for m in methods:
         curves, recover, before, peak, lost = [], [], [], [], []
+        before_at: list[Span] = []
+        peak_at: list[Span] = []
         for r in results:
             run = r.runs[m.key]
             t = r.time_s - r.time_s[0]
@@ -220,9 +264,12 @@ def push_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> tuple
             e = np.full(t_rel.size, np.nan)
             e[inside] = run.position_error_m[idx[inside]]
             curves.append(e)
-            pre = run.position_error_m[max(0, k0 - round(PUSH_BEFORE_S / dt)) : k0]
+            k_pre, k_post = max(0, k0 - round(PUSH_BEFORE_S / dt)), k0 + round((PUSH_SECONDS + PUSH_PEAK_S) / dt)
+            before_at.append((k_pre, k0))
+            peak_at.append((k0, k_post))
+            pre = run.position_error_m[k_pre:k0]
             before.append(float(np.nanmean(pre)) if np.isfinite(pre).any() else np.nan)
-            post = run.position_error_m[k0 : k0 + round((PUSH_SECONDS + PUSH_PEAK_S) / dt)]
+            post = run.position_error_m[k0:k_post]
             peak.append(float(np.nanmax(post)) if np.isfinite(post).any() else np.nan)
             lost.append(not (np.isfinite(post).all() and post.max() < RECOVER_M))
             recover.append(metrics.time_to_recover(t, run.position_error_m, PUSH_AT_S, RECOVER_M, RECOVER_HOLD_S))
@@ -236,6 +283,8 @@ def push_stats(results: Sequence[JobResult], methods: Sequence[Method]) -> tuple
             lost=np.array(lost),
             before_mm=metrics.over_seeds(np.array(before) * 1000.0).mean,
             peak_mm=metrics.over_seeds(np.array(peak) * 1000.0).mean,
+            fit_before=fit_over([r.runs[m.key] for r in results], before_at),
+            fit_peak=fit_over([r.runs[m.key] for r in results], peak_at),
         )
     return t_rel, out
 
@@ -394,7 +443,14 @@ def results_json(analysis: Analysis, plan: Plan, wall_s: float, workers: int) ->
             out[name] = {k: {str(p): asdict(c) for p, c in d.items()} for k, d in study.cells.items()}
     if analysis.push:
         out["push"] = {
-            k: {"recover_s": v.recover_s.tolist(), "lost": v.lost.tolist(), "before_mm": v.before_mm, "peak_mm": v.peak_mm}
+            k: {
+                "recover_s": v.recover_s.tolist(),
+                "lost": v.lost.tolist(),
+                "before_mm": v.before_mm,
+                "peak_mm": v.peak_mm,
+                "consistency_before": asdict(v.fit_before),
+                "consistency_peak": asdict(v.fit_peak),
+            }  # fmt: skip
             for k, v in analysis.push.stats.items()
         }
     return out

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import metrics
+from agents import consistency, metrics
 from agents.sweep import run_tasks
 
 if TYPE_CHECKING:
@@ -215,6 +215,7 @@ class MethodRun:
     position_error_m: Array
     heading_error_rad: Array
     bound_m: Array  # (T,) posterior CRB position RMSE along the true path
+    nees: Array  # (T,) 3-dof pose NEES against the true pose (agents.consistency.run_nees; NaN: none)
 
 
 @dataclass(frozen=True)
@@ -302,6 +303,7 @@ def replay_methods(recording: Any, job: Job) -> dict[str, MethodRun]:
             position_error_m=metrics.position_errors(out.estimates, recording.true_pose),
             heading_error_rad=metrics.heading_errors(out.estimates, recording.true_pose),
             bound_m=bound_cache[key],
+            nees=consistency.run_nees(m.localizer, out.estimates, recording.true_pose, out.covariances),
         )
     return runs
 

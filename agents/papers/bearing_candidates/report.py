@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents import consistency
 from agents.papers import before
 from agents.papers.bearing_candidates.analysis import (
     Analysis,
@@ -49,6 +50,7 @@ from agents.papers.bearing_candidates.jobs import (
     RECOVER_M,
     SWEEP_METHODS,
     SWEEP_WARMUP_S,
+    Method,
     Plan,
     landmark_names,
     max_sets,
@@ -65,9 +67,9 @@ def table(rows: Sequence[Row], paper: Mapping[str, PaperRow]) -> list[str]:
     head = (
         "| method | position [mm] paper | position [mm] ours | ours/paper | heading [deg] paper | heading [deg] ours "
         "| ours/paper | per-seed mean pos.: median (sd) [mm] | first fix: distance [mm] (seeds) | first fix: time [s] "
-        f"| availability | failure (>= {FAIL_M:g} m) | bound [mm] | error/bound |"
+        f"| availability | failure (>= {FAIL_M:g} m) | bound [mm] | error/bound | NEES median | inside 95 % |"
     )
-    lines = [head, "|---|" + "---:|" * 13]
+    lines = [head, "|---|" + "---:|" * 15]
     for r in rows:
         p = paper.get(r.key)
         pp = pm(p[0]) if p else "–"
@@ -75,12 +77,13 @@ def table(rows: Sequence[Row], paper: Mapping[str, PaperRow]) -> list[str]:
         rp = ratio(r.pos_mm[0], p[0][0]) if p else "–"
         rh = ratio(r.head_deg[0], p[1][0]) if p else "–"
         ff = f"{num(r.first_fix_mm[0])} ± {num(r.first_fix_mm[1])} ({r.first_fix_mm[2]}/{r.seeds})"
+        nees, inside = consistency.cells(r.covariance, r.nees_median, r.inside_95)
         lines.append(
             f"| {r.label} | {pp} | {pm(r.pos_mm)} | {rp} | {ph} | {pm(r.head_deg, 1)} | {rh} | {num(r.pos_seed_median_mm)} ({num(r.pos_seed_sd_mm)}) "
             f"| {ff} | {num(r.first_fix_s, '{:.2f}')} | {num(100 * r.availability, '{:.1f}')} % "
-            f"| {num(100 * r.failure, '{:.1f}')} % | {num(r.bound_mm)} | {num(r.ratio, '{:.1f}')} |"
+            f"| {num(100 * r.failure, '{:.1f}')} % | {num(r.bound_mm)} | {num(r.ratio, '{:.1f}')} | {nees} | {inside} |"
         )
-    return lines
+    return [*lines, "", consistency.legend()]
 
 
 def ours_note(what: str) -> str:
@@ -223,7 +226,27 @@ def sweep_table(study: SweepStudy, xname: str) -> list[str]:
             c = study.cells[m.key][p]
             cells.append(f"{num(c.err[0])} mm, {num(100 * c.avail[0], '{:.0f}')} %, fail {num(100 * c.fail, '{:.0f}')} %")
         lines.append(f"| {m.label} | " + " | ".join(cells) + " |")
-    return [*lines, "", f"Cells: mean position error (seed mean), availability, share of steps with error >= {FAIL_M:g} m.", ""]
+    return [
+        *lines,
+        "",
+        f"Cells: mean position error (seed mean), availability, share of steps with error >= {FAIL_M:g} m.",
+        "",
+        *sweep_consistency_table(study, xname),
+    ]
+
+
+def sweep_consistency_table(study: SweepStudy, xname: str) -> list[str]:
+    """The rows of :func:`sweep_table` again, a cell (NEES median, inside 95 %) per swept value over the same window."""
+    lines = ["| method | " + " | ".join(f"{xname} = {p:g}" for p in study.points) + " |", "|---|" + "---:|" * len(study.points)]
+    for m in SWEEP_METHODS:
+        if not consistency.reports_covariance(m.localizer):
+            lines.append(f"| {m.label} | " + " | ".join([consistency.NO_COVARIANCE] * len(study.points)) + " |")
+            continue
+        cells = [
+            ", ".join(consistency.cells(True, c.nees_median, c.inside_95)) for c in (study.cells[m.key][p] for p in study.points)
+        ]
+        lines.append(f"| {m.label} | " + " | ".join(cells) + " |")
+    return [*lines, "", f"Cells: NEES median, inside 95 % (over the same window). {consistency.legend()}", ""]
 
 
 def density_section(study: SweepStudy, cond: Conditions, plan: Plan, figure: Path) -> list[str]:
@@ -263,13 +286,15 @@ def false_section(study: SweepStudy, cond: Conditions, plan: Plan, figure: Path)
     ]
 
 
-def _push_row(label: str, s: PushStats) -> str:
+def _push_row(method: Method, s: PushStats) -> str:
     rec = s.recover_when_lost_s
     med = float(np.median(rec)) if rec.size else float("nan")
     med_s = "–" if not rec.size else ("inf" if np.isinf(med) else f"{med:.2f}")
+    has = consistency.reports_covariance(method.localizer)
+    fits = " | ".join(" | ".join(consistency.cells(has, f.nees_median, f.inside_95)) for f in (s.fit_before, s.fit_peak))
     return (
-        f"| {label} | {num(s.before_mm)} | {num(s.peak_mm)} | {int(s.lost.sum())}/{s.lost.size} | "
-        f"{med_s} | {int(np.isfinite(rec).sum())}/{rec.size} |"
+        f"| {method.label} | {num(s.before_mm)} | {num(s.peak_mm)} | {int(s.lost.sum())}/{s.lost.size} | "
+        f"{med_s} | {int(np.isfinite(rec).sum())}/{rec.size} | {fits} |"
     )
 
 
@@ -288,9 +313,12 @@ def push_section(push: PushStudy, cond: Conditions, figure: Path) -> list[str]:
         f"every step (inf: not within the run). Errors: seed means over the {PUSH_BEFORE_S:.0f} s before the push and "
         f"of the peak within {peak_s:.0f} s after its start.",
         "",
-        "| method | error before [mm] | peak error [mm] | lost track | time to recover when lost: median [s] | recovered when lost |",
-        "|---|---:|---:|---:|---:|---:|",
-        *(_push_row(m.label, push.stats[m.key]) for m in SWEEP_METHODS),
+        "| method | error before [mm] | peak error [mm] | lost track | time to recover when lost: median [s] | recovered when lost "
+        "| NEES median before | inside 95 % before | NEES median at the peak | inside 95 % at the peak |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        *(_push_row(m, push.stats[m.key]) for m in SWEEP_METHODS),
+        "",
+        f"NEES before and at the peak: over the steps with a pose of the windows of the two error columns. {consistency.legend()}",
         "",
         f'Resection has no memory: it "recovers" at the first frame with >= {CASSINI_BEARINGS} bearings, but frames '
         f"without a pose break the {RECOVER_HOLD_S:.0f} s hold, so it rarely counts as recovered. Figure: median and "

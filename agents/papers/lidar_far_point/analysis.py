@@ -21,7 +21,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import metrics
+from agents import consistency, metrics
 from agents.replay import Recording
 
 from .experiment import CROWD_SIZE, DENSITY_PARAMS, WORKS_FAILURE_RATE, Pair, Plan, both
@@ -136,6 +136,27 @@ def reference_stats(episodes: Sequence[Episode]) -> dict[int, Stats]:
     """Per crowd size, the reference pose's own error against the truth (how good the paper's yardstick is here)."""
     st = table_stats(reference_runs(episodes), "truth")
     return {n: s for (key, n), s in sorted(st.items(), key=lambda kv: kv[0][1]) if key == REFERENCE_KEY}
+
+
+FitTable = Mapping[tuple[str, int], metrics.Consistency]
+
+
+def fit_of(runs: Sequence[Run]) -> metrics.Consistency:
+    """The NEES of runs against the true pose over their estimates (every run's update steps pooled)."""
+    return consistency.pooled([r.nees for r in runs], [np.isfinite(r.estimates).all(axis=1) for r in runs])
+
+
+def fit_table(runs: Sequence[Run]) -> dict[tuple[str, int], metrics.Consistency]:
+    """:func:`fit_of` per (configuration key, crowd size), as :func:`table_stats` groups them."""
+    groups: dict[tuple[str, int], list[Run]] = {}
+    for r in runs:
+        groups.setdefault((r.key, r.crowd_size), []).append(r)
+    return {k: fit_of(v) for k, v in groups.items()}
+
+
+def reference_fits(episodes: Sequence[Episode]) -> dict[int, metrics.Consistency]:
+    """Per crowd size, the reference pass's NEES against the truth."""
+    return {n: fit for (_, n), fit in sorted(fit_table(reference_runs(episodes)).items(), key=lambda kv: kv[0][1])}
 
 
 def pair_stats(st: StatsTable, pair: Pair, crowd_size: int = CROWD_SIZE) -> tuple[Stats, Stats]:
@@ -448,12 +469,18 @@ def empty_room(st: StatsTable, episodes: Sequence[Episode]) -> EmptyRoom | None:
 # ------------------------------------------------------------------------------------ results.json
 
 
+def _fit_summary(fit: metrics.Consistency) -> dict[str, float]:
+    """A run's NEES in results.json: its median, the share inside the 95 % region, the share without a covariance."""
+    return {"nees_median": fit.nees_median, "inside_95": fit.inside_95, "covariance_missing": consistency.missing_share(fit)}
+
+
 def results_data(plan: Plan, st: StatsTable, runs: Sequence[Run], episodes: Sequence[Episode], identity_m: float,
                  verdicts: Sequence[Mapping[str, Any]], st_ref: StatsTable,
                  verdicts_truth: Sequence[Mapping[str, Any]]) -> dict[str, Any]:  # fmt: skip
     """Everything ``results.json`` holds: the plan, the statistics (against the truth: ``stats``;
     against the reference: ``stats_vs_reference``; the reference against the truth:
-    ``reference``), the verdicts (on the paper's measure, ``verdicts``; on the truth,
+    ``reference``), the NEES against the truth (``consistency``, ``reference_consistency``;
+    and each run's), the verdicts (on the paper's measure, ``verdicts``; on the truth,
     ``verdicts_vs_truth``), every run's errors against both."""
     return {
         "plan": dataclasses.asdict(plan),
@@ -463,6 +490,8 @@ def results_data(plan: Plan, st: StatsTable, runs: Sequence[Run], episodes: Sequ
         "stats": {f"{key}@{n}": dataclasses.asdict(s) for (key, n), s in st.items()},
         "stats_vs_reference": {f"{key}@{n}": dataclasses.asdict(s) for (key, n), s in st_ref.items()},
         "reference": {str(n): dataclasses.asdict(s) for n, s in reference_stats(episodes).items()},
+        "consistency": {f"{key}@{n}": dataclasses.asdict(f) for (key, n), f in fit_table(runs).items()},
+        "reference_consistency": {str(n): dataclasses.asdict(f) for n, f in reference_fits(episodes).items()},
         "verdicts": list(verdicts),
         "verdicts_vs_truth": list(verdicts_truth),
         "runs": [
@@ -472,6 +501,7 @@ def results_data(plan: Plan, st: StatsTable, runs: Sequence[Run], episodes: Sequ
                 "crowd_size": r.crowd_size,
                 "errors_m": r.errors_m.tolist(),
                 "ref_errors_m": r.ref_errors_m.tolist(),
+                **_fit_summary(fit_of([r])),
             }
             for r in runs
         ],  # fmt: skip
@@ -483,6 +513,7 @@ def results_data(plan: Plan, st: StatsTable, runs: Sequence[Run], episodes: Sequ
                 "push_m": ep.push_m,
                 "updates": int(ep.update_steps.size),
                 "reference_errors_m": r.errors_m.tolist(),
+                **{f"reference_{k}": v for k, v in _fit_summary(fit_of([r])).items()},
             }
             for ep, r in zip(episodes, reference_runs(episodes))
         ],  # fmt: skip

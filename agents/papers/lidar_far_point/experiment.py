@@ -43,6 +43,7 @@ REFERENCE_SENSOR = "lidar_top"
 #: parameters (the paper's MCL: the beam model; the paper does not say how its reference MCL
 #: was set), on the experiment's update schedule, from the known start pose
 REFERENCE_MCL_PARAMS: Params = ()
+REFERENCE_LOCALIZER = "mcl_lidar"  # the registered localizer of the reference pass
 REFERENCE_RNG_SALT = 0x70F  # ours: the reference MCL's own generator, independent of the configurations'
 AMCL_LF: Params = (
     ("model", "likelihood_field"), ("z_hit", 0.5), ("z_short", 0.0), ("z_max", 0.0), ("z_rand", 0.5), ("hit_std_m", 0.2),
@@ -94,6 +95,11 @@ class Config:
     @property
     def variant(self) -> str:
         return VARIANTS[self.far]
+
+    @property
+    def localizer(self) -> str:
+        """The registered localizer the configuration stands for (``far_point_mcl`` or ``mcl_lidar``)."""
+        return "far_point_mcl" if self.far else "mcl_lidar"
 
     def mcl_params(self) -> dict[str, Any]:
         """The ``mcl_lidar`` overrides: the experiment's update schedule, then ``params``."""

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import metrics
+from agents import consistency, metrics
 from agents.replay import Recording, feed, odometry_deltas, record, replay_into, start_prior
 from agents.sweep import run_tasks
 from localizers.base import LandmarkMap, ScanMeasurement
@@ -41,6 +41,7 @@ from .experiment import (
     CROWD_SIZE,
     DENSITY_PARAMS,
     ENV_ID,
+    REFERENCE_LOCALIZER,
     REFERENCE_RNG_SALT,
     REFERENCE_SENSOR,
     RNG_SALT,
@@ -101,6 +102,7 @@ class Episode:
         pass_estimates: ``(K, 3)`` the real ``far_point_mcl`` pass (``PASS_PARAMS``).
         reference_estimates: ``(K, 3)`` the reference pose: ``mcl_lidar`` on the reference
             LIDAR's scans (``REFERENCE_MCL_PARAMS``, its map cut at that LIDAR's height).
+        reference_nees: ``(K,)`` the reference pass's 3-dof pose NEES against the true pose.
         beams: ``"raw"`` / ``"far"`` -> ``(K, 4)`` beams matching the empty room, short of
             it, past it, at maximum range (:func:`agents.metrics.beam_breakdown`).
         wall_bias_m: ``"raw"`` / ``"far"`` -> ``(K,)`` mean of ``z - z*`` over the beams on
@@ -124,6 +126,7 @@ class Episode:
     max_range_m: float
     pass_estimates: Array
     reference_estimates: Array
+    reference_nees: Array
     beams: dict[str, NDArray[np.int64]]
     wall_bias_m: dict[str, Array]
     accumulated_points: NDArray[np.int64]
@@ -261,20 +264,22 @@ def reference_rng(seed: int, crowd_size: int) -> np.random.Generator:
     return np.random.default_rng([seed, crowd_size, REFERENCE_RNG_SALT])
 
 
-def reference_pass(rec: Recording, seed: int, crowd_size: int) -> tuple[Array, NDArray[np.int64]]:
+def reference_pass(rec: Recording, seed: int, crowd_size: int) -> tuple[Array, NDArray[np.int64], Array]:
     """The reference pose: ``mcl_lidar`` on the reference LIDAR's scans from the known start pose.
 
     Returns:
-        ``(T, 3)`` its estimates (NaN between its updates) and the ``(K,)`` steps it weighed.
+        ``(T, 3)`` its estimates (NaN between its updates), the ``(K,)`` steps it weighed and
+        the ``(T,)`` NEES of its estimates against the true pose.
     """
-    loc = make_localizer("mcl_lidar", rec.localizer_map("scan", REFERENCE_SENSOR), dt_s=rec.dt_s,
+    loc = make_localizer(REFERENCE_LOCALIZER, rec.localizer_map("scan", REFERENCE_SENSOR), dt_s=rec.dt_s,
                          params=reference_mcl_params())  # fmt: skip
     if not isinstance(loc, LidarMCL):
         raise TypeError(f"mcl_lidar built a {type(loc).__name__}")
     out = replay_into(loc, rec, reference_rng(seed, crowd_size), prior=start_prior(rec), measurement="scan", read="updates",
                       sensor=REFERENCE_SENSOR)  # fmt: skip
     assert out.updated is not None
-    return out.estimates, np.flatnonzero(out.updated).astype(np.int64)
+    nees = consistency.run_nees(REFERENCE_LOCALIZER, out.estimates, rec.true_pose, out.covariances)
+    return out.estimates, np.flatnonzero(out.updated).astype(np.int64), nees
 
 
 def run_episode(task: EpisodeTask) -> Episode:
@@ -297,7 +302,7 @@ def run_episode(task: EpisodeTask) -> Episode:
                       read="updates", observer=log.observe, sensor=lidar)  # fmt: skip
     update_steps = np.asarray(log.steps, dtype=np.int64)
     t2 = time.perf_counter()
-    reference, reference_steps = reference_pass(rec, task.seed, task.crowd_size)
+    reference, reference_steps, reference_nees = reference_pass(rec, task.seed, task.crowd_size)
     if not np.array_equal(reference_steps, update_steps):
         raise RuntimeError(f"episode seed {task.seed}: the reference MCL weighed other steps than the far-point pass")
     t3 = time.perf_counter()
@@ -312,6 +317,7 @@ def run_episode(task: EpisodeTask) -> Episode:
         max_range_m=log.max_range,
         pass_estimates=out.estimates[update_steps],
         reference_estimates=reference[update_steps],
+        reference_nees=reference_nees[update_steps],
         beams={k: np.asarray(v, dtype=np.int64) for k, v in log.beams.items()},
         wall_bias_m={k: np.asarray(v) for k, v in log.bias.items()},
         accumulated_points=np.asarray(log.points, dtype=np.int64),
@@ -355,6 +361,7 @@ class Run:
         heading_errors_rad: ``(K,)`` absolute heading errors against the true pose.
         ref_errors_m: ``(K,)`` position errors against the reference pose (the paper's measure).
         ref_heading_errors_rad: ``(K,)`` absolute heading errors against the reference pose.
+        nees: ``(K,)`` 3-dof pose NEES against the true pose (NaN: no usable covariance).
         cpu_s: CPU seconds of the replay.
     """
 
@@ -366,6 +373,7 @@ class Run:
     heading_errors_rad: Array
     ref_errors_m: Array
     ref_heading_errors_rad: Array
+    nees: Array
     cpu_s: float = 0.0
 
 
@@ -398,14 +406,15 @@ def run_chunk(task: ChunkTask) -> list[Run]:
     for c in task.configs:
         c0 = time.process_time()
         loc = make_localizer("mcl_lidar", ep.scan_map, dt_s=rec.dt_s, params=c.mcl_params())
-        est, _, updated = feed(loc, deltas, streams[c.far], episode_rng(ep.task.seed, ep.task.crowd_size), prior=prior,
-                               read="updates")  # fmt: skip
+        est, _, updated, cov = feed(loc, deltas, streams[c.far], episode_rng(ep.task.seed, ep.task.crowd_size),
+                                    prior=prior, read="updates")  # fmt: skip
         if updated is None or not np.array_equal(np.flatnonzero(updated), ep.update_steps):
             raise RuntimeError(f"{c.key} on seed {ep.task.seed}: the MCL weighed other steps than the far-point pass")
         e = est[ep.update_steps]
+        nees = consistency.run_nees(c.localizer, e, truth, cov[ep.update_steps])
         runs.append(Run(c.key, ep.task.seed, ep.task.crowd_size, e, metrics.position_errors(e, truth),
                         metrics.heading_errors(e, truth), metrics.position_errors(e, ref), metrics.heading_errors(e, ref),
-                        time.process_time() - c0))  # fmt: skip
+                        nees, time.process_time() - c0))  # fmt: skip
     return runs
 
 
@@ -432,7 +441,7 @@ def reference_runs(episodes: Sequence[Episode]) -> list[Run]:
         e, truth = ep.reference_estimates, ep.recording.true_pose[ep.update_steps]
         zeros = np.zeros(e.shape[0])
         out.append(Run(REFERENCE_KEY, ep.task.seed, ep.task.crowd_size, e, metrics.position_errors(e, truth),
-                       metrics.heading_errors(e, truth), zeros, zeros.copy()))  # fmt: skip
+                       metrics.heading_errors(e, truth), zeros, zeros.copy(), ep.reference_nees))  # fmt: skip
     return out
 
 

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from agents import consistency, metrics
 from agents.papers import before
 from agents.papers.world_text import odometry_text
 from agents.util import jsonable, text_table
@@ -36,8 +37,10 @@ from .analysis import (
     Verdict,
     empty_room,
     first_failing,
+    fit_table,
     narrow_hit,
     pair_stats,
+    reference_fits,
     results_data,
 )
 from .experiment import Pair, Params, Plan
@@ -106,6 +109,30 @@ def pair_rows(rows: Iterable[tuple[Any, Pair]], st: StatsTable, st_ref: StatsTab
         raw_ref, far_ref = pair_stats(st_ref, pair)
         out.append(f"| {label} | {cell(raw_ref, raw)} | {cell(far_ref, far)} |")
     return out
+
+
+def fit_cells(localizer: str, fit: metrics.Consistency) -> str:
+    """Three table cells of one configuration: NEES median, inside 95 % (or "no covariance"), steps left out."""
+    has = consistency.reports_covariance(localizer)
+    missing = f"{100 * consistency.missing_share(fit):.0f} %" if has else consistency.NO_COVARIANCE
+    return " | ".join([*consistency.cells(has, fit.nees_median, fit.inside_95), missing])
+
+
+FIT_TAG = "(NEES vs truth)"  # after the first header cell of a consistency table
+
+
+def fit_head(label: str) -> str:
+    """The header cells of :func:`fit_cells` for one variant."""
+    return f"{label}: NEES median | {label}: inside 95 % | {label}: singular covariance"
+
+
+def fit_rows(x: str, rows: Iterable[tuple[Any, Pair]], c: Context, crowd_size: int = experiment.CROWD_SIZE) -> Lines:
+    """The consistency table beside a table of :func:`pair_rows`: the same rows, the NEES of both variants."""
+    fits = fit_table(c.runs)
+    lines = [f"| {x} {FIT_TAG} | {fit_head('MCL only')} | {fit_head('+ far points')} |", "|---|" + "---:|" * 6]
+    for label, pair in rows:
+        lines.append(f"| {label} | " + " | ".join(fit_cells(v.localizer, fits[v.key, crowd_size]) for v in pair) + " |")
+    return [*lines, "", consistency.legend()]
 
 
 def params_text(params: Params) -> str:
@@ -405,6 +432,8 @@ def sweep_sections(c: Context) -> Lines:
         *table_head("sampling"),
         *pair_rows(c.plan.sampling_configs(), c.st, c.st_ref),
         "",
+        *fit_rows("sampling", c.plan.sampling_configs(), c),
+        "",
         f"![Fig. 7]({c.figs['sampling_error'].name})",
         f"![Fig. 8]({c.figs['sampling_failures'].name})",
         "",
@@ -412,6 +441,8 @@ def sweep_sections(c: Context) -> Lines:
         "",
         *table_head("hit [m]"),
         *pair_rows(c.plan.hit_configs(), c.st, c.st_ref),
+        "",
+        *fit_rows("hit [m]", c.plan.hit_configs(), c),
         "",
         f"![Fig. 10]({c.figs['hit_error'].name})",
         f"![Fig. 11]({c.figs['hit_failures'].name})",
@@ -490,6 +521,8 @@ def amcl_section(c: Context) -> Lines:
         *table_head("configuration"),
         *pair_rows(rows, c.st, c.st_ref),
         "",
+        *fit_rows("configuration", rows, c),
+        "",
         "The likelihood field scores each beam's end point by its distance to the nearest wall and ignores what lies "
         "between; a beam ending on a person scores that person's distance to the wall, floored by z_rand over the "
         "maximum range, where the beam model has its short-reading term.",
@@ -512,6 +545,14 @@ def density_section(c: Context) -> Lines:
             f"{r.far_on_wall_pct:.1f} % | {fmt(ref.mean_m)} ± {fmt(ref.sd_m)} | {ref.failures:.2f} ({ref.failures_total}) |"
         )
     most = c.density[-1].people
+    fits, ref_fits = fit_table(c.runs), reference_fits(c.episodes)
+    pair = experiment.both(experiment.DENSITY_PARAMS)
+    fit_lines = [
+        f"| people {FIT_TAG} | {fit_head('MCL only')} | {fit_head('+ far points')} | {fit_head('reference')} |",
+        "|---:|" + "---:|" * 9,
+        *(f"| {r.people} | " + " | ".join(fit_cells(v.localizer, fits[v.key, r.people]) for v in pair)
+          + f" | {fit_cells(experiment.REFERENCE_LOCALIZER, ref_fits[r.people])} |" for r in c.density),
+    ]  # fmt: skip
 
     def starts(against: Against) -> str:
         first = first_failing(c.density, against)
@@ -521,6 +562,10 @@ def density_section(c: Context) -> Lines:
 
     return [
         *lines,
+        "",
+        *fit_lines,
+        "",
+        consistency.legend(),
         "",
         f"Where each variant starts failing (first crowd size at which >= {works_pct()} % of the estimates fail), against "
         f"the reference: {starts('reference')}; against the truth: {starts('truth')}.",

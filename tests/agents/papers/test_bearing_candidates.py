@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from agents import consistency
 from agents.cli import build_parser, main
 from agents.papers.bearing_candidates import conditions, jobs
 from agents.papers.bearing_candidates.paper import PAPER
@@ -126,7 +127,42 @@ def test_quick_run_writes_report_tables_and_figures(tmp_path: Path, capsys: pyte
     assert results["exp1_ours"][0]["pos_mm"] != paper_exp1["pos_mm"]  # forgetting changes the numbers
     assert 'The "(ours)" row is not in the paper' in report
     assert sum(re.search(r"forgetting \S+ s \(ours\) +\|", line) is not None for line in printed.splitlines()) == 1 + 3
+    _check_consistency(results, report)
     # ours are numbers, not n/a, for the method every statistic starts from
     row = next(line for line in report.splitlines() if line.startswith("| (5) candidate sets K=10 |"))
     ours = row.split("|")[3]
     assert np.isfinite(float(ours.split("±")[0]))
+
+
+def _check_consistency(results: dict, report: str) -> None:
+    """NEES beside the errors (issue 19): in every row of results.json and in the report, finite where the
+    localizer reports a covariance, "no covariance" where it does not (the registry's flag)."""
+    from localizers.registry import LOCALIZERS
+
+    has = {m.key: LOCALIZERS[m.localizer].covariance for m in (*jobs.EXP1_METHODS, *jobs.EXP2_METHODS, *jobs.SWEEP_METHODS)}
+    lines = report.splitlines()
+    heads = [i for i, line in enumerate(lines) if line.endswith("| NEES median | inside 95 % |")]
+    assert len(heads) == 3  # Tables 1-3
+    for head, studies in zip(heads, (("exp1", "exp1_ours"), ("exp2", "exp2_ours"), ("exp3", "exp3_ours"))):
+        rows = [got for study in studies for got in results[study]]
+        for got, line in zip(rows, lines[head + 2 : head + 2 + len(rows)], strict=True):
+            key, cells = got["key"], line.split("|")
+            assert cells[1].strip() == got["label"]
+            assert got["covariance"] == has[key], key
+            if has[key]:
+                assert np.isfinite(got["nees_median"]) and got["nees_median"] > 0, key
+                assert 0.0 <= got["inside_95"] <= 1.0 and 0.0 <= got["covariance_missing"] < 1.0, key
+            want = consistency.cells(has[key], got["nees_median"], got["inside_95"])
+            assert (cells[-3].strip(), cells[-2].strip()) == want, key
+    for per_seed in (results["exp1_per_seed"], results["exp2_per_seed"]):
+        assert all({"nees_median", "inside_95"} <= set(seed) for rows in per_seed.values() for seed in rows)
+    for sweep in ("density", "false"):
+        for key, points in results[sweep].items():
+            for cell in points.values():
+                assert not has[key] or (np.isfinite(cell["nees_median"]) and 0.0 <= cell["inside_95"] <= 1.0), (sweep, key)
+    for key, push in results["push"].items():
+        for window in ("consistency_before", "consistency_peak"):
+            assert not has[key] or push[window]["steps"] > 0, (key, window)
+    assert report.count("Cells: NEES median, inside 95 %") == 2  # the two sweeps
+    assert "| NEES median before | inside 95 % before | NEES median at the peak | inside 95 % at the peak |" in report
+    assert report.count("Consistent: median about 2.37, inside about 95 %") == 6

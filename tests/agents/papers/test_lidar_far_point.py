@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents import metrics
+from agents import consistency, metrics
 from agents.cli import build_parser, main
 from agents.papers.lidar_far_point import analysis, jobs, paper, world
 from agents.papers.lidar_far_point import experiment as ex
@@ -96,7 +96,7 @@ def test_failure_count_on_hand_made_errors() -> None:
     def run(seed: int, errs: list[float]) -> jobs.Run:
         e = np.asarray(errs)
         head = np.full(e.size, math.radians(90.0))
-        return jobs.Run("k", seed, 16, np.zeros((e.size, 3)), e, head, 2 * e, head / 2)
+        return jobs.Run("k", seed, 16, np.zeros((e.size, 3)), e, head, 2 * e, head / 2, np.full(e.size, np.nan))
 
     s = analysis.stats_of([run(0, [0.1, 0.3, 1.5, 4.0]), run(1, [0.1, 0.1, 0.1, 0.1]), run(2, [0.2, 1.0, 0.2, 0.2])])
     assert (s.runs, s.estimates, s.failures_total, s.large_total, s.failed_runs) == (3, 4, 3, 1, 2)
@@ -254,3 +254,31 @@ def test_quick_run_writes_report_and_figures(tmp_path: Path, capsys: pytest.Capt
     assert abs(count - 1 - 4 * ex.SIDE_M / ex.UPDATE_TRAVEL_M) <= 1  # one lap, plus the estimate at the start
     row = next(line for line in report.splitlines() if line.startswith("| 0.1 |"))
     assert np.isfinite(float(row.split("|")[2].split("±")[0]))  # numbers, not n/a
+    _check_consistency(json.loads((out / "results.json").read_text()), report)
+
+
+def _check_consistency(results: dict, report: str) -> None:
+    """NEES against the truth beside the errors (issue 19): per configuration and crowd size, per run, for the
+    reference; finite (both localizers report a covariance) and in the report's consistency tables."""
+    from localizers.registry import LOCALIZERS
+
+    assert LOCALIZERS["mcl_lidar"].covariance and LOCALIZERS["far_point_mcl"].covariance
+    assert set(results["consistency"]) == set(results["stats"])
+    for key, fit in results["consistency"].items():
+        assert np.isfinite(fit["nees_median"]) and 0.0 <= fit["inside_95"] <= 1.0, key
+        estimates = sum(len(r["errors_m"]) for r in results["runs"] if f"{r['key']}@{r['crowd_size']}" == key)
+        assert fit["steps"] > 0 and fit["steps"] + fit["excluded"] == estimates, key  # every estimate asked for
+    assert set(results["reference_consistency"]) == set(results["reference"])
+    assert all(np.isfinite(f["nees_median"]) for f in results["reference_consistency"].values())
+    assert all(np.isfinite(r["nees_median"]) and 0.0 <= r["inside_95"] <= 1.0 for r in results["runs"])
+    assert all(np.isfinite(ep["reference_nees_median"]) for ep in results["episodes"])
+    lines = report.splitlines()
+    heads = [i for i, line in enumerate(lines) if "(NEES vs truth) |" in line and "+ far points: NEES median |" in line]
+    assert len(heads) == 4  # the sampling sweep, the hit sweep, the AMCL-like rows, the crowd sizes
+    sampling = lines[heads[0] + 2].split("|")  # its first row: the first sampling value, raw then far points
+    pair = ex.both(ex.sampling_params(ex.QUICK_SAMPLINGS[0]))
+    fits = [results["consistency"][f"{c.key}@{ex.CROWD_SIZE}"] for c in pair]
+    missing = [f"{100 * f['excluded'] / (f['steps'] + f['excluded']):.0f} %" for f in fits]
+    want = [t for f, m in zip(fits, missing) for t in (*consistency.cells(True, f["nees_median"], f["inside_95"]), m)]
+    assert [c.strip() for c in sampling[2:8]] == want
+    assert report.count("Consistent: median about 2.37, inside about 95 %") == 4
