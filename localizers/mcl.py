@@ -25,19 +25,24 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import (
+    DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     LandmarkMap,
     OdometryDelta,
     Overlay,
     PoseEstimate,
+    check_max_spread,
     checked_bearings,
     checked_dt,
     checked_odometry,
     require_reset,
+    within_spread,
 )
 from localizers.geometry import compose, wrap_angle
 from localizers.particles import (
+    LikelihoodAverages,
     gaussian_poses,
+    motion_covariance,
     propagate_particles,
     systematic_resample,
     uniform_poses,
@@ -205,6 +210,12 @@ class PaperMCLParams:
         min_translation_std_m, min_rotation_std_rad: per-step motion-noise floors (ours).
         initial_position_std_m, initial_heading_std_rad: spread around a prior without a
             finite covariance (ours).
+        max_spread_m: no pose is claimed while the position spread exceeds this (ours).
+        min_survival_fraction: lost detection (ours): no pose is claimed while fewer than this
+            fraction of the particles survived the gate of the latest observation (a set the
+            observations keep contradicting, as after a kidnapping or with misidentified
+            landmarks, is no fix; the paper's deletion and re-seeding are unchanged). Not applied
+            to the dead-reckoned pose of an emptied set (the paper's fallback).
     """
 
     n_particles: int = 1000
@@ -219,8 +230,15 @@ class PaperMCLParams:
     min_rotation_std_rad: float = 0.0005
     initial_position_std_m: float = 0.1
     initial_heading_std_rad: float = 0.1
+    max_spread_m: float = DEFAULT_MAX_SPREAD_M
+    min_survival_fraction: float = 0.5
 
     def __post_init__(self) -> None:
+        check_max_spread("PaperMCLParams", self.max_spread_m)
+        check(
+            0.0 <= self.min_survival_fraction <= 1.0,
+            f"PaperMCLParams.min_survival_fraction must be in [0, 1], got {self.min_survival_fraction!r}",
+        )
         check(self.n_particles >= 1, f"PaperMCLParams.n_particles must be >= 1, got {self.n_particles!r}")
         check(
             math.isfinite(self.gate_rad) and 0.0 < self.gate_rad <= math.pi,
@@ -277,6 +295,7 @@ class PaperBearingMCL(_ParticleLocalizer):
         self._params = params
         self._has_pose = False  # MCL has yielded a pose (an observation left a non-empty set)
         self._fallback: tuple[Array, Array] | None = None  # (pose, covariance) dead-reckoned
+        self._survival = 1.0  # fraction of the set that survived the latest observation's gate
 
     def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
         """Seed the set around ``prior`` (and dead-reckon it until the first observation),
@@ -286,6 +305,7 @@ class PaperBearingMCL(_ParticleLocalizer):
         self._weights = None
         self._has_pose = False
         self._fallback = None
+        self._survival = 1.0
         if prior is None or not prior.valid:
             self._particles = np.zeros((3, 0))
             return
@@ -299,7 +319,10 @@ class PaperBearingMCL(_ParticleLocalizer):
         self._generator()
         d = checked_odometry(self.name, odometry, self._step_limit_m)
         if not self._has_pose and self._fallback is not None:
-            self._fallback = (compose(self._fallback[0], d), self._fallback[1])
+            pose, cov = self._fallback
+            p = self._params
+            floors = {"min_translation_std_m": p.min_translation_std_m, "min_rotation_std_rad": p.min_rotation_std_rad}
+            self._fallback = (compose(pose, d), motion_covariance(pose, cov, d, self._alphas, **floors))
         self._propagate(d)
 
     def update(self, measurement: BearingMeasurement) -> None:
@@ -314,6 +337,7 @@ class PaperBearingMCL(_ParticleLocalizer):
             e = bearing_residuals(before, lm, meas.bearings_rad)
             keep = (np.abs(e) <= self._params.gate_rad).all(axis=0)
             kept = before[:, keep]
+            self._survival = kept.shape[1] / before.shape[1]
         else:
             kept = before
         seeds = self._reseed(self._params.n_particles - kept.shape[1], meas, lm, rng)
@@ -358,15 +382,24 @@ class PaperBearingMCL(_ParticleLocalizer):
         return seeds
 
     @property
+    def survival_fraction(self) -> float:
+        """The fraction of the set that survived the latest observation's gate (1 before any)."""
+        return self._survival
+
+    @property
     def estimate(self) -> PoseEstimate:
-        """Mean of the set, else the dead-reckoned last pose, else invalid."""
+        """Mean of the set, else the dead-reckoned last pose (its covariance grown by the
+        motion model), else invalid; not valid past ``max_spread_m`` or while lost."""
         if self._has_pose:
             mean, cov = self._mean_cov()
         elif self._fallback is not None:
             mean, cov = self._fallback
         else:
             return PoseEstimate.invalid()
-        return PoseEstimate(float(mean[0]), float(mean[1]), float(mean[2]), cov.copy(), True)
+        p = self._params
+        consistent = not self._has_pose or self._survival >= p.min_survival_fraction  # dead reckoning: the paper's
+        valid = within_spread(cov, p.max_spread_m) and consistent
+        return PoseEstimate(float(mean[0]), float(mean[1]), float(mean[2]), cov.copy(), valid)
 
 
 # --------------------------------------------------------------------------------------
@@ -396,9 +429,14 @@ class BearingMCLParams:
             around resection solutions.
         initial_position_std_m, initial_heading_std_rad: spread around a prior without a
             finite covariance.
-        fix_spread_m: the estimate is valid only while the particles' position spread
+        max_spread_m: the estimate is valid only while the particles' position spread
             (sqrt of the trace of their position covariance) is at most this: a set still
             spread over the field is no fix.
+        min_fix_landmarks, fix_memory_s: the estimate is valid only while bearings to at
+            least ``min_fix_landmarks`` distinct landmarks arrived within the last
+            ``fix_memory_s`` (a prior counts as a fix at the reset): a set weighed by one
+            landmark only narrows by resampling, not by information, and would claim a
+            confident wrong pose.
     """
 
     n_particles: int = 1000
@@ -415,11 +453,18 @@ class BearingMCLParams:
     injection_heading_std_rad: float = 0.05
     initial_position_std_m: float = 0.1
     initial_heading_std_rad: float = 0.1
-    fix_spread_m: float = 0.5
+    max_spread_m: float = DEFAULT_MAX_SPREAD_M
+    min_fix_landmarks: int = 3
+    fix_memory_s: float = 10.0
 
     def __post_init__(self) -> None:
         check(self.n_particles >= 2, f"BearingMCLParams.n_particles must be >= 2, got {self.n_particles!r}")
-        check(self.fix_spread_m > 0, f"BearingMCLParams.fix_spread_m must be > 0, got {self.fix_spread_m!r}")
+        check_max_spread("BearingMCLParams", self.max_spread_m)
+        check(self.min_fix_landmarks >= 1, f"BearingMCLParams.min_fix_landmarks must be >= 1, got {self.min_fix_landmarks!r}")
+        check(
+            not math.isnan(self.fix_memory_s) and self.fix_memory_s > 0.0,
+            f"BearingMCLParams.fix_memory_s must be > 0 s, got {self.fix_memory_s!r}",
+        )
         _check_alphas("BearingMCLParams", self.alphas)
         _check_positive("BearingMCLParams", self, ("bearing_std_rad", "injection_position_std_m", "injection_heading_std_rad"))
         _check_positive(
@@ -475,8 +520,10 @@ class BearingMCL(_ParticleLocalizer):
         N = params.n_particles
         self._log_w = np.full(N, -math.log(N))
         self._scratch = np.empty(landmarks.count * N)
-        self._w_slow = self._w_fast = self._w_reference
+        self._averages = LikelihoodAverages(params.alpha_slow, params.alpha_fast, self._w_reference)
         self._valid = False
+        self._t_s = 0.0
+        self._last_seen_s = np.full(landmarks.count, -math.inf)  # per landmark, when last seen
 
     def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
         """Gaussian around ``prior`` (its covariance when finite), else uniform over the field."""
@@ -493,11 +540,14 @@ class BearingMCL(_ParticleLocalizer):
             self._valid = True
         self._log_w.fill(-math.log(N))
         self._weights = np.full(N, 1.0 / N)
-        self._w_slow = self._w_fast = self._w_reference
+        self._averages.reset()
+        self._t_s = 0.0
+        self._last_seen_s.fill(0.0 if self._valid else -math.inf)  # a prior counts as a fix now
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Sample the odometry motion model for every particle."""
         self._propagate(checked_odometry(self.name, odometry, self._step_limit_m))
+        self._t_s += self._dt
 
     def update(self, measurement: BearingMeasurement) -> None:
         """Weight by the bearing likelihood; resample (with injection) when needed."""
@@ -521,12 +571,11 @@ class BearingMCL(_ParticleLocalizer):
         self._weights = w
         self._cache = None
         self._valid = True
+        self._last_seen_s[meas.landmark_ids] = self._t_s
         # Augmented MCL (Probabilistic Robotics Table 8.3); w_avg = sum_i w_i p(z | x_i).
-        w_avg = math.exp((peak + math.log(total)) / n)
         p = self._params
-        self._w_slow += p.alpha_slow * (w_avg - self._w_slow)
-        self._w_fast += p.alpha_fast * (w_avg - self._w_fast)
-        p_inject = max(0.0, 1.0 - self._w_fast / (p.injection_ratio * self._w_slow))
+        self._averages.update(math.exp((peak + math.log(total)) / n))
+        p_inject = self._averages.injection_probability(p.injection_ratio)
         n_inject = int(rng.binomial(N, p_inject)) if p_inject > 0.0 else 0
         if n_inject == 0 and 1.0 / float(w @ w) >= p.resample_ess_fraction * N:
             return
@@ -552,15 +601,25 @@ class BearingMCL(_ParticleLocalizer):
     @property
     def likelihood_averages(self) -> tuple[float, float]:
         """``(w_slow, w_fast)`` of augmented MCL."""
-        return self._w_slow, self._w_fast
+        slow, fast = self._averages.slow, self._averages.fast
+        assert slow is not None and fast is not None  # they start at the localized value
+        return slow, fast
+
+    @property
+    def lost(self) -> bool:
+        """Whether augmented MCL finds the filter lost: ``w_fast < injection_ratio w_slow`` (it injects)."""
+        return self._averages.lost(self._params.injection_ratio)
 
     @property
     def estimate(self) -> PoseEstimate:
-        """Weighted mean and covariance; invalid before reset, without a prior until a bearing
-        arrives, and while the position spread exceeds ``fix_spread_m``."""
+        """Weighted mean and covariance; invalid before reset and without a prior until a
+        bearing arrives. It claims no pose (``valid`` false, the mean and covariance kept) while
+        the position spread exceeds ``max_spread_m``, while lost (:attr:`lost`), and while fewer
+        than ``min_fix_landmarks`` distinct landmarks were seen in the last ``fix_memory_s``."""
         if self._rng is None or not self._valid:
             return PoseEstimate.invalid()
         mean, cov = self._mean_cov()
-        if math.sqrt(cov[0, 0] + cov[1, 1]) > self._params.fix_spread_m:
-            return PoseEstimate.invalid()
-        return PoseEstimate(float(mean[0]), float(mean[1]), float(mean[2]), cov.copy(), True)
+        p = self._params
+        seen = int(np.count_nonzero(self._last_seen_s >= self._t_s - p.fix_memory_s))
+        valid = within_spread(cov, p.max_spread_m) and not self.lost and seen >= p.min_fix_landmarks
+        return PoseEstimate(float(mean[0]), float(mean[1]), float(mean[2]), cov.copy(), valid)

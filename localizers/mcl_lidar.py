@@ -37,20 +37,25 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import (
+    DEFAULT_MAX_SPREAD_M,
     LandmarkMap,
     MeasurementError,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     ScanMeasurement,
+    check_max_spread,
     checked_dt,
     checked_odometry,
     require_reset,
+    within_spread,
 )
 from localizers.beam_model import BeamModel, LikelihoodFieldModel, beam_likelihood, p_hit, p_max, p_rand, p_short
 from localizers.geometry import compose, wrap_angle
 from localizers.particles import (
+    LikelihoodAverages,
     gaussian_poses,
+    motion_covariance,
     prior_covariance,
     propagate_particles,
     systematic_resample,
@@ -72,6 +77,7 @@ __all__ = [
     "build_range_table",
     "cache_dir",
     "chi_square_sample_count",
+    "informative",
     "kld_resample",
     "p_hit",
     "p_max",
@@ -118,8 +124,24 @@ class LidarMCLParams:
         kld_bin_xy_m, kld_bin_theta_rad: histogram bin size of KLD-sampling.
         min_particles, max_particles: limits of the KLD set size.
         recovery: augmented MCL, random particles when the short-term likelihood average
-            drops below the long-term one (Table 8.3).
-        alpha_slow, alpha_fast: rates of the long- and short-term averages.
+            drops below the long-term one (Table 8.3), drawn from the scan (see
+            ``recovery_candidates``).
+        alpha_slow, alpha_fast: rates of the long- and short-term averages (kept with or
+            without ``recovery``: they also tell when the filter is lost).
+        lost_ratio: lost detection (ours): no pose is claimed while the short-term average of
+            the per-beam likelihood is below ``lost_ratio`` times the long-term one.
+        recovery_candidates: the injected particles are drawn, in proportion to their
+            likelihood, from this many poses uniform over the map bounds, weighed by the scan
+            (every ``recovery_beam_stride``-th beam) through the same measurement model (ours,
+            sensor-resetting after Lenser and Veloso 2000; uniform particles alone almost
+            never land near the pose in a room, so the book's injection does not recover).
+            Only done when particles are injected.
+        recovery_beam_stride: the beam stride of that weighing.
+        max_spread_m: no pose is claimed while the position spread exceeds this (ours).
+        min_range_m, min_informative_fraction: a scan in which fewer than this fraction of the
+            (strided) beams read a range in ``(min_range_m, max_range)`` carries no information
+            on the pose (a blank or blocked scan: all at the maximum range, all zero): it is not
+            weighed, and the particles only move by the odometry (ours).
         initial_position_std_m, initial_heading_std_rad: spread around a prior without a
             finite covariance.
         parallel: evaluate the particles on numba's thread pool. Off by default: on a
@@ -167,6 +189,12 @@ class LidarMCLParams:
     initial_position_std_m: float = 0.1
     initial_heading_std_rad: float = 0.1
     parallel: bool = False
+    lost_ratio: float = 0.9
+    recovery_candidates: int = 20_000
+    recovery_beam_stride: int = 8
+    max_spread_m: float = DEFAULT_MAX_SPREAD_M
+    min_range_m: float = 0.1
+    min_informative_fraction: float = 0.1
 
     def __post_init__(self) -> None:
         name = "LidarMCLParams"
@@ -189,6 +217,7 @@ class LidarMCLParams:
             "z_short",
             "z_max",
             "z_rand",
+            "min_range_m",
             "initial_position_std_m",
             "initial_heading_std_rad",
         ):
@@ -213,6 +242,14 @@ class LidarMCLParams:
         check(
             0.0 < self.alpha_slow < self.alpha_fast <= 1.0,
             f"{name} needs 0 < alpha_slow < alpha_fast <= 1, got {self.alpha_slow!r}, {self.alpha_fast!r}",
+        )
+        check(0.0 < self.lost_ratio <= 1.0, f"{name}.lost_ratio must be in (0, 1], got {self.lost_ratio!r}")
+        check(self.recovery_candidates >= 1, f"{name}.recovery_candidates must be >= 1, got {self.recovery_candidates!r}")
+        check(self.recovery_beam_stride >= 1, f"{name}.recovery_beam_stride must be >= 1, got {self.recovery_beam_stride!r}")
+        check_max_spread(name, self.max_spread_m)
+        check(
+            0.0 <= self.min_informative_fraction <= 1.0,
+            f"{name}.min_informative_fraction must be in [0, 1], got {self.min_informative_fraction!r}",
         )
 
     @property
@@ -255,6 +292,13 @@ def validated_scan(scan: ScanMeasurement, source: str = "scan") -> tuple[Array, 
             f"{source}: range {float(ranges[i])!r} m at index {i} is not a finite value in [0, max_range_m = {max_range!r}]"
         )
     return ranges, angles, max_range
+
+
+def informative(ranges: Array, max_range: float, params: LidarMCLParams) -> bool:
+    """Whether a scan carries information on the pose: at least ``min_informative_fraction`` of
+    its beams read a range in ``(min_range_m, max_range)`` (not blank, not blocked)."""
+    hits = int(np.count_nonzero((ranges > params.min_range_m) & (ranges < max_range)))
+    return hits > 0 and hits >= params.min_informative_fraction * ranges.size
 
 
 # --------------------------------------------------------------------------------------
@@ -335,8 +379,7 @@ class LidarMCL:
         self._turn_rad = 0.0
         self._updates = 0
         self._valid = False
-        self._w_slow: float | None = None
-        self._w_fast: float | None = None
+        self._averages = LikelihoodAverages(params.alpha_slow, params.alpha_fast)
         self._cache: tuple[Array, Array] | None = None
 
     # ------------------------------------------------------------------ map models
@@ -373,7 +416,7 @@ class LidarMCL:
         self._pending = np.zeros(3)
         self._travel_m = self._turn_rad = 0.0
         self._updates = 0
-        self._w_slow = self._w_fast = None
+        self._averages.reset()
         self._cache = None
 
     def predict(self, odometry: OdometryDelta) -> None:
@@ -395,17 +438,17 @@ class LidarMCL:
         ranges = np.ascontiguousarray(ranges[::stride])
         angles = np.ascontiguousarray(angles[::stride])
         used = ranges.size if p.model == "beam" else int(np.count_nonzero(ranges < max_range))
-        if used == 0:
-            return  # nothing observed: keep the motion pending
+        if used == 0 or not informative(ranges, max_range, p):
+            # nothing observed: the particles only move (once motion is due), nothing is weighed
+            if self._travel_m >= p.update_min_travel_m or self._turn_rad >= p.update_min_rotation_rad:
+                self._apply_motion(rng)
+            return
         self._apply_motion(rng)
         n = self._particles.shape[1]
         if self._loglik.shape[0] != n:
             self._loglik = np.empty(n)
         ll = self._loglik
-        if p.model == "beam":
-            self.beam_model(max_range).log_likelihood(self._particles, ranges, angles, ll, parallel=p.parallel)
-        else:
-            self.likelihood_field().log_likelihood(self._particles, ranges, angles, max_range, ll, parallel=p.parallel)
+        self._log_likelihood(self._particles, ranges, angles, max_range, ll)
         self._updates += 1
         self._valid = True
         self._cache = None
@@ -418,25 +461,22 @@ class LidarMCL:
         total = float(w.sum())
         w /= total
         log_w -= peak + math.log(total)  # normalized: logsumexp(log_w) == 0
+        # Table 8.3 with w_avg = mean_i p(z | x_i), as a per-beam geometric mean
+        ll_peak = float(ll.max())
+        self._averages.update(math.exp((ll_peak + math.log(float(np.exp(ll - ll_peak).sum()) / n)) / used))
         n_inject = 0
         if p.recovery:
-            # Table 8.3 with w_avg = mean_i p(z | x_i), as a per-beam geometric mean
-            ll_peak = float(ll.max())
-            w_avg = math.exp((ll_peak + math.log(float(np.exp(ll - ll_peak).sum()) / n)) / used)
-            if self._w_slow is None or self._w_fast is None:
-                self._w_slow = self._w_fast = w_avg
-            else:
-                self._w_slow += p.alpha_slow * (w_avg - self._w_slow)
-                self._w_fast += p.alpha_fast * (w_avg - self._w_fast)
-            p_inject = max(0.0, 1.0 - self._w_fast / self._w_slow) if self._w_slow > 0.0 else 0.0
+            p_inject = self._averages.injection_probability()
             n_inject = int(rng.binomial(n, p_inject)) if p_inject > 0.0 else 0
         if n_inject == 0 and 1.0 / float(w @ w) >= p.resample_ess_fraction * n:
             return
-        self._resample(rng, n_inject)
+        self._resample(rng, n_inject, (ranges, angles, max_range))
 
     @property
     def estimate(self) -> PoseEstimate:
-        """Weighted mean (composed with the pending odometry) and weighted covariance."""
+        """Weighted mean and covariance, both carried through the pending odometry (the
+        covariance by :func:`localizers.particles.motion_covariance`: the noise the particles
+        will get when it is applied). No pose is claimed past ``max_spread_m`` or while lost."""
         if self._rng is None or not self._valid:
             return PoseEstimate.invalid()
         if self._cache is None:
@@ -444,7 +484,17 @@ class LidarMCL:
             self._cache = (mean, weighted_pose_covariance(self._particles, mean, self._weights))
         mean, cov = self._cache
         pose = compose(mean, self._pending)
-        return PoseEstimate(float(pose[0]), float(pose[1]), float(pose[2]), cov.copy(), True)
+        p = self._params
+        if self._pending.any():
+            floors = {"min_translation_std_m": p.min_translation_std_m, "min_rotation_std_rad": p.min_rotation_std_rad}
+            cov = motion_covariance(mean, cov, self._pending, self._alphas, **floors)
+        valid = within_spread(cov, p.max_spread_m) and not self.lost
+        return PoseEstimate(float(pose[0]), float(pose[1]), float(pose[2]), cov.copy(), valid)
+
+    @property
+    def lost(self) -> bool:
+        """Whether the short-term average likelihood is below ``lost_ratio`` times the long-term one."""
+        return self._averages.lost(self._params.lost_ratio)
 
     def overlay(self) -> Overlay:
         """The particles (moved by the pending odometry), shaded by weight."""
@@ -474,8 +524,8 @@ class LidarMCL:
 
     @property
     def likelihood_averages(self) -> tuple[float | None, float | None]:
-        """``(w_slow, w_fast)`` of augmented MCL (None before the first update with recovery)."""
-        return self._w_slow, self._w_fast
+        """``(w_slow, w_fast)`` of augmented MCL (None before the first weighed scan)."""
+        return self._averages.slow, self._averages.fast
 
     @property
     def updates(self) -> int:
@@ -508,7 +558,27 @@ class LidarMCL:
         self._travel_m = self._turn_rad = 0.0
         self._cache = None
 
-    def _resample(self, rng: np.random.Generator, n_inject: int) -> None:
+    def _log_likelihood(self, particles: Array, ranges: Array, angles: Array, max_range: float, out: Array) -> None:
+        p = self._params
+        if p.model == "beam":
+            self.beam_model(max_range).log_likelihood(particles, ranges, angles, out, parallel=p.parallel)
+        else:
+            self.likelihood_field().log_likelihood(particles, ranges, angles, max_range, out, parallel=p.parallel)
+
+    def _injected(self, count: int, scan: tuple[Array, Array, float], rng: np.random.Generator) -> Array:
+        """``(3, count)`` particles drawn from ``recovery_candidates`` uniform poses in
+        proportion to their likelihood under the (strided) scan."""
+        p = self._params
+        pool = uniform_poses(self._map.bounds_m, p.recovery_candidates, rng)
+        ranges, angles, max_range = scan
+        stride = p.recovery_beam_stride
+        ll = np.empty(pool.shape[1])
+        self._log_likelihood(pool, np.ascontiguousarray(ranges[::stride]), np.ascontiguousarray(angles[::stride]), max_range, ll)
+        w = np.exp(ll - ll.max())
+        w /= w.sum()
+        return pool[:, systematic_resample(w, count, rng)]
+
+    def _resample(self, rng: np.random.Generator, n_inject: int, scan: tuple[Array, Array, float]) -> None:
         p = self._params
         w = self._weights
         if p.kld:
@@ -522,7 +592,7 @@ class LidarMCL:
         particles = np.empty((3, n))
         np.take(self._particles, idx, axis=1, out=particles[:, : n - n_inject])
         if n_inject:
-            particles[:, n - n_inject :] = uniform_poses(self._map.bounds_m, n_inject, rng)
+            particles[:, n - n_inject :] = self._injected(n_inject, scan, rng)
         self._particles = particles
         self._set_uniform_weights(n)
         self._cache = None

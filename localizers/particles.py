@@ -150,3 +150,76 @@ def prior_covariance(prior: PoseEstimate, position_std_m: float, heading_std_rad
         if np.linalg.eigvalsh(cov).min() >= -1e-12:
             return cov
     return np.diag([position_std_m**2, position_std_m**2, heading_std_rad**2])
+
+
+def motion_covariance(
+    pose: ArrayLike,
+    cov: ArrayLike,
+    delta: ArrayLike,
+    alphas: ArrayLike,
+    *,
+    min_translation_std_m: float = 0.0,
+    min_rotation_std_rad: float = 0.0,
+) -> Array:
+    """``(3, 3)`` covariance of ``compose(pose, delta)`` with the increment drawn from the alpha model.
+
+    First-order propagation (the EKF prediction of Probabilistic Robotics Table 7.1 with the
+    odometry model of sec. 5.4): ``F cov F^T + G Q G^T``, ``F`` the Jacobian of the composition
+    in the pose, ``G`` in ``(rot1, trans, rot2)``, ``Q`` the alpha model's variances (floors added
+    in quadrature, as :func:`propagate_particles` does). A particle filter reports it for motion
+    it has not yet applied to its particles, a dead-reckoned pose for every increment.
+    """
+    p = np.asarray(pose, dtype=np.float64)
+    rot1, trans, _ = (float(v) for v in to_rot_trans_rot(delta))
+    std = odometry_noise_std(delta, alphas)
+    q = np.array(
+        [
+            float(std[0]) ** 2 + min_rotation_std_rad**2,
+            float(std[1]) ** 2 + min_translation_std_m**2,
+            float(std[2]) ** 2 + min_rotation_std_rad**2,
+        ]
+    )
+    phi = float(p[2]) + rot1
+    c, s = math.cos(phi), math.sin(phi)
+    F = np.array([[1.0, 0.0, -trans * s], [0.0, 1.0, trans * c], [0.0, 0.0, 1.0]])
+    G = np.array([[-trans * s, c, 0.0], [trans * c, s, 0.0], [1.0, 0.0, 1.0]])
+    return F @ np.asarray(cov, dtype=np.float64) @ F.T + (G * q) @ G.T
+
+
+class LikelihoodAverages:
+    """The short- and long-term averages of the measurement likelihood of augmented MCL
+    (Probabilistic Robotics Table 8.3): ``w_slow += alpha_slow (w_avg - w_slow)``, likewise
+    ``w_fast``. ``w_fast`` falling below ``w_slow`` means the measurements have just become
+    unlikely under the particles: the filter is lost (kidnapped, or its odometry jumped).
+
+    Args:
+        alpha_slow, alpha_fast: the rates, ``0 < alpha_slow < alpha_fast <= 1``.
+        start: the value both averages start at; ``None``: the first ``w_avg``.
+    """
+
+    def __init__(self, alpha_slow: float, alpha_fast: float, start: float | None = None) -> None:
+        self.alpha_slow, self.alpha_fast = alpha_slow, alpha_fast
+        self._start = start
+        self.slow: float | None = start
+        self.fast: float | None = start
+
+    def reset(self) -> None:
+        self.slow = self.fast = self._start
+
+    def update(self, w_avg: float) -> None:
+        """Fold one update's average likelihood in."""
+        if self.slow is None or self.fast is None:
+            self.slow = self.fast = w_avg
+            return
+        self.slow += self.alpha_slow * (w_avg - self.slow)
+        self.fast += self.alpha_fast * (w_avg - self.fast)
+
+    def injection_probability(self, ratio: float = 1.0) -> float:
+        """``max(0, 1 - w_fast / (ratio w_slow))`` (``ratio`` 1: the book's rule; 0 before any update)."""
+        if self.slow is None or self.fast is None or not self.slow > 0.0:
+            return 0.0
+        return max(0.0, 1.0 - self.fast / (ratio * self.slow))
+
+    def lost(self, ratio: float) -> bool:
+        """Whether ``w_fast < ratio w_slow``: the recent measurements are this much less likely than usual."""
+        return self.injection_probability(ratio) > 0.0

@@ -20,6 +20,7 @@ leave some bins unread; wider bins give several beams the same point.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass, field
@@ -30,17 +31,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import (
+    DEFAULT_MAX_SPREAD_M,
     LandmarkMap,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     ScanMeasurement,
+    check_max_spread,
     checked_dt,
     checked_odometry,
     require_reset,
 )
 from localizers.geometry import compose, wrap_angle
-from localizers.mcl_lidar import LidarMCL, LidarMCLParams, validated_scan
+from localizers.mcl_lidar import LidarMCL, LidarMCLParams, informative, validated_scan
 from localizers.schema import check
 
 Array = NDArray[np.float64]
@@ -320,12 +323,18 @@ class FarPointMCLParams:
     """``far_point_mcl`` (defaults: ``configs/localizers/far_point_mcl.yaml``).
 
     Attributes:
-        mcl: the LIDAR MCL that consumes the processed scans.
+        mcl: the LIDAR MCL that consumes the processed scans (its own ``max_spread_m`` is
+            replaced by the one below).
         filter: accumulation and far-point extraction.
+        max_spread_m: no pose is claimed while the position spread exceeds this (ours).
     """
 
     mcl: LidarMCLParams = field(default_factory=LidarMCLParams)
     filter: ScanFilterParams = field(default_factory=ScanFilterParams)
+    max_spread_m: float = DEFAULT_MAX_SPREAD_M
+
+    def __post_init__(self) -> None:
+        check_max_spread("FarPointMCLParams", self.max_spread_m)
 
 
 class FarPointMCL:
@@ -341,7 +350,8 @@ class FarPointMCL:
     def __init__(self, landmarks: LandmarkMap, params: FarPointMCLParams, *, dt_s: float) -> None:
         self.params = params
         self._step_limit_m = landmarks.step_limit_m
-        self.mcl = LidarMCL(landmarks, params.mcl, dt_s=checked_dt(type(self).__name__, dt_s))
+        mcl = dataclasses.replace(params.mcl, max_spread_m=params.max_spread_m)
+        self.mcl = LidarMCL(landmarks, mcl, dt_s=checked_dt(type(self).__name__, dt_s))
         self.filter = ScanFilter(params.filter)
         self._ready = False
         self._last: ScanMeasurement | None = None
@@ -361,12 +371,23 @@ class FarPointMCL:
         self.filter.predict(odometry)
 
     def update(self, measurement: ScanMeasurement) -> None:
-        """Accumulate the scan; when MCL is due, weigh the particles by the far-point scan."""
+        """Accumulate the scan; when MCL is due, weigh the particles by the far-point scan.
+
+        When the scan itself carries no information (:func:`localizers.mcl_lidar.informative`:
+        blank, or blocked), the window holds only older points: the MCL gets a blank scan
+        instead (it moves the particles and weighs nothing), so that a sensor that sees nothing
+        now does not fix the pose on points already weighed.
+        """
         require_reset(type(self).__name__, self._ready)
         self.filter.add_scan(measurement)  # validates
         self._last = measurement
         if self.mcl.update_due:
-            self._processed = self.filter.extract(measurement.angles_rad, measurement.max_range_m)
+            max_range = float(measurement.max_range_m)
+            ranges = np.asarray(measurement.ranges_m, dtype=np.float64)
+            if informative(ranges[:: self.params.mcl.beam_stride], max_range, self.params.mcl):
+                self._processed = self.filter.extract(measurement.angles_rad, max_range)
+            else:
+                self._processed = ScanMeasurement(np.full(ranges.shape, max_range), np.asarray(measurement.angles_rad), max_range)
             self.mcl.update(self._processed)
 
     @property
