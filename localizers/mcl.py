@@ -453,7 +453,7 @@ class BearingMCLParams:
     injection_heading_std_rad: float = 0.05
     initial_position_std_m: float = 0.1
     initial_heading_std_rad: float = 0.1
-    max_spread_m: float = DEFAULT_MAX_SPREAD_M
+    max_spread_m: float = 0.5  # the former fix_spread_m
     min_fix_landmarks: int = 3
     fix_memory_s: float = 10.0
 

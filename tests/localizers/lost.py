@@ -2,7 +2,7 @@
 with what the localizer is fed (a kidnapping, an odometry jump, blank or swapped frames), and
 measure how wrong it is while it claims a pose and how soon it is right again. Shared by the
 recovery tests (test_mcl_recovery.py) and the before/after figures
-(benchmarks/lost_localizers.py)."""
+(``python -m tests.localizers.lost_figures``)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 import envs  # noqa: F401
 from agents.policies import make_policy
 from agents.scenarios import kidnap
-from localizers.base import OdometryDelta
+from localizers.base import BearingMeasurement, OdometryDelta
 
 #: a gentle circle: forward at 60 % of top speed, turning at 20 % of the top turn rate
 CIRCLE = np.array([0.6, 0.2], dtype=np.float32)
@@ -112,3 +112,23 @@ def drive(
             spreads[k] = est.position_spread_m
     env.close()
     return Run(np.arange(1, steps + 1) * dt, errors, valid, spreads, math.nan if kidnap_at is None else kidnap_at * dt)
+
+
+STATIC, ROOM = "crowdloc/RoboCupStatic-v0", "crowdloc/CrowdedRoom-v0"
+ROOM_KW: dict[str, Any] = {"crowd_size": 4}
+EVENT_S = 10.0
+
+
+def one_landmark(k: int, f: BearingMeasurement) -> BearingMeasurement:
+    """Only the lowest-id landmark of the frame."""
+    if f.landmark_ids.size <= 1:
+        return f
+    i = int(np.argmin(f.landmark_ids))
+    return BearingMeasurement(f.landmark_ids[i : i + 1], f.bearings_rad[i : i + 1])
+
+
+def swapped(k: int, f: BearingMeasurement) -> BearingMeasurement:
+    """Landmarks 0 and 1 swap ids (a consistent misidentification)."""
+    ids = f.landmark_ids.copy()
+    ids[f.landmark_ids == 0], ids[f.landmark_ids == 1] = 1, 0
+    return BearingMeasurement(ids, f.bearings_rad)

@@ -7,9 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmarks.lost_localizers import EVENT_S, ROOM, ROOM_KW, STATIC, one_landmark, swapped
 from localizers.base import ScanMeasurement
-from tests.localizers.lost import drive
+from tests.localizers.lost import EVENT_S, ROOM, ROOM_KW, STATIC, drive, one_landmark, swapped
 
 KIDNAP_STEP_BEARING, KIDNAP_STEP_ROOM = 300, 400  # t = 10 s at 30 Hz, at 40 Hz
 
@@ -27,9 +26,9 @@ def test_swapped_landmark_ids_claim_no_wrong_pose(name: str) -> None:
     assert run.wrong_claims() <= 9, run.wrong_claims()
 
 
-@pytest.mark.parametrize(("name", "recovered_at_least", "longest_s"), [("mcl_bearing", 6, 3.0), ("mcl_bearing_paper", 4, 12.0)])
+@pytest.mark.parametrize(("name", "recovered_at_least", "longest_s"), [("mcl_bearing", 5, 3.0), ("mcl_bearing_paper", 4, 12.0)])
 def test_bearing_filters_relocalize_after_a_kidnapping(name: str, recovered_at_least: int, longest_s: float) -> None:
-    # measured (10 seeds, random walk, < 0.2 m within 30 s): mcl_bearing 6/10, median 14.6 s;
+    # measured (10 seeds, random walk, < 0.2 m within 30 s): mcl_bearing 5/10 (6/10 with max_spread_m 1 m), median 14.6 s;
     # mcl_bearing_paper 4/10, median 16.3 s (before: 5/10 and 4/10, with 3546 and 7331 claims > 1 m off)
     times, longest = [], 0.0
     for seed in range(10):

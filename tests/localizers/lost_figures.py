@@ -1,7 +1,7 @@
 """Issue 19's stress cases for the particle filters, measured: how wrong they are while they
 claim a pose, and how soon they are right again (tests/localizers/lost.py drives them).
 
-    PYTHONPATH=.shim:. python benchmarks/lost_localizers.py [case ...] [--seeds N]
+    python -m tests.localizers.lost_figures [case ...] [--seeds N]
 
 Cases: one_landmark, swapped_ids, kidnap_bearing, odometry_jump, zero_scans, kidnap_lidar.
 """
@@ -15,27 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from localizers.base import BearingMeasurement, ScanMeasurement
-from tests.localizers.lost import Run, drive
-
-STATIC, ROOM = "crowdloc/RoboCupStatic-v0", "crowdloc/CrowdedRoom-v0"
-ROOM_KW: dict[str, Any] = {"crowd_size": 4}
-EVENT_S = 10.0
-
-
-def one_landmark(k: int, f: BearingMeasurement) -> BearingMeasurement:
-    """Only the lowest-id landmark of the frame."""
-    if f.landmark_ids.size <= 1:
-        return f
-    i = int(np.argmin(f.landmark_ids))
-    return BearingMeasurement(f.landmark_ids[i : i + 1], f.bearings_rad[i : i + 1])
-
-
-def swapped(k: int, f: BearingMeasurement) -> BearingMeasurement:
-    """Landmarks 0 and 1 swap ids (a consistent misidentification)."""
-    ids = f.landmark_ids.copy()
-    ids[f.landmark_ids == 0], ids[f.landmark_ids == 1] = 1, 0
-    return BearingMeasurement(ids, f.bearings_rad)
+from localizers.base import ScanMeasurement
+from tests.localizers.lost import EVENT_S, ROOM, ROOM_KW, STATIC, Run, drive, one_landmark, swapped
 
 
 def line(name: str, run: Run, extra: str = "") -> None:
