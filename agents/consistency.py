@@ -43,10 +43,11 @@ def run_nees(localizer: str, estimates: ArrayLike, truth: ArrayLike, covariances
 
 
 def missing_share(fit: metrics.Consistency) -> float:
-    """Share of the steps asked for without a usable covariance (singular, e.g. a collapsed particle set; or none).
+    """Share of the steps asked for without a usable covariance (none, not finite, or a negative variance).
 
     :func:`agents.metrics.consistency` leaves them out of the NEES median and the inside-95 % share,
-    so a large share here means those two describe only part of the run.
+    so a large share here means those two describe only part of the run. (A singular covariance,
+    a collapsed particle set, is usable: its NEES is ``inf``, outside the region.)
     """
     total = fit.steps + fit.excluded
     return fit.excluded / total if total else math.nan
@@ -63,8 +64,9 @@ def legend() -> str:
         f"NEES: pose error squared over the reported covariance (x, y, heading; {POSE_DOF} dof) over the steps with a "
         f"pose; inside 95 %: share of them with NEES <= {metrics.chi2_quantile(0.95, POSE_DOF):.2f}. Consistent: median "
         f"about {consistent_median():.2f}, inside about 95 %; a much larger median: overconfident (the covariance is too "
-        f"small), much smaller: cautious (too large); steps whose covariance is singular (a collapsed particle set) "
-        f"are left out (their share: covariance_missing in results.json); {NO_COVARIANCE}: the localizer reports none."
+        f"small), much smaller: cautious (too large); a singular covariance (a collapsed particle set) claims "
+        f"certainty and counts as outside (NEES inf); steps without a usable covariance are left out (their share: "
+        f"covariance_missing in results.json); {NO_COVARIANCE}: the localizer reports none."
     )
 
 
@@ -82,7 +84,7 @@ def cells(covariance: bool, nees_median: float, inside_95: float) -> tuple[str, 
     """
     if not covariance:
         return NO_COVARIANCE, NO_COVARIANCE
-    median = nees_text(nees_median) if math.isfinite(nees_median) else "n/a"
+    median = nees_text(nees_median) if not math.isnan(nees_median) else "n/a"  # inf: a collapsed set's claim
     inside = f"{100 * inside_95:.0f} %" if math.isfinite(inside_95) else "n/a"
     return median, inside
 

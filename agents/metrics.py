@@ -236,10 +236,13 @@ def pose_nees(estimates: ArrayLike, truth: ArrayLike, covariances: ArrayLike, do
 
     Returns:
         The NEES per step; NaN where the estimate or the truth is not finite or the covariance
-        (its block) is not usable: not finite, or not positive definite (smallest eigenvalue
-        at most ``1e-12`` times the largest). A consistent estimator's NEES is chi-square
-        with ``dof`` degrees of freedom: mean ``dof``, inside :func:`chi2_quantile` (0.95) on
-        95 % of steps.
+        (its block) is not usable: not finite, or with a negative eigenvalue (no covariance
+        at all). A singular one (smallest eigenvalue within ``1e-12`` times the largest of
+        zero: a particle set collapsed onto one pose, a zero matrix) claims certainty along
+        some direction: its NEES is ``inf`` unless the error is exactly zero (then 0), so such
+        steps count as outside every region rather than being left out. A consistent
+        estimator's NEES is chi-square with ``dof`` degrees of freedom: mean ``dof``, inside
+        :func:`chi2_quantile` (0.95) on 95 % of steps.
     """
     if dof not in (2, 3):
         raise ValueError(f"pose_nees: dof must be 3 (x, y, theta) or 2 (x, y), got {dof}")
@@ -257,11 +260,14 @@ def pose_nees(estimates: ArrayLike, truth: ArrayLike, covariances: ArrayLike, do
     ok = np.isfinite(err).all(axis=1) & np.isfinite(p).all(axis=(1, 2))
     if ok.any():
         eig = np.linalg.eigvalsh(p[ok])
-        good = eig[:, 0] > 1e-12 * np.maximum(eig[:, -1], 0.0)
+        tol = 1e-12 * np.maximum(eig[:, -1], 0.0)
+        good = eig[:, 0] > tol
         idx = np.flatnonzero(ok)[good]
         if idx.size:
             sol = np.linalg.solve(p[idx], err[idx][:, :, None])[:, :, 0]
             out[idx] = np.einsum("ij,ij->i", err[idx], sol)
+        singular = np.flatnonzero(ok)[~good & (eig[:, 0] >= -tol)]
+        out[singular] = np.where(np.any(err[singular] != 0.0, axis=1), np.inf, 0.0)
     return out
 
 
@@ -274,9 +280,10 @@ class Consistency:
             ``dof - 2/3``); NaN without a usable step.
         inside_95: share of those steps inside the reported 95 % region (NEES at most the
             chi-square 0.95 quantile; about 0.95 for a consistent estimator).
-        steps: the steps with a usable covariance.
+        steps: the steps with a usable covariance (a singular one included: its NEES is
+            ``inf``, outside the region; then the mean is ``inf`` too).
         excluded: the steps asked for whose NEES is NaN (covariance missing, not finite or
-            singular; or no estimate).
+            with a negative eigenvalue; or no estimate).
     """
 
     nees_mean: float
@@ -291,8 +298,8 @@ def consistency(nees: ArrayLike, dof: int = 3, mask: ArrayLike | None = None) ->
     v = np.asarray(nees, dtype=np.float64).reshape(-1)
     if mask is not None:
         v = v[np.asarray(mask, dtype=bool).reshape(-1)]
-    finite = v[np.isfinite(v)]
-    if finite.size == 0:
+    usable = v[~np.isnan(v)]  # inf (a singular covariance with an error) counts: outside the region
+    if usable.size == 0:
         return Consistency(math.nan, math.nan, math.nan, 0, int(v.size))
-    inside = float(np.mean(finite <= chi2_quantile(0.95, dof)))
-    return Consistency(float(finite.mean()), float(np.median(finite)), inside, int(finite.size), int(v.size - finite.size))
+    inside = float(np.mean(usable <= chi2_quantile(0.95, dof)))
+    return Consistency(float(usable.mean()), float(np.median(usable)), inside, int(usable.size), int(v.size - usable.size))

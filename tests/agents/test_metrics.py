@@ -134,8 +134,15 @@ def test_nees_of_hand_made_errors() -> None:
     assert nees[2] == pytest.approx(1.0)  # the heading error wraps to 0.1 rad
     assert np.isnan(nees[3]) and np.isnan(nees[4])  # no covariance; no estimate
     assert metrics.pose_nees(est, truth, covs, dof=2)[1] == pytest.approx(2.0)  # position only
+    # a singular covariance claims certainty: an error makes it infinitely off, none leaves it at 0
     singular = np.diag([0.04, 0.0, 0.01])
-    assert np.isnan(metrics.pose_nees(est[:1], truth[:1], singular[None])[0])
+    assert metrics.pose_nees(est[:2], truth[:2], np.stack([singular, singular]))[1] == np.inf
+    assert metrics.pose_nees(est[:1], truth[:1], singular[None])[0] == 0.0
+    assert metrics.pose_nees(est[1:2], truth[1:2], np.zeros((1, 3, 3)))[0] == np.inf  # a collapsed particle set
+    broken = np.diag([0.04, -0.01, 0.01])  # a negative variance: no covariance at all
+    assert np.isnan(metrics.pose_nees(est[1:2], truth[1:2], broken[None])[0])
+    counted = metrics.consistency([1.0, np.inf, np.nan])
+    assert (counted.steps, counted.excluded, counted.inside_95, counted.nees_mean) == (2, 1, 0.5, np.inf)
     correlated = np.array([[1.0, 0.8, 0.0], [0.8, 1.0, 0.0], [0.0, 0.0, 1.0]])
     e = np.array([0.3, -0.2, 0.1])
     assert metrics.pose_nees(e[None], np.zeros((1, 3)), correlated[None])[0] == pytest.approx(e @ np.linalg.solve(correlated, e))

@@ -123,7 +123,7 @@ FIT_TAG = "(NEES vs truth)"  # after the first header cell of a consistency tabl
 
 def fit_head(label: str) -> str:
     """The header cells of :func:`fit_cells` for one variant."""
-    return f"{label}: NEES median | {label}: inside 95 % | {label}: singular covariance"
+    return f"{label}: NEES median | {label}: inside 95 % | {label}: no usable covariance"
 
 
 def fit_rows(x: str, rows: Iterable[tuple[Any, Pair]], c: Context, crowd_size: int = experiment.CROWD_SIZE) -> Lines:
