@@ -53,10 +53,26 @@ Implementation notes (ours):
   dt``, must stay well below ``abort_error_rad`` (with two landmarks at 1 deg noise and
   30 fps, ~1.4 rad per second of ``tau``); ``tau`` also bounds how much evidence a set
   can use to separate candidates, so a short ``tau`` keeps sets from ever determining.
-* Once a pose has been determined, the estimate stays valid: if every determined set is
-  discarded, the last fused pose is dead-reckoned with odometry until a set determines
-  again, its standard deviations growing by ``coast_growth_per_m`` per metre travelled
-  (and per radian turned for the heading).
+* Once a pose has been determined, the last fused pose is dead-reckoned with odometry if
+  every determined set is discarded, until a set determines again, its standard deviations
+  growing by ``coast_growth_per_m`` per metre travelled (and per radian turned for the
+  heading).
+
+Knowing when it is lost (issue 19; ours, the paper says nothing of it):
+
+* *Widening on empty frames.* A frame without bearings evaluates nothing, so the sets stay
+  determined and their candidates move rigidly with the odometry: their spread would stay
+  that of the last seen frame however far the robot drives blind (0.07 m after 333 s, 84 %
+  of steps more than 3 sd off). The reported standard deviations grow by
+  ``coast_growth_per_m`` per metre (and radian) driven since the last frame with a bearing,
+  as when coasting.
+* *Lost detection.* At each frame with >= 2 bearings, the median absolute bearing residual
+  of the current estimate (determined or coasting); when it exceeds ``lost_residual_rad`` on
+  every frame for ``lost_after_s``, the localizer declares itself lost: every set and the
+  coast are dropped and it starts again from this frame's bearings, as after ``reset``
+  (invalid until a new set determines). Measured recovery after a kidnap (>= 2 m, at 10 s):
+  tests/localizers/study_gauss_lost.py.
+* ``max_spread_m``: past this position spread the estimate is not claimed.
 """
 
 from __future__ import annotations
@@ -69,15 +85,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import (
+    DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     LandmarkMap,
     OdometryDelta,
     Overlay,
     PoseEstimate,
+    check_max_spread,
     checked_bearings,
     checked_dt,
     checked_increment,
     require_reset,
+    within_spread,
 )
 from localizers.candidate_kernels import (
     ROW_ERR,
@@ -96,7 +115,7 @@ from localizers.candidate_kernels import (
     spread_sums,
     triple_seeds,
 )
-from localizers.geometry import between, circular_std, compose
+from localizers.geometry import bearings_to, between, circular_std, compose, wrap_angle
 from localizers.resection import inscribed_arc_poses, triple_indices
 from localizers.schema import check
 
@@ -140,6 +159,11 @@ class CandidateSetParams:
             (s; ours, not the paper's). ``inf`` (the default) is the paper's eq. (2)
             exactly, with no forgetting. With a finite ``tau`` the thresholds bound the
             recent mean error per frame (see the module docstring).
+        lost_residual_rad: median absolute bearing residual of the estimate above which a
+            frame contradicts it (rad; ours, 20 bearing sigmas at 1 deg).
+        lost_after_s: contradicted on every frame with >= 2 bearings for this long, the
+            localizer starts again from the bearings (s; ours; ``inf``: never).
+        max_spread_m: past this position spread (m) the estimate is not claimed (ours).
     """
 
     candidates_per_arc: int = 360
@@ -155,8 +179,20 @@ class CandidateSetParams:
     heading_floor_rad: float = 0.0125
     coast_growth_per_m: float = 0.1
     error_time_constant_s: float = math.inf
+    lost_residual_rad: float = 0.35
+    lost_after_s: float = 0.5
+    max_spread_m: float = DEFAULT_MAX_SPREAD_M
 
     def __post_init__(self) -> None:
+        check_max_spread("CandidateSetParams", self.max_spread_m)
+        check(
+            math.isfinite(self.lost_residual_rad) and 0.0 < self.lost_residual_rad <= math.pi,
+            f"CandidateSetParams.lost_residual_rad must be in (0, pi] rad, got {self.lost_residual_rad!r}",
+        )
+        check(
+            self.lost_after_s >= 0.0,  # false for NaN
+            f"CandidateSetParams.lost_after_s must be a number of seconds >= 0 (inf: never), got {self.lost_after_s!r}",
+        )
         for name in ("candidates_per_arc", "max_sets", "determine_below", "max_live_candidates"):
             value = getattr(self, name)
             check(value >= 1, f"CandidateSetParams.{name} must be an integer >= 1, got {value!r}")
@@ -305,6 +341,8 @@ class CandidateSetLocalizer:
         # Last fused output, kept for coasting: base pose X, covariance, path/turn at the time.
         self._coast: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None = None
         self._cached: PoseEstimate | None = None
+        self._seen = (0.0, 0.0)  # path and turn at the last frame with a bearing (widening, ours)
+        self._contradicted_s = 0.0  # how long every frame with >= 2 bearings contradicted the estimate (ours)
 
     def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
         """Forget every set. The method is deterministic and finds the pose itself, so
@@ -349,6 +387,16 @@ class CandidateSetLocalizer:
         self._since_eval_s += self._dt
         if n == 0:
             return
+        self._seen = (self._path_m, self._turn_rad)
+        if n >= 2 and self._contradicts(ids, bearings):  # lost (ours)
+            if self._determined[: self._n_sets].any():  # start again from these bearings, as after reset
+                odo, path, turn = self._odo, self._path_m, self._turn_rad
+                self._clear()
+                self._odo, self._path_m, self._turn_rad = odo, path, turn
+                self._seen = (path, turn)
+            else:  # only the coast is wrong: drop it, the sets being built go on
+                self._coast = None
+            self._contradicted_s = 0.0
         if self._m:
             ox, oy, ot = self._odo.tolist()
             if p.forgets:  # (ours; off by default, so the paper's eq. (2) is untouched)
@@ -368,6 +416,20 @@ class CandidateSetLocalizer:
         self._pending = min(self._pending, p.max_sets - self._n_sets)
         if self._pending > 0 and n >= 2 and self._m < p.max_live_candidates:
             self._generate(ids, bearings)
+
+    def _contradicts(self, ids: NDArray[np.int64], bearings: NDArray[np.float64]) -> bool:
+        """Whether the estimate has been contradicted by the bearings (median absolute
+        residual over ``lost_residual_rad``) on every frame for ``lost_after_s`` (ours)."""
+        est = self.estimate
+        self._cached = None  # the frame's evaluation changes it
+        if not est.valid and self._coast is None and not self._determined[: self._n_sets].any():
+            self._contradicted_s = 0.0
+            return False
+        predicted = bearings_to(est.as_array(), self._map.positions_xy_m[ids])
+        residual = float(np.median(np.abs(wrap_angle(bearings - predicted))))
+        p = self._params
+        self._contradicted_s = self._contradicted_s + self._dt if residual > p.lost_residual_rad else 0.0
+        return self._contradicted_s >= p.lost_after_s - 1e-9
 
     def _generate(self, ids: NDArray[np.int64], bearings: NDArray[np.float64]) -> None:
         """Append one new set built from this frame's bearings, if the budget allows."""
@@ -410,19 +472,28 @@ class CandidateSetLocalizer:
         )
         if determined:
             x, y, th = pose.tolist()
-            return PoseEstimate(x, y, th, cov, True)
+            cov = self._grown(cov, *self._seen)  # (ours) blind since the last frame with a bearing
+            return PoseEstimate(x, y, th, cov, within_spread(cov, self._params.max_spread_m))
         if self._coast is None:
             return PoseEstimate.invalid()
         base, cov, path0, turn0 = self._coast
+        cov = self._grown(cov, path0, turn0)
+        x, y, th = compose_pose(base, *self._odo.tolist())
+        return PoseEstimate(x, y, th, cov, within_spread(cov, self._params.max_spread_m))
+
+    def _grown(self, cov: NDArray[np.float64], path0: float, turn0: float) -> NDArray[np.float64]:
+        """``cov`` with its standard deviations grown by ``coast_growth_per_m`` per metre
+        driven (and radian turned) since ``path0`` (``turn0``)."""
         g = self._params.coast_growth_per_m
         pos_sd = g * (self._path_m - path0)
         head_sd = g * (self._turn_rad - turn0)
+        if pos_sd == 0.0 and head_sd == 0.0:
+            return cov
         cov = cov.copy()
         cov[0, 0] = (math.sqrt(cov[0, 0]) + pos_sd) ** 2
         cov[1, 1] = (math.sqrt(cov[1, 1]) + pos_sd) ** 2
         cov[2, 2] = (math.sqrt(cov[2, 2]) + head_sd) ** 2
-        x, y, th = compose_pose(base, *self._odo.tolist())
-        return PoseEstimate(x, y, th, cov, True)
+        return cov
 
     def overlay(self) -> Overlay:
         """Live candidates; weight ``1 - Error / prune_error_rad`` (low Error = high weight)."""

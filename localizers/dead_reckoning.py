@@ -22,16 +22,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from localizers.base import (
+    DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     LandmarkMap,
     OdometryDelta,
     Overlay,
     PoseEstimate,
+    check_max_spread,
     checked_bearings,
     checked_dt,
     checked_odometry,
     finite_covariance,
     require_reset,
+    within_spread,
 )
 from localizers.geometry import compose, wrap_angle
 from localizers.schema import check
@@ -47,6 +50,11 @@ class DeadReckoningParams:
         heading_var_rad2_per_rad: heading variance added per radian turned.
         initial_position_std_m: prior position std when the prior has no finite covariance.
         initial_heading_std_rad: prior heading std when the prior has no finite covariance.
+        max_spread_m: past this position spread (m) the estimate is no longer claimed
+            (``valid`` false; ours). Dead reckoning cannot notice a kidnapping or recover: this
+            is where it stops claiming a pose. With the default drift (1e-3 m^2 per m per
+            axis) the spread reaches 1 m after 500 m of travel; the coasting test checks that
+            the drift is at least the odometry's own.
     """
 
     position_var_m2_per_m: float = 1e-3
@@ -54,8 +62,10 @@ class DeadReckoningParams:
     heading_var_rad2_per_rad: float = 1e-3
     initial_position_std_m: float = 0.0
     initial_heading_std_rad: float = 0.0
+    max_spread_m: float = DEFAULT_MAX_SPREAD_M
 
     def __post_init__(self) -> None:
+        check_max_spread("DeadReckoningParams", self.max_spread_m)
         for name in (
             "position_var_m2_per_m",
             "heading_var_rad2_per_m",
@@ -79,17 +89,33 @@ def dead_reckon(
     covariance propagated as ``F P F^T + G Q G^T`` with the random-walk drift of the module
     docstring (``Q`` in the robot frame). Returns the new pose and covariance."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
-    # Jacobians of compose(pose, d): F w.r.t. the pose, G w.r.t. the increment.
+    # Jacobian of compose(pose, d) w.r.t. the pose
     F = np.array([[1.0, 0.0, -s * d[0] - c * d[1]], [0.0, 1.0, c * d[0] - s * d[1]], [0.0, 0.0, 1.0]])
+    drift = drift_covariance(float(pose[2]), d, position_var_m2_per_m, heading_var_rad2_per_m, heading_var_rad2_per_rad)
+    return compose(pose, d), F @ cov @ F.T + drift
+
+
+def drift_covariance(
+    heading_rad: float,
+    d: NDArray[np.float64],
+    position_var_m2_per_m: float,
+    heading_var_rad2_per_m: float,
+    heading_var_rad2_per_rad: float,
+) -> NDArray[np.float64]:
+    """``(3, 3)`` world-frame covariance ``G Q G^T`` that one increment ``d`` (3,) adds at
+    ``heading_rad``: the random-walk drift of the module docstring (``Q`` in the robot frame,
+    ``G`` the Jacobian of the composition w.r.t. the increment)."""
+    c, s = math.cos(heading_rad), math.sin(heading_rad)
     G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     dist = math.hypot(d[0], d[1])
     q_pos = position_var_m2_per_m * dist
     Q = np.diag([q_pos, q_pos, heading_var_rad2_per_m * dist + heading_var_rad2_per_rad * abs(d[2])])
-    return compose(pose, d), F @ cov @ F.T + G @ Q @ G.T
+    return G @ Q @ G.T
 
 
 class DeadReckoningLocalizer:
-    """Integrates odometry from the prior pose; bearings are validated and ignored."""
+    """Integrates odometry from the prior pose; bearings are validated and ignored. The
+    estimate is valid while its position spread is at most ``max_spread_m``."""
 
     name: ClassVar[str] = "dead_reckoning"
 
@@ -146,7 +172,7 @@ class DeadReckoningLocalizer:
         if self._pose is None:
             return PoseEstimate.invalid()
         x, y, th = self._pose
-        return PoseEstimate(float(x), float(y), float(th), self._cov.copy(), True)
+        return PoseEstimate(float(x), float(y), float(th), self._cov.copy(), within_spread(self._cov, self._params.max_spread_m))
 
     def overlay(self) -> Overlay:
         if self._pose is None:

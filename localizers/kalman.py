@@ -11,8 +11,30 @@ acceleration; we observe the velocity only, as docs/papers.md states: a finite d
 30 Hz increments is too noisy to be an acceleration measurement.)
 
 The linear filter itself is two pure functions in the style of filterpy, :func:`kf_predict`
-and :func:`kf_update`; they broadcast over leading axes, which lets the localizer run the
-three axes as one batch.
+and :func:`kf_update`; they broadcast over leading axes.
+
+What is ours (issue 19, "localizers that know when they are lost"; the paper says nothing
+of it), each a parameter of :class:`KalmanParams`:
+
+* *Coupled covariance.* The per-axis models are the paper's, but the covariance is one
+  ``9 x 9`` matrix over all three axes and the odometry observation is linearized as what it
+  is, a robot-frame velocity ``R(theta)^T (x', y')`` (an EKF step): the heading's uncertainty
+  then reaches the position (a heading error turns every later step). With three independent
+  axes and the increment rotated by the estimated heading, the filter ignored that and, with
+  one landmark in view (no fix: pure coasting), was more than 3 sd off on most steps.
+* *Odometry drift as process noise.* Every increment adds the random-walk drift of
+  :func:`localizers.dead_reckoning.drift_covariance` to the pose states: the odometry's error
+  enters the position directly, it is not a measurement noise the constant-acceleration
+  prior can average away (without it the spread grew by 0.041 m over 300 coasting steps
+  where the odometry's own noise gives 0.098 m).
+* *Innovation gate and reset.* A resection fix whose normalized innovation squared, against
+  the filter's pose covariance plus the fix's own covariance
+  (:func:`localizers.resection.fix_covariance`), exceeds ``innovation_gate`` (chi-square,
+  3 dof) is rejected; after ``reset_after_rejections`` consecutive rejections the filter is
+  re-initialized on the current fix (velocity and acceleration states from their initial
+  stds). A kidnapped robot (>= 2 m) is found again about 0.5 s after the next frame with a
+  valid fix (measured: tests/localizers/study_gauss_lost.py).
+* ``max_spread_m``: past this position spread the estimate is not claimed.
 """
 
 from __future__ import annotations
@@ -26,19 +48,23 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import (
+    DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     LandmarkMap,
     OdometryDelta,
     Overlay,
     PoseEstimate,
+    check_max_spread,
     checked_bearings,
     checked_dt,
     checked_odometry,
     finite_covariance,
     require_reset,
+    within_spread,
 )
+from localizers.dead_reckoning import drift_covariance
 from localizers.geometry import wrap_angle
-from localizers.resection import DEFAULT_MIN_CONDITIONING, resect_all_triples
+from localizers.resection import DEFAULT_MIN_CONDITIONING, fix_covariance, resect_all_triples
 from localizers.schema import check
 
 Array = NDArray[np.float64]
@@ -160,6 +186,18 @@ class KalmanParams:
         initial_velocity_std_m_per_s, initial_yaw_rate_std_rad_per_s,
         initial_acceleration_std_m_per_s2, initial_yaw_acceleration_std_rad_per_s2: initial
             stds of the derivative states.
+        position_var_m2_per_m, heading_var_rad2_per_m, heading_var_rad2_per_rad: odometry
+            drift added to the pose states per increment (as
+            :mod:`localizers.dead_reckoning`; ours, module docstring).
+        fix_bearing_std_rad: bearing noise behind a fix's own covariance
+            (:func:`localizers.resection.fix_covariance`), used by the innovation gate and
+            the reset (rad; ours).
+        innovation_gate: a fix whose normalized innovation squared exceeds this is rejected
+            (chi-square with 3 dof; 16.27 = the 0.999 quantile; ``inf``: no gate, the paper's
+            filter; ours).
+        reset_after_rejections: after this many consecutive rejected fixes the filter restarts
+            on the current fix (count; ours).
+        max_spread_m: past this position spread (m) the estimate is not claimed (ours).
     """
 
     jerk_psd_xy_m2_per_s5: float = 10.0
@@ -176,6 +214,13 @@ class KalmanParams:
     initial_yaw_rate_std_rad_per_s: float = 1.0
     initial_acceleration_std_m_per_s2: float = 1.0
     initial_yaw_acceleration_std_rad_per_s2: float = 2.0
+    position_var_m2_per_m: float = 1e-3
+    heading_var_rad2_per_m: float = 1e-3
+    heading_var_rad2_per_rad: float = 1e-3
+    fix_bearing_std_rad: float = 0.0175
+    innovation_gate: float = 16.27
+    reset_after_rejections: int = 15
+    max_spread_m: float = DEFAULT_MAX_SPREAD_M
 
     def __post_init__(self) -> None:
         for name in (
@@ -191,34 +236,50 @@ class KalmanParams:
             "initial_yaw_rate_std_rad_per_s",
             "initial_acceleration_std_m_per_s2",
             "initial_yaw_acceleration_std_rad_per_s2",
+            "fix_bearing_std_rad",
         ):
             value = getattr(self, name)
             check(math.isfinite(value) and value > 0.0, f"KalmanParams.{name} must be > 0, got {value!r}")
-        for name in ("initial_position_std_m", "initial_heading_std_rad"):
+        for name in (
+            "initial_position_std_m",
+            "initial_heading_std_rad",
+            "position_var_m2_per_m",
+            "heading_var_rad2_per_m",
+            "heading_var_rad2_per_rad",
+        ):
             value = getattr(self, name)
             check(math.isfinite(value) and value >= 0.0, f"KalmanParams.{name} must be >= 0, got {value!r}")
+        check(
+            self.innovation_gate > 0.0, f"KalmanParams.innovation_gate must be > 0 (inf: no gate), got {self.innovation_gate!r}"
+        )
+        check(
+            self.reset_after_rejections >= 1,
+            f"KalmanParams.reset_after_rejections must be an integer >= 1, got {self.reset_after_rejections!r}",
+        )
+        check_max_spread("KalmanParams", self.max_spread_m)
 
 
-_H_POSITION = np.array([[1.0, 0.0, 0.0]])  # eq. (A.5): vision observes p
-_H_VELOCITY = np.array([[0.0, 1.0, 0.0]])  # eq. (A.4): dead reckoning observes p'
+#: index of (axis, order) in the 9-state vector: axis-major (x, x', x'', y, y', y'', theta, ...)
+_POSE = np.array([0, 3, 6])  # p of x, y, heading
+_VEL = np.array([1, 4, 7])  # p' of x, y, heading
 
 
 def _wrap_heading_row(z: Array, hx: Array) -> Array:
-    """Innovation for the stacked (x, y, heading) axes: row 2 is an angle."""
+    """Innovation of an (x, y, heading) observation: row 2 is an angle."""
     y = z - hx
     y[2] = wrap_angle(y[2])
     return y
 
 
 class KalmanLocalizer:
-    """Dead reckoning + resection fused by per-axis constant-acceleration Kalman filters.
+    """Dead reckoning + resection fused by constant-acceleration Kalman filters per axis.
 
-    The state is ``x`` ``(3, 3)`` (rows: x, y, heading; columns: p, p', p'') with one
-    ``(3, 3)`` covariance per axis. ``predict`` runs the time update over ``dt_s`` and then
-    the odometry velocity update (the increment divided by ``dt_s``, rotated into the world
-    by the heading estimate at mid-step); ``update`` applies a resection fix when >= 3
-    bearings are seen. Without a prior the filter stays invalid (and ignores odometry)
-    until the first fix.
+    The state is ``x`` ``(3, 3)`` (rows: x, y, heading; columns: p, p', p''), its covariance
+    one ``(9, 9)`` matrix (axis-major; module docstring). ``predict`` runs the time update
+    over ``dt_s``, adds the odometry drift and applies the odometry velocity observation (the
+    increment divided by ``dt_s``, in the robot frame at mid-step); ``update`` applies a
+    resection fix when >= 3 bearings are seen and it passes the innovation gate. Without a
+    prior the filter stays invalid (and ignores odometry) until the first fix.
     """
 
     name: ClassVar[str] = "kalman"
@@ -228,26 +289,39 @@ class KalmanLocalizer:
         self._map = landmarks
         self._step_limit_m = landmarks.step_limit_m
         self._params = params
-        self._F, self._Q = constant_acceleration_model(
+        F, Q = constant_acceleration_model(
             self._dt,
             [params.jerk_psd_xy_m2_per_s5, params.jerk_psd_xy_m2_per_s5, params.jerk_psd_heading_rad2_per_s5],
         )
+        self._F = np.kron(np.eye(3), F)
+        self._Q = np.zeros((9, 9))
+        for a in range(3):
+            self._Q[3 * a : 3 * a + 3, 3 * a : 3 * a + 3] = Q[a]
         pv, hv = params.odometry_velocity_std_m_per_s, params.odometry_yaw_rate_std_rad_per_s
-        self._R_velocity = np.array([pv * pv, pv * pv, hv * hv]).reshape(3, 1, 1)
+        self._R_velocity = np.diag([pv * pv, pv * pv, hv * hv])
         pp, hp = params.vision_position_std_m, params.vision_heading_std_rad
-        self._R_position = np.array([pp * pp, pp * pp, hp * hp]).reshape(3, 1, 1)
-        self._x: Array | None = None
-        self._P: Array | None = None
+        self._R_position = np.diag([pp * pp, pp * pp, hp * hp])
+        self._H_position = np.zeros((3, 9))  # eq. (A.5): vision observes p
+        self._H_position[[0, 1, 2], _POSE] = 1.0
+        self._x: Array | None = None  # (9,)
+        self._P: Array | None = None  # (9, 9)
+        self._rejected = 0  # consecutive fixes refused by the innovation gate
         self._ready = False  # reset() called
 
-    def _initial_covariance(self, position_var: Array) -> Array:
-        """``(3, 3, 3)`` block covariances with the given ``(3,)`` variances of p."""
+    def _initial_covariance(self, pose_cov: Array) -> Array:
+        """``(9, 9)`` covariance with the given ``(3, 3)`` pose block and the initial derivative stds."""
         p = self._params
-        P = np.zeros((3, 3, 3))
-        P[:, 0, 0] = position_var
-        P[:, 1, 1] = [p.initial_velocity_std_m_per_s**2] * 2 + [p.initial_yaw_rate_std_rad_per_s**2]
-        P[:, 2, 2] = [p.initial_acceleration_std_m_per_s2**2] * 2 + [p.initial_yaw_acceleration_std_rad_per_s2**2]
+        P = np.zeros((9, 9))
+        P[np.ix_(_POSE, _POSE)] = pose_cov
+        P[_VEL, _VEL] = [p.initial_velocity_std_m_per_s**2] * 2 + [p.initial_yaw_rate_std_rad_per_s**2]
+        P[_VEL + 1, _VEL + 1] = [p.initial_acceleration_std_m_per_s2**2] * 2 + [p.initial_yaw_acceleration_std_rad_per_s2**2]
         return P
+
+    def _start(self, pose: Array, pose_cov: Array) -> None:
+        x = np.zeros(9)
+        x[_POSE] = [pose[0], pose[1], wrap_angle(pose[2])]
+        self._x, self._P = x, self._initial_covariance(pose_cov)
+        self._rejected = 0
 
     def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
         """Start a new episode; ``prior`` (optional) initializes the position states.
@@ -259,74 +333,95 @@ class KalmanLocalizer:
         self._ready = True
         self._x = None
         self._P = None
+        self._rejected = 0
         if prior is None or not prior.valid:
             return
-        x = np.zeros((3, 3))
-        x[:, 0] = [prior.x_m, prior.y_m, wrap_angle(prior.theta_rad)]
         cov = finite_covariance(prior)
         var = np.diag(cov).copy() if cov is not None else np.full(3, np.nan)
         if not np.isfinite(var).all() or (var < 0).any():
             p = self._params
             var = np.array([p.initial_position_std_m**2] * 2 + [p.initial_heading_std_rad**2])
-        self._x, self._P = x, self._initial_covariance(var)
+        self._start(np.array([prior.x_m, prior.y_m, prior.theta_rad]), np.diag(var))
 
     def _require_reset(self) -> None:
         require_reset("KalmanLocalizer", self._ready)
 
     def predict(self, odometry: OdometryDelta) -> None:
-        """Time update by ``dt_s``, then the dead-reckoning velocity update (eq. A.4)."""
+        """Time update by ``dt_s`` with the odometry drift, then the dead-reckoning velocity
+        observation (eq. A.4) linearized in the heading."""
         self._require_reset()
         d = checked_odometry(self.name, odometry, self._step_limit_m)
         if self._x is None or self._P is None:
             return
-        heading = self._x[2, 0] + 0.5 * d[2]  # mid-step heading, rotates the increment into the world
-        c, s = math.cos(heading), math.sin(heading)
-        z = np.array([c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]]) / self._dt
+        p = self._params
         x, P = kf_predict(self._x, self._P, self._F, self._Q)
-        x, P = kf_update(x, P, z[:, None], _H_VELOCITY, self._R_velocity)
-        x[2, 0] = wrap_angle(x[2, 0])
+        heading = float(self._x[6]) + 0.5 * d[2]  # mid-step heading: the increment is in that frame
+        P[np.ix_(_POSE, _POSE)] += drift_covariance(
+            heading, d, p.position_var_m2_per_m, p.heading_var_rad2_per_m, p.heading_var_rad2_per_rad
+        )
+        c, s = math.cos(heading), math.sin(heading)
+        vx, vy = float(x[1]), float(x[4])
+        # h(x) = (R(theta)^T (x', y'), theta'): the robot-frame velocity the increment measures
+        h = np.array([c * vx + s * vy, -s * vx + c * vy, float(x[7])])
+        H = np.zeros((3, 9))
+        H[0, [1, 4, 6]] = [c, s, -s * vx + c * vy]
+        H[1, [1, 4, 6]] = [-s, c, -c * vx - s * vy]
+        H[2, 7] = 1.0
+        z = d / self._dt - h + H @ x  # so that kf_update's z - H x is the EKF innovation
+        x, P = kf_update(x, P, z, H, self._R_velocity)
+        x[6] = wrap_angle(x[6])
         self._x, self._P = x, P
 
     def update(self, measurement: BearingMeasurement) -> None:
-        """Vision update (eq. A.5) with the robust all-triples resection when >= 3 bearings are seen."""
+        """Vision update (eq. A.5) with the robust all-triples resection when >= 3 bearings are
+        seen, through the innovation gate (ours; module docstring)."""
         self._require_reset()
         meas = checked_bearings(self.name, measurement, self._map.count)
         if meas.landmark_ids.size < 3:
             return
+        p = self._params
         res = resect_all_triples(
             self._map.positions_xy_m,
             meas.landmark_ids,
             meas.bearings_rad,
-            min_conditioning=self._params.resection_min_conditioning,
-            inlier_radius_m=self._params.resection_inlier_radius_m,
+            min_conditioning=p.resection_min_conditioning,
+            inlier_radius_m=p.resection_inlier_radius_m,
         )
         if not res.valid:
             return
         fix = np.asarray(res.pose, dtype=np.float64)
+        own = fix_covariance(res, p.fix_bearing_std_rad)
         if self._x is None or self._P is None:  # the first fix initializes the filter
-            x = np.zeros((3, 3))
-            x[:, 0] = fix
-            self._x, self._P = x, self._initial_covariance(self._R_position[:, 0, 0])
+            self._start(fix, np.diag(np.diag(own)))
             return
-        x, P = kf_update(self._x, self._P, fix[:, None], _H_POSITION, self._R_position, residual=_wrap_heading_row)
-        x[2, 0] = wrap_angle(x[2, 0])
+        innovation = _wrap_heading_row(fix, self._x[_POSE])
+        S = self._P[np.ix_(_POSE, _POSE)] + own
+        if float(innovation @ np.linalg.solve(S, innovation)) > p.innovation_gate:
+            self._rejected += 1
+            if self._rejected >= p.reset_after_rejections:
+                self._start(fix, np.diag(np.diag(own)))
+            return
+        self._rejected = 0
+        x, P = kf_update(self._x, self._P, fix, self._H_position, self._R_position, residual=_wrap_heading_row)
+        x[6] = wrap_angle(x[6])
         self._x, self._P = x, P
 
     @property
     def estimate(self) -> PoseEstimate:
-        """Position states and the diagonal of their covariance (the axes are independent)."""
+        """Position states and their ``(3, 3)`` covariance; valid up to ``max_spread_m``."""
         if self._x is None or self._P is None:
             return PoseEstimate.invalid()
-        cov = np.diag(self._P[:, 0, 0])
-        return PoseEstimate(float(self._x[0, 0]), float(self._x[1, 0]), float(wrap_angle(self._x[2, 0])), cov, True)
+        cov = self._P[np.ix_(_POSE, _POSE)].copy()
+        x, y, th = self._x[_POSE].tolist()
+        return PoseEstimate(x, y, float(wrap_angle(th)), cov, within_spread(cov, self._params.max_spread_m))
 
     @property
     def state(self) -> Array | None:
         """``(3, 3)`` copy of the state (rows x, y, heading; columns p, p', p''), or ``None``."""
-        return None if self._x is None else self._x.copy()
+        return None if self._x is None else self._x.reshape(3, 3).copy()
 
     def overlay(self) -> Overlay:
         est = self.estimate
-        if not est.valid:
+        if self._x is None:
             return Overlay(label="kalman: no fix yet")
         return Overlay(poses=est.as_array()[None, :], weights=np.ones(1), label="kalman")

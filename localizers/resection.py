@@ -50,15 +50,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import (
+    DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     LandmarkMap,
     OdometryDelta,
     Overlay,
     PoseEstimate,
+    check_max_spread,
     checked_bearings,
     checked_dt,
     checked_odometry,
     require_reset,
+    within_spread,
 )
 from localizers.geometry import circular_mean, wrap_angle
 from localizers.motion import wrap_scalar
@@ -400,6 +403,24 @@ def resect_all_triples(
     return TripleResection(idx[local], poses, ok, sens, inliers, pose, bool(inliers.any()))
 
 
+def fix_covariance(res: TripleResection, bearing_std_rad: float) -> NDArray[np.float64]:
+    """``(3, 3)`` covariance of a valid combined fix: the sample covariance of the inlier triple
+    solutions (heading deviations about the circular mean), each diagonal entry floored by the
+    linearized noise of the best inlier triple: position variance ``(bearing_std_rad *
+    sensitivity)^2 / 2`` per axis, heading variance ``bearing_std_rad^2``."""
+    if not res.valid:
+        raise ValueError("fix_covariance: the resection has no valid combined pose")
+    inl = res.poses[res.inliers]
+    cov = np.zeros((3, 3))
+    if inl.shape[0] >= 2:
+        dev = np.column_stack([inl[:, :2] - res.pose[:2], wrap_angle(inl[:, 2] - res.pose[2])])
+        cov = dev.T @ dev / (inl.shape[0] - 1)
+    sens = float(np.nanmin(res.sensitivity_m_per_rad[res.inliers]))
+    floor = np.array([0.5 * (bearing_std_rad * sens) ** 2] * 2 + [bearing_std_rad**2])
+    cov[np.diag_indices(3)] = np.maximum(np.diag(cov), floor)
+    return cov
+
+
 @dataclass(frozen=True)
 class ResectionParams:
     """Parameters of baseline (2) (defaults: ``configs/localizers/resection.yaml``).
@@ -409,13 +430,19 @@ class ResectionParams:
         inlier_radius_m: triple solutions farther than this from the median position are
             outliers (metres; ours).
         bearing_std_rad: assumed bearing noise for the covariance floor (radians; ours, 1 deg).
+        max_spread_m: a fix whose position spread exceeds this (m) is not claimed (ours; near
+            the danger circle). The method is single-shot: every ``predict`` drops the
+            estimate, so it never claims a stale pose (a kidnapped robot is found again at the
+            first frame with a valid fix).
     """
 
     min_conditioning: float = DEFAULT_MIN_CONDITIONING
     inlier_radius_m: float = 0.5
     bearing_std_rad: float = 0.0175
+    max_spread_m: float = DEFAULT_MAX_SPREAD_M
 
     def __post_init__(self) -> None:
+        check_max_spread("ResectionParams", self.max_spread_m)
         for name in ("min_conditioning", "inlier_radius_m", "bearing_std_rad"):
             value = getattr(self, name)
             check(math.isfinite(value) and value > 0.0, f"ResectionParams.{name} must be a number > 0, got {value!r}")
@@ -428,10 +455,8 @@ class ResectionLocalizer:
     :func:`resect_all_triples`. The estimate belongs to the latest update only: ``predict``
     invalidates it (the method has no motion model).
 
-    Covariance: sample covariance of the inlier triple solutions (heading deviations taken
-    about the circular mean), floored per axis by the linearized noise of the best inlier
-    triple: position variance ``(bearing_std_rad * sensitivity)^2 / 2`` per axis, heading
-    variance ``bearing_std_rad^2``.
+    Covariance: :func:`fix_covariance`; a fix with a position spread over ``max_spread_m``
+    is not claimed.
     """
 
     name: ClassVar[str] = "resection"
@@ -475,16 +500,9 @@ class ResectionLocalizer:
         if not res.valid:
             self._estimate = PoseEstimate.invalid()
             return
-        inl = res.poses[res.inliers]
-        cov = np.zeros((3, 3))
-        if inl.shape[0] >= 2:
-            dev = np.column_stack([inl[:, :2] - res.pose[:2], wrap_angle(inl[:, 2] - res.pose[2])])
-            cov = dev.T @ dev / (inl.shape[0] - 1)
-        sens = float(np.nanmin(res.sensitivity_m_per_rad[res.inliers]))
-        floor = np.array([0.5 * (p.bearing_std_rad * sens) ** 2] * 2 + [p.bearing_std_rad**2])
-        cov[np.diag_indices(3)] = np.maximum(np.diag(cov), floor)
+        cov = fix_covariance(res, p.bearing_std_rad)
         x, y, th = res.pose
-        self._estimate = PoseEstimate(float(x), float(y), float(th), cov, True)
+        self._estimate = PoseEstimate(float(x), float(y), float(th), cov, within_spread(cov, p.max_spread_m))
 
     @property
     def estimate(self) -> PoseEstimate:

@@ -489,12 +489,31 @@ _BEFORE_FORGETTING = {
 
 @pytest.mark.parametrize(("case", "landmarks", "p_seen"), [("field8", FIELD8, 0.3), ("goal_posts", GOAL_POSTS, 0.8)])
 def test_forgetting_off_is_the_papers_method_exactly(case: str, landmarks: LandmarkMap, p_seen: float) -> None:
-    """The default (no forgetting) and an explicit ``inf`` give the numbers of the code before the option, bit for bit."""
+    """The default (no forgetting) and an explicit ``inf`` give the numbers of the code before the option, bit for bit
+    (with the parts of issue 19 that change what is claimed switched off: lost detection and ``max_spread_m``)."""
     assert CandidateSetParams().error_time_constant_s == math.inf and not CandidateSetParams().forgets
-    assert _noisy_run(landmarks, p_seen, CandidateSetParams()) == _BEFORE_FORGETTING[case]
-    assert _noisy_run(landmarks, p_seen, CandidateSetParams(error_time_constant_s=math.inf)) == _BEFORE_FORGETTING[case]
+    assert _noisy_run(landmarks, p_seen, CandidateSetParams(**_CLAIMS_OFF)) == _BEFORE_FORGETTING[case]
+    assert (
+        _noisy_run(landmarks, p_seen, CandidateSetParams(error_time_constant_s=math.inf, **_CLAIMS_OFF))
+        == _BEFORE_FORGETTING[case]
+    )
     # and forgetting does change them (the comparison can fail)
-    assert _noisy_run(landmarks, p_seen, CandidateSetParams(error_time_constant_s=2.0)) != _BEFORE_FORGETTING[case]
+    assert _noisy_run(landmarks, p_seen, CandidateSetParams(error_time_constant_s=2.0, **_CLAIMS_OFF)) != _BEFORE_FORGETTING[case]
+
+
+@pytest.mark.parametrize(("case", "landmarks", "p_seen"), [("field8", FIELD8, 0.3), ("goal_posts", GOAL_POSTS, 0.8)])
+def test_the_defaults_keep_the_papers_sets(case: str, landmarks: LandmarkMap, p_seen: float) -> None:
+    """Lost detection and ``max_spread_m`` (ours, on by default) change what is claimed, not the
+    sets: the accumulated Errors and set sizes stay the paper's. On the goal posts the paper's
+    method coasts on a pose the bearings contradict; the defaults stop claiming it."""
+    default = _noisy_run(landmarks, p_seen, CandidateSetParams())
+    paper = _BEFORE_FORGETTING[case]
+    assert default[5:] == paper[5:]
+    assert default[1] <= paper[1]
+
+
+#: the parts of issue 19 (ours) that change which estimates are claimed, off
+_CLAIMS_OFF = {"lost_after_s": math.inf, "max_spread_m": math.inf}
 
 
 def test_forgetting_is_an_exponential_decay_per_elapsed_frame() -> None:

@@ -160,15 +160,29 @@ def test_first_fix_ignores_a_false_detection() -> None:
     assert np.hypot(est.x_m - pose[0], est.y_m - pose[1]) < 1e-6
 
 
-def test_trusts_dead_reckoning_over_one_false_fix() -> None:
-    loc = make()
+@pytest.mark.parametrize("gate", [math.inf, KalmanParams().innovation_gate])
+def test_trusts_dead_reckoning_over_one_false_fix(gate: float) -> None:
+    # the paper's filter (no gate) moves a little; the innovation gate (ours) refuses the fix
+    loc = KalmanLocalizer(make_map(), KalmanParams(innovation_gate=gate), dt_s=DT)
     truth = np.array([3.0, 2.0, 0.0])
     loc.reset(np.random.default_rng(0), PoseEstimate(*truth, np.diag([1e-4, 1e-4, 1e-4])))
     for _ in range(30):
         loc.predict(OdometryDelta(0.0, 0.0, 0.0))
     loc.update(seen(np.array([5.0, 2.0, 0.0]), list(range(8))))  # a fix 2 m away
-    est = loc.estimate
-    assert 0.0 < np.hypot(est.x_m - truth[0], est.y_m - truth[1]) < 0.05
+    moved = np.hypot(loc.estimate.x_m - truth[0], loc.estimate.y_m - truth[1])
+    assert (0.0 < moved < 0.05) if math.isinf(gate) else moved == 0.0
+
+
+def test_consecutive_rejected_fixes_restart_the_filter() -> None:
+    params = KalmanParams()
+    loc = KalmanLocalizer(make_map(), params, dt_s=DT)
+    loc.reset(np.random.default_rng(0), PoseEstimate(3.0, 2.0, 0.0, np.diag([1e-4, 1e-4, 1e-4])))
+    moved = np.array([5.0, 3.0, 1.0])  # kidnapped: every fix is 2.2 m away
+    for k in range(params.reset_after_rejections):
+        loc.predict(OdometryDelta(0.0, 0.0, 0.0))
+        assert loc.estimate.x_m == pytest.approx(3.0, abs=1e-9), k
+        loc.update(seen(moved, list(range(8))))
+    np.testing.assert_allclose(loc.estimate.as_array(), moved, atol=1e-6)
 
 
 def test_repeated_fixes_pull_the_estimate() -> None:
@@ -186,7 +200,8 @@ def test_repeated_fixes_pull_the_estimate() -> None:
 def test_default_tuning_pulls_slowly() -> None:
     # Appendix A's tuning trusts dead reckoning: 10 s of consistent fixes 0.5 m away move the
     # estimate most of the way, but not all of it.
-    loc = make()
+    # (without the innovation gate, ours: 0.5 m from a 0.1 m prior is a 5-sd fix, which it refuses)
+    loc = KalmanLocalizer(make_map(), KalmanParams(innovation_gate=math.inf), dt_s=DT)
     loc.reset(np.random.default_rng(0), PoseEstimate(3.0, 2.0, 0.0, np.diag([0.01, 0.01, 0.01])))
     fix = seen(np.array([3.5, 2.0, 0.0]), [0, 1, 2, 3])
     for _ in range(300):
