@@ -23,8 +23,12 @@ ceiling's height above the camera.
 - an illumination gain that varies along the corridor with the light panels' pitch and slowly
   over time; vignetting (``1 - vignetting r^2`` toward the corners);
 - motion blur: the image, rendered at the middle of the last ``exposure_s`` of the step, is
-  smeared along the motion over that time (a line kernel in the image), so a moving robot
-  blurs the targets and a stopped one does not (turning's own blur is not modelled);
+  smeared along the motion over that time, so a moving robot blurs the targets and a stopped
+  one does not. Both the translation (the same smear over the image) and the turn (a smear
+  along arcs around the image point under the rotation axis, growing with the distance from
+  it and with turn rate x exposure) are modelled: the image is cut into tiles of about
+  40 x 40 pixels, each blurred by the line kernel of its centre's motion (``exposure_s`` 0:
+  no blur of either kind);
 - heads of the people around the robot, discs of ``head_radius_m`` at ``head_height_m``,
   which hide the ceiling near the edges of the view;
 - Gaussian pixel noise of ``noise_std`` (0-255 scale), drawn from a pool refilled from the
@@ -60,6 +64,7 @@ if TYPE_CHECKING:
 
 _NOISE_POOL = 1 << 20  # noise offsets drawn per frame (the pool holds this plus one frame)
 _HAIR_RGB = (45, 35, 30)
+_BLUR_TILE_PX = 40  # the motion blur's kernel is one per tile of about this many pixels a side
 
 #: overrides that switch the camera's imperfections off (no lens distortion, noise, light changes,
 #: vignetting or motion blur; heads still show): an ideal pinhole camera, for tests and studies
@@ -155,6 +160,15 @@ class CameraModel:
         r2 = ((u - self.cx) / self.cx) ** 2 + ((v - self.cy) / self.cy) ** 2
         self.vignette = 1.0 - config.vignetting * r2 / 2.0  # 1 - vignetting at the corners (r2 = 2)
         self.max_ray = float(np.max(np.hypot(self.rays[..., 0], self.rays[..., 1])))
+        self.k1 = config.k1
+
+    def project(
+        self, forward: NDArray[np.float64], left: NDArray[np.float64], depth: float, offset_m: tuple[float, float]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The pixel ``(u, v)`` (distorted) where a robot-frame point ``depth`` above the camera shows."""
+        xu, yu = (left - offset_m[1]) / depth, -(forward - offset_m[0]) / depth
+        scale = 1 + self.k1 * (xu * xu + yu * yu)
+        return self.cx + self.fx * xu * scale, self.cy + self.fy * yu * scale
 
 
 @functools.lru_cache(maxsize=4)
@@ -239,36 +253,108 @@ def draw_heads(
 
 
 @numba.njit(cache=True, error_model="numpy", boundscheck=False)
-def expose(
-    image: NDArray[np.uint8], vignette: NDArray[np.float32], gain: float, noise: NDArray[np.float32], out: NDArray[np.uint8]
+def blur_expose(
+    image: NDArray[np.uint8],
+    pad: int,
+    tile_v: NDArray[np.int64],
+    tile_u: NDArray[np.int64],
+    motion: NDArray[np.float64],
+    vignette: NDArray[np.float32],
+    gain: float,
+    noise: NDArray[np.float32],
+    out: NDArray[np.uint8],
 ) -> None:
-    """``out = saturate(round(image * (vignette * gain) + noise))``, the arrays flat and of one length."""
-    g = np.float32(gain)
-    for i in range(image.shape[0]):
-        value = np.float32(image[i]) * (vignette[i] * g) + noise[i] + np.float32(0.5)
-        out[i] = 0 if value <= 0.0 else (255 if value >= 255.0 else np.uint8(value))
+    """The motion blur, illumination gain, vignetting and noise of a frame, in one pass.
+
+    ``image`` is the sharp frame with a replicated border of ``pad`` pixels. The frame is cut
+    into tiles, rows ``tile_v[i]:tile_v[i + 1]`` by columns ``tile_u[j]:tile_u[j + 1]``; tile
+    ``(i, j)`` is blurred by the line kernel of ``motion[i, j]`` (:func:`splat_line`; ``pad``
+    must exceed its reach), then ``out = saturate(round(blurred * (vignette * gain) + noise))``
+    (``vignette`` and ``noise``: flat in ``out``'s order). The kernel's weights are in 256ths
+    (the blurred value is exact to under a grey level; a sharp one is exact).
+    """
+    width = out.shape[1]
+    tiles = tile_u.shape[0] - 1
+    flat_in, flat_out = image.reshape(-1), out.reshape(-1)
+    row_in = (width + 2 * pad) * 3
+    g, half = np.float32(gain / 256.0), np.float32(0.5)
+    kernel = np.zeros((2 * pad + 1, 2 * pad + 1), dtype=np.float64)
+    offsets = np.empty((tiles, kernel.size), dtype=np.int64)
+    weights = np.empty((tiles, kernel.size), dtype=np.uint16)
+    taps = np.empty(tiles, dtype=np.int64)
+    acc = np.empty(3 * width, dtype=np.uint16)
+    for i in range(tile_v.shape[0] - 1):
+        for j in range(tiles):
+            taps[j] = splat_line(motion[i, j, 0], motion[i, j, 1], kernel, row_in, offsets[j], weights[j])
+        j = 0
+        while j < tiles:  # a run of tiles with one kernel (all of them without a turn) is done at once
+            n, end = taps[j], j + 1
+            while (
+                end < tiles
+                and taps[end] == n
+                and (offsets[end, :n] == offsets[j, :n]).all()
+                and (weights[end, :n] == weights[j, :n]).all()
+            ):
+                end += 1
+            u0, count = tile_u[j], 3 * (tile_u[end] - tile_u[j])
+            for v in range(tile_v[i], tile_v[i + 1]):
+                first = (v + pad) * row_in + (u0 + pad) * 3
+                # slices: their indices are known to be >= 0, which lets the loops vectorize
+                for e in range(count):
+                    acc[e] = 0
+                for k in range(n):
+                    w, src = weights[j, k], flat_in[first + offsets[j, k] : first + offsets[j, k] + count]
+                    for e in range(count):
+                        acc[e] += w * np.uint16(src[e])
+                at = (v * width + u0) * 3
+                vig, noi, dst = vignette[at : at + count], noise[at : at + count], flat_out[at : at + count]
+                for e in range(count):
+                    value = np.float32(acc[e]) * (vig[e] * g) + noi[e] + half
+                    dst[e] = 0 if value <= 0.0 else (255 if value >= 255.0 else np.uint8(value))
+            j = end
 
 
-def blur_kernel(du: float, dv: float) -> NDArray[np.float32] | None:
-    """The line kernel of a motion of ``(du, dv)`` pixels over the exposure (None under half a pixel).
+@numba.njit(cache=True, error_model="numpy", boundscheck=False)
+def splat_line(
+    du: float, dv: float, kernel: NDArray[np.float64], row: int, offsets: NDArray[np.int64], weights: NDArray[np.uint16]
+) -> int:
+    """The line kernel of a motion of ``(du, dv)`` pixels over the exposure, as taps.
 
-    Samples along the segment, one per tenth of a pixel, are splatted bilinearly into a kernel
-    centred on the segment's midpoint, so the blurred image keeps the sharp one's position
-    at mid-exposure.
+    Under half a pixel it is the identity. Otherwise samples along the segment, one per tenth
+    of a pixel, are splatted bilinearly into ``kernel`` (square, odd, zero on entry and left
+    so), centred on the segment's midpoint, so the blurred image keeps the sharp one's position
+    at mid-exposure. Its nonzero entries are written as flat offsets (``row`` elements a pixel
+    row, 3 a pixel) and weights in 256ths that sum to 256; returns their count.
     """
     length = math.hypot(du, dv)
     if length < 0.5:
-        return None
-    half = int(math.ceil(length / 2)) + 1
-    kernel = np.zeros((2 * half + 1, 2 * half + 1), dtype=np.float32)
-    t = (np.arange(max(2, int(math.ceil(10 * length)) + 1)) / max(1, int(math.ceil(10 * length)))) - 0.5
-    x = half + t * du
-    y = half + t * dv
-    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
-    fx, fy = x - x0, y - y0
-    for dx, dy, weight in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
-        np.add.at(kernel, (y0 + dy, x0 + dx), weight.astype(np.float32))
-    return kernel / kernel.sum()
+        offsets[0], weights[0] = 0, 256
+        return 1
+    half = (kernel.shape[0] - 1) // 2
+    steps = max(1, int(math.ceil(10 * length)))
+    for s in range(steps + 1):
+        t = s / steps - 0.5
+        x, y = half + t * du, half + t * dv
+        x0, y0 = int(math.floor(x)), int(math.floor(y))
+        fx, fy = x - x0, y - y0
+        kernel[y0, x0] += (1 - fx) * (1 - fy)
+        kernel[y0, x0 + 1] += fx * (1 - fy)
+        kernel[y0 + 1, x0] += (1 - fx) * fy
+        kernel[y0 + 1, x0 + 1] += fx * fy
+    scale = 256.0 / kernel.sum()
+    taps, total, largest = 0, 0, 0
+    for r in range(kernel.shape[0]):
+        for c in range(kernel.shape[1]):
+            w = int(round(kernel[r, c] * scale))
+            kernel[r, c] = 0.0
+            if w > 0:
+                offsets[taps], weights[taps] = (r - half) * row + (c - half) * 3, w
+                if w > weights[largest]:
+                    largest = taps
+                total += w
+                taps += 1
+    weights[largest] += 256 - total  # the rounding's remainder: the weights sum to 256
+    return taps
 
 
 @register_sensor("ceiling_camera", CeilingCameraConfig)
@@ -306,12 +392,14 @@ class CeilingCamera(SensorBase):
         self._head_forward = np.ascontiguousarray(-rays[..., 1] * self.head_depth + config.offset_m[0], dtype=np.float32)
         self._head_left = np.ascontiguousarray(rays[..., 0] * self.head_depth + config.offset_m[1], dtype=np.float32)
         self._vignette = np.repeat(self.model.vignette.astype(np.float32).reshape(-1), 3)
+        self._tile_v, self._tile_u, self._tile_jacobian = self._blur_tiles()
         self._rows = state.crowd_rows
         frame = config.height_px * config.width_px * 3
         self._noise = np.zeros(_NOISE_POOL + frame, dtype=np.float32)
         self._image = np.zeros((config.height_px, config.width_px, 3), dtype=np.uint8)
         self._no_labels = np.zeros((0, 0), dtype=np.uint8)
         self._no_noise = np.zeros(frame, dtype=np.float32)
+        self._no_motion = np.zeros((len(self._tile_v) - 1, len(self._tile_u) - 1, 2))
         self._previous_pose: NDArray[np.float64] | None = None
         self._steps = 0
         self._fresh = True
@@ -367,9 +455,8 @@ class CeilingCamera(SensorBase):
         """The image at robot pose ``pose`` (3,).
 
         The ceiling texture (finer than a pixel's footprint) is sampled at the point where every
-        pixel's ray meets the ceiling,
-        the heads are painted over it, then come the motion blur, the illumination gain with the
-        vignetting, and the noise.
+        pixel's ray meets the ceiling, the heads are painted over it, then come the motion blur,
+        the illumination gain with the vignetting, and the noise (one pass: :func:`blur_expose`).
 
         Args:
             heads_xy: ``(k, 2)`` head centres of the people near the robot (none by default).
@@ -377,13 +464,14 @@ class CeilingCamera(SensorBase):
                 noise pool is read (None: no noise).
             labels: also return the ``(H, W)`` label of every pixel (of the sharp image).
             previous: the pose one step earlier: the image is then blurred by the motion over
-                the exposure (:meth:`motion_blur`), rendered sharp at mid-exposure.
+                the exposure, translation and turn (:meth:`motion_blur`), rendered sharp at
+                mid-exposure.
         """
         c = self.config
         pose = np.asarray(pose, dtype=np.float64).reshape(3)
-        kernel = None
+        motion = None
         if previous is not None:
-            pose, kernel = self.motion_blur(pose, np.asarray(previous, dtype=np.float64).reshape(3))
+            pose, motion = self.motion_blur(pose, np.asarray(previous, dtype=np.float64).reshape(3))
         cos, sin = math.cos(pose[2]), math.sin(pose[2])
         t, (xmin, ymin) = self.texel_m, self._texture_origin
         # texture coordinates of every pixel's ceiling point: affine in its robot-frame point
@@ -399,15 +487,19 @@ class CeilingCamera(SensorBase):
             )
         if heads_xy is not None and c.head_height_m > 0 and len(heads_xy):
             self._draw_heads(pose, np.asarray(heads_xy, dtype=np.float64).reshape(-1, 2), image, label_image)
-        if kernel is not None:
-            image = np.asarray(cv2.filter2D(image, -1, kernel, borderType=cv2.BORDER_REPLICATE), dtype=np.uint8)
-        out = np.empty_like(image)
+        pad = 0
+        if motion is None or not (np.abs(motion) >= 0.35).any():  # no tile's motion reaches half a pixel
+            motion = self._no_motion
+        else:
+            pad = int(math.ceil(float(np.abs(motion).max()) / 2)) + 2  # beyond every kernel's reach
+            image = np.asarray(cv2.copyMakeBorder(image, pad, pad, pad, pad, cv2.BORDER_REPLICATE), dtype=np.uint8)
+        out = np.empty((c.height_px, c.width_px, 3), dtype=np.uint8)
         if noise_offset is None:
             noise = self._no_noise
         else:
             start = int(noise_offset) % _NOISE_POOL
-            noise = self._noise[start : start + image.size]
-        expose(image.reshape(-1), self._vignette, gain, noise, out.reshape(-1))
+            noise = self._noise[start : start + out.size]
+        blur_expose(image, pad, self._tile_v, self._tile_u, motion, self._vignette, gain, noise, out)
         return out, (label_image if labels else None)
 
     def _draw_heads(
@@ -440,16 +532,46 @@ class CeilingCamera(SensorBase):
             draw_heads(self._head_forward, self._head_left, pose, np.ascontiguousarray(heads[seen]), c.head_radius_m,
                        np.ascontiguousarray(boxes[seen]), image, labels)  # fmt: skip
 
+    def _blur_tiles(self) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+        """The blur's tiles (row and column bounds) and, for each, how the ceiling point at its
+        centre moves through the image with the robot's motion: ``(rows, cols, 2, 3)``, the
+        pixel motion ``(du, dv)`` per unit of ``(forward, left, turn)`` of the robot (in its
+        frame), the lens included."""
+        c = self.config
+        tile_v = np.linspace(0, c.height_px, max(1, round(c.height_px / _BLUR_TILE_PX)) + 1).round().astype(np.int64)
+        tile_u = np.linspace(0, c.width_px, max(1, round(c.width_px / _BLUR_TILE_PX)) + 1).round().astype(np.int64)
+        vc, uc = np.meshgrid((tile_v[:-1] + tile_v[1:]) / 2, (tile_u[:-1] + tile_u[1:]) / 2, indexing="ij")
+        m = self.model
+        xn, yn = undistort((uc - m.cx) / m.fx, (vc - m.cy) / m.fy, c.k1)
+        forward, left = -yn * self.depth + c.offset_m[0], xn * self.depth + c.offset_m[1]
+        jacobian = np.empty(vc.shape + (2, 3))
+        eps = 1e-5
+        for k in range(3):
+            moved = []
+            for sign in (1.0, -1.0):
+                df, dl, dth = sign * eps * np.eye(3)[k]
+                cos, sin = math.cos(dth), math.sin(dth)
+                # the fixed ceiling point in the frame of the robot moved by (df, dl) and turned by dth
+                f, le = forward - df, left - dl
+                moved.append(m.project(cos * f + sin * le, -sin * f + cos * le, self.depth, c.offset_m))
+            jacobian[..., 0, k] = (moved[0][0] - moved[1][0]) / (2 * eps)
+            jacobian[..., 1, k] = (moved[0][1] - moved[1][1]) / (2 * eps)
+        return tile_v, tile_u, jacobian
+
     def motion_blur(
         self, pose: NDArray[np.float64], previous: NDArray[np.float64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float32] | None]:
-        """The mid-exposure pose and the image-space blur kernel of the motion from ``previous``
-        (one step earlier) to ``pose`` over the last ``exposure_s`` of the step.
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """The mid-exposure pose and the image motion ``(tiles_v, tiles_u, 2)`` of each blur tile
+        (:func:`blur_expose`) over the last ``exposure_s`` of the step from ``previous`` (one
+        step earlier) to ``pose``; None without an exposure time.
 
-        The ceiling moves through the image opposite to the robot: a forward motion moves it
-        down (+v), a motion to the left moves it left (-u, the image being mirrored). The blur of
-        turning, which grows toward the image's edges (about 3 px at the corners at 0.8 rad/s
-        over 1/60 s), is not modelled: the kernel is the one of the image centre.
+        Each tile moves as the ceiling point at its centre. The ceiling moves through the image
+        opposite to the robot: a forward motion moves it down (+v), a motion to the left moves
+        it left (-u, the image being mirrored), alike over the image; a turn moves each point
+        along an arc around the image point under the rotation axis, the more the farther from
+        it (about 2.7 px at the corners at 0.8 rad/s over 1/60 s), the arc taken as its chord.
+        Within a tile the motion is that of its centre: off by at most the turn over the
+        exposure times the tile's half-diagonal (0.3 px at 0.8 rad/s over 1/60 s).
         """
         c = self.config
         if c.exposure_s == 0:
@@ -460,8 +582,8 @@ class CeilingCamera(SensorBase):
         mid = (start + pose) / 2
         cos, sin = math.cos(mid[2]), math.sin(mid[2])
         dx, dy = pose[0] - start[0], pose[1] - start[1]
-        forward, left = cos * dx + sin * dy, -sin * dx + cos * dy
-        return mid, blur_kernel(-left * self.model.fx / self.depth, forward * self.model.fy / self.depth)
+        step = np.array([cos * dx + sin * dy, -sin * dx + cos * dy, pose[2] - start[2]])
+        return mid, self._tile_jacobian @ step
 
     def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.uint8], dict[str, Any]]:
         c = self.config

@@ -131,6 +131,31 @@ def test_motion_blur_grows_with_speed_and_a_stopped_robot_is_sharp() -> None:
     assert still > slow > fast
 
 
+def test_turning_blurs_the_image_edges_more_than_the_rotation_centre() -> None:
+    # the exposure spans the whole step: a turn of dtheta smears a pixel r px from the image
+    # centre (the camera is on the rotation axis) over about r * dtheta px
+    cam = camera(**dict(CLEAN, exposure_s=0.05))
+    pose = np.array([0.0, 0.0, math.pi / 2 + 0.3])  # the target's line across the image centre, tile joints at the sides
+
+    def energy(image: np.ndarray, window: tuple[slice, slice]) -> float:
+        grey = image.astype(np.float64).mean(axis=2)[window]
+        return float(np.sum(np.diff(grey, axis=0) ** 2) + np.sum(np.diff(grey, axis=1) ** 2))
+
+    centre, sides = (slice(100, 140), slice(130, 190)), (slice(0, 240), np.r_[0:50, 270:320])
+    sharp, _ = cam.render(pose)
+    assert energy(sharp, centre) > 0 and energy(sharp, sides) > 0
+    still, _ = cam.render(pose, previous=pose)
+    assert np.array_equal(still, sharp)  # a stopped robot's image is sharp
+    kept = {}
+    for turn in (0.02, 0.04):
+        blurred, _ = cam.render(pose, previous=pose - np.array([0.0, 0.0, turn]))
+        kept[turn] = (energy(blurred, centre) / energy(sharp, centre), energy(blurred, sides) / energy(sharp, sides))
+        assert kept[turn][1] < 0.5 * kept[turn][0]  # the sides lose far more of their edges
+    assert kept[0.04][0] < kept[0.02][0] and kept[0.04][1] < kept[0.02][1]  # a faster turn blurs more
+    # the blur is the turn's: the same turn without exposure time is sharp
+    assert np.array_equal(camera(**CLEAN).render(pose, previous=pose - np.array([0.0, 0.0, 0.04]))[0], sharp)
+
+
 def test_a_head_near_the_robot_hides_the_ceiling_at_the_edge() -> None:
     cam = camera(**CLEAN)
     pose = np.array([[0.0, 3.0, math.pi / 2]])
