@@ -111,11 +111,12 @@ from localizers.candidate_kernels import (
     fuse,
     fused_output,
     inside,
+    median_abs_residual,
     prune_abort_determine,
     spread_sums,
     triple_seeds,
 )
-from localizers.geometry import bearings_to, between, circular_std, compose, wrap_angle
+from localizers.geometry import between, circular_std, compose
 from localizers.resection import inscribed_arc_poses, triple_indices
 from localizers.schema import check
 
@@ -314,6 +315,8 @@ class CandidateSetLocalizer:
         self._step_limit_m = landmarks.step_limit_m
         self._params = params
         self._lx32 = landmarks.positions_xy_m[:, 0].astype(np.float32)
+        self._lx64 = np.ascontiguousarray(landmarks.positions_xy_m[:, 0])  # (the lost test's residuals)
+        self._ly64 = np.ascontiguousarray(landmarks.positions_xy_m[:, 1])
         self._ly32 = landmarks.positions_xy_m[:, 1].astype(np.float32)
         self._floors = np.array([params.position_floor_m**2] * 2 + [params.heading_floor_rad**2])
         # Candidates, grouped by set in creation order: column i holds candidate i's base pose
@@ -420,13 +423,11 @@ class CandidateSetLocalizer:
     def _contradicts(self, ids: NDArray[np.int64], bearings: NDArray[np.float64]) -> bool:
         """Whether the estimate has been contradicted by the bearings (median absolute
         residual over ``lost_residual_rad``) on every frame for ``lost_after_s`` (ours)."""
-        est = self.estimate
-        self._cached = None  # the frame's evaluation changes it
+        est = self._compute_estimate()  # before this frame's evaluation, which changes it
         if not est.valid and self._coast is None and not self._determined[: self._n_sets].any():
             self._contradicted_s = 0.0
             return False
-        predicted = bearings_to(est.as_array(), self._map.positions_xy_m[ids])
-        residual = float(np.median(np.abs(wrap_angle(bearings - predicted))))
+        residual = median_abs_residual(est.x_m, est.y_m, est.theta_rad, self._lx64, self._ly64, ids, bearings)
         p = self._params
         self._contradicted_s = self._contradicted_s + self._dt if residual > p.lost_residual_rad else 0.0
         return self._contradicted_s >= p.lost_after_s - 1e-9
