@@ -396,24 +396,3 @@ def spread_sums(store: NDArray[np.float64], weights: NDArray[np.float64], ox: fl
         return math.nan, math.nan
     mx, my = sx / sw, sy / sw
     return max(sxx / sw - mx * mx - my * my, 0.0), math.hypot(sc, ss) / sw
-
-
-@numba.njit(cache=True)
-def median_abs_residual(
-    x: float,
-    y: float,
-    theta: float,
-    landmark_x: NDArray[np.float64],
-    landmark_y: NDArray[np.float64],
-    ids: NDArray[np.int64],
-    bearings: NDArray[np.float64],
-) -> float:
-    """Median over one frame of ``|bearing - predicted bearing|`` (wrapped) from the pose ``(x, y, theta)``."""
-    n = ids.shape[0]
-    residual = np.empty(n)
-    for i in range(n):
-        predicted = wrap_scalar(math.atan2(landmark_y[ids[i]] - y, landmark_x[ids[i]] - x) - theta)
-        residual[i] = abs(wrap_scalar(bearings[i] - predicted))
-    residual.sort()
-    half = n // 2
-    return float(residual[half]) if n % 2 else 0.5 * (residual[half - 1] + residual[half])

@@ -111,11 +111,11 @@ from localizers.candidate_kernels import (
     fuse,
     fused_output,
     inside,
-    median_abs_residual,
     prune_abort_determine,
     spread_sums,
     triple_seeds,
 )
+from localizers.contradiction import Contradiction
 from localizers.geometry import between, circular_std, compose
 from localizers.resection import inscribed_arc_poses, triple_indices
 from localizers.schema import check
@@ -315,9 +315,8 @@ class CandidateSetLocalizer:
         self._step_limit_m = landmarks.step_limit_m
         self._params = params
         self._lx32 = landmarks.positions_xy_m[:, 0].astype(np.float32)
-        self._lx64 = np.ascontiguousarray(landmarks.positions_xy_m[:, 0])  # (the lost test's residuals)
-        self._ly64 = np.ascontiguousarray(landmarks.positions_xy_m[:, 1])
         self._ly32 = landmarks.positions_xy_m[:, 1].astype(np.float32)
+        self._contradiction = Contradiction(landmarks.positions_xy_m, params.lost_residual_rad, params.lost_after_s, self._dt)
         self._floors = np.array([params.position_floor_m**2] * 2 + [params.heading_floor_rad**2])
         # Candidates, grouped by set in creation order: column i holds candidate i's base pose
         # X (rows ROW_X, ROW_Y, ROW_TH), cos/sin of its heading and its accumulated Error (row ROW_ERR).
@@ -345,7 +344,7 @@ class CandidateSetLocalizer:
         self._coast: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None = None
         self._cached: PoseEstimate | None = None
         self._seen = (0.0, 0.0)  # path and turn at the last frame with a bearing (widening, ours)
-        self._contradicted_s = 0.0  # how long every frame with >= 2 bearings contradicted the estimate (ours)
+        self._contradiction.reset()  # how long every frame with >= 2 bearings contradicted the estimate (ours)
 
     def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
         """Forget every set. The method is deterministic and finds the pose itself, so
@@ -399,7 +398,7 @@ class CandidateSetLocalizer:
                 self._seen = (path, turn)
             else:  # only the coast is wrong: drop it, the sets being built go on
                 self._coast = None
-            self._contradicted_s = 0.0
+            self._contradiction.reset()
         if self._m:
             ox, oy, ot = self._odo.tolist()
             if p.forgets:  # (ours; off by default, so the paper's eq. (2) is untouched)
@@ -424,13 +423,8 @@ class CandidateSetLocalizer:
         """Whether the estimate has been contradicted by the bearings (median absolute
         residual over ``lost_residual_rad``) on every frame for ``lost_after_s`` (ours)."""
         est = self._compute_estimate()  # before this frame's evaluation, which changes it
-        if not est.valid and self._coast is None and not self._determined[: self._n_sets].any():
-            self._contradicted_s = 0.0
-            return False
-        residual = median_abs_residual(est.x_m, est.y_m, est.theta_rad, self._lx64, self._ly64, ids, bearings)
-        p = self._params
-        self._contradicted_s = self._contradicted_s + self._dt if residual > p.lost_residual_rad else 0.0
-        return self._contradicted_s >= p.lost_after_s - 1e-9
+        has = est.valid or self._coast is not None or bool(self._determined[: self._n_sets].any())
+        return self._contradiction.observe((est.x_m, est.y_m, est.theta_rad) if has else None, ids, bearings)
 
     def _generate(self, ids: NDArray[np.int64], bearings: NDArray[np.float64]) -> None:
         """Append one new set built from this frame's bearings, if the budget allows."""

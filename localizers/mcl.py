@@ -38,6 +38,7 @@ from localizers.base import (
     require_reset,
     within_spread,
 )
+from localizers.contradiction import Contradiction
 from localizers.geometry import compose, wrap_angle
 from localizers.particles import (
     LikelihoodAverages,
@@ -437,6 +438,12 @@ class BearingMCLParams:
             ``fix_memory_s`` (a prior counts as a fix at the reset): a set weighed by one
             landmark only narrows by resampling, not by information, and would claim a
             confident wrong pose.
+        lost_residual_rad, lost_after_s: lost detection (:mod:`localizers.contradiction`):
+            no pose is claimed while the bearings have contradicted the estimate (median
+            absolute residual above ``lost_residual_rad``) on every frame with two or more
+            of them for ``lost_after_s``. (Augmented MCL's ``w_fast < injection_ratio w_slow``
+            drives the injection only: in a crowd it holds on about half the frames of a
+            well-localized filter, as occlusions change which landmarks are seen.)
     """
 
     n_particles: int = 1000
@@ -456,9 +463,19 @@ class BearingMCLParams:
     max_spread_m: float = 0.5  # the former fix_spread_m
     min_fix_landmarks: int = 3
     fix_memory_s: float = 10.0
+    lost_residual_rad: float = 0.35
+    lost_after_s: float = 0.5
 
     def __post_init__(self) -> None:
         check(self.n_particles >= 2, f"BearingMCLParams.n_particles must be >= 2, got {self.n_particles!r}")
+        check(
+            math.isfinite(self.lost_residual_rad) and 0.0 < self.lost_residual_rad <= math.pi,
+            f"BearingMCLParams.lost_residual_rad must be in (0, pi] rad, got {self.lost_residual_rad!r}",
+        )
+        check(
+            self.lost_after_s >= 0.0,  # false for NaN
+            f"BearingMCLParams.lost_after_s must be a number of seconds >= 0 (inf: never), got {self.lost_after_s!r}",
+        )
         check_max_spread("BearingMCLParams", self.max_spread_m)
         check(self.min_fix_landmarks >= 1, f"BearingMCLParams.min_fix_landmarks must be >= 1, got {self.min_fix_landmarks!r}")
         check(
@@ -524,6 +541,7 @@ class BearingMCL(_ParticleLocalizer):
         self._valid = False
         self._t_s = 0.0
         self._last_seen_s = np.full(landmarks.count, -math.inf)  # per landmark, when last seen
+        self._contradiction = Contradiction(landmarks.positions_xy_m, params.lost_residual_rad, params.lost_after_s, dt_s)
 
     def reset(self, rng: np.random.Generator, prior: PoseEstimate | None = None) -> None:
         """Gaussian around ``prior`` (its covariance when finite), else uniform over the field."""
@@ -541,6 +559,7 @@ class BearingMCL(_ParticleLocalizer):
         self._log_w.fill(-math.log(N))
         self._weights = np.full(N, 1.0 / N)
         self._averages.reset()
+        self._contradiction.reset()
         self._t_s = 0.0
         self._last_seen_s.fill(0.0 if self._valid else -math.inf)  # a prior counts as a fix now
 
@@ -556,6 +575,9 @@ class BearingMCL(_ParticleLocalizer):
         if n == 0:
             return
         rng = self._generator()
+        if self._valid:  # the bearings against the estimate before this frame (lost detection)
+            mean, _ = self._mean_cov()
+            self._contradiction.observe((float(mean[0]), float(mean[1]), float(mean[2])), meas.landmark_ids, meas.bearings_rad)
         N = self._params.n_particles
         lm = self._map.positions_xy_m[meas.landmark_ids]
         e = bearing_residuals(self._particles, lm, meas.bearings_rad, out=self._scratch[: n * N].reshape(n, N))
@@ -606,15 +628,20 @@ class BearingMCL(_ParticleLocalizer):
         return slow, fast
 
     @property
-    def lost(self) -> bool:
-        """Whether augmented MCL finds the filter lost: ``w_fast < injection_ratio w_slow`` (it injects)."""
+    def injecting(self) -> bool:
+        """Whether augmented MCL injects random particles: ``w_fast < injection_ratio w_slow``."""
         return self._averages.lost(self._params.injection_ratio)
+
+    @property
+    def lost(self) -> bool:
+        """Whether the bearings have contradicted the estimate for ``lost_after_s`` (:mod:`localizers.contradiction`)."""
+        return self._contradiction.lost
 
     @property
     def estimate(self) -> PoseEstimate:
         """Weighted mean and covariance; invalid before reset and without a prior until a
         bearing arrives. It claims no pose (``valid`` false, the mean and covariance kept) while
-        the position spread exceeds ``max_spread_m``, while lost (:attr:`lost`), and while fewer
+        the position spread exceeds ``max_spread_m``, while lost (:attr:`lost`: contradicted by the bearings), and while fewer
         than ``min_fix_landmarks`` distinct landmarks were seen in the last ``fix_memory_s``."""
         if self._rng is None or not self._valid:
             return PoseEstimate.invalid()

@@ -129,7 +129,7 @@ class LidarMCLParams:
         alpha_slow, alpha_fast: rates of the long- and short-term averages (kept with or
             without ``recovery``: they also tell when the filter is lost).
         lost_ratio: lost detection (ours): no pose is claimed while the short-term average of
-            the per-beam likelihood is below ``lost_ratio`` times the long-term one.
+            the per-beam likelihood is below ``lost_ratio`` times the long-term one (0: never).
         recovery_candidates: the injected particles are drawn, in proportion to their
             likelihood, from this many poses uniform over the map bounds, weighed by the scan
             (every ``recovery_beam_stride``-th beam) through the same measurement model (ours,
@@ -243,7 +243,7 @@ class LidarMCLParams:
             0.0 < self.alpha_slow < self.alpha_fast <= 1.0,
             f"{name} needs 0 < alpha_slow < alpha_fast <= 1, got {self.alpha_slow!r}, {self.alpha_fast!r}",
         )
-        check(0.0 < self.lost_ratio <= 1.0, f"{name}.lost_ratio must be in (0, 1], got {self.lost_ratio!r}")
+        check(0.0 <= self.lost_ratio <= 1.0, f"{name}.lost_ratio must be in [0, 1] (0: never lost), got {self.lost_ratio!r}")
         check(self.recovery_candidates >= 1, f"{name}.recovery_candidates must be >= 1, got {self.recovery_candidates!r}")
         check(self.recovery_beam_stride >= 1, f"{name}.recovery_beam_stride must be >= 1, got {self.recovery_beam_stride!r}")
         check_max_spread(name, self.max_spread_m)

@@ -221,5 +221,5 @@ class LikelihoodAverages:
         return max(0.0, 1.0 - self.fast / (ratio * self.slow))
 
     def lost(self, ratio: float) -> bool:
-        """Whether ``w_fast < ratio w_slow``: the recent measurements are this much less likely than usual."""
-        return self.injection_probability(ratio) > 0.0
+        """Whether ``w_fast < ratio w_slow``: the recent measurements are this much less likely than usual (``ratio`` 0: never)."""
+        return ratio > 0.0 and self.injection_probability(ratio) > 0.0

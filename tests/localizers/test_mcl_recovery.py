@@ -26,7 +26,7 @@ def test_swapped_landmark_ids_claim_no_wrong_pose(name: str) -> None:
     assert run.wrong_claims() <= 9, run.wrong_claims()
 
 
-@pytest.mark.parametrize(("name", "recovered_at_least", "longest_s"), [("mcl_bearing", 5, 3.0), ("mcl_bearing_paper", 4, 12.0)])
+@pytest.mark.parametrize(("name", "recovered_at_least", "longest_s"), [("mcl_bearing", 5, 9.0), ("mcl_bearing_paper", 4, 12.0)])
 def test_bearing_filters_relocalize_after_a_kidnapping(name: str, recovered_at_least: int, longest_s: float) -> None:
     # measured (10 seeds, random walk, < 0.2 m within 30 s): mcl_bearing 5/10 (6/10 with max_spread_m 1 m), median 14.6 s;
     # mcl_bearing_paper 4/10, median 16.3 s (before: 5/10 and 4/10, with 3546 and 7331 claims > 1 m off)
@@ -37,7 +37,11 @@ def test_bearing_filters_relocalize_after_a_kidnapping(name: str, recovered_at_l
         longest = max(longest, run.longest_wrong_s())
     assert sum(t <= 30.0 for t in times) >= recovered_at_least, times
     # no long stretch of confident wrong poses (before: up to 8.5 s and 30 s); the paper's filter
-    # dead-reckons from its last pose when every particle is deleted (paper sec. 5 (4)): up to 11.3 s
+    # dead-reckons from its last pose when every particle is deleted (paper sec. 5 (4)): up to 11.3 s.
+    # mcl_bearing: up to 8.5 s. Its lost test compares the bearings with the estimate; with two
+    # landmarks in view (75 % of the static field's frames) a wrong pose on the circle through them
+    # fits them exactly, which no bearing test can see. (Gating on augmented MCL's w_fast/w_slow
+    # instead gave 2.5 s, but in a crowd it withheld half the poses of a well-localized filter.)
     assert longest <= longest_s, longest
 
 
