@@ -196,7 +196,7 @@ class KalmanParams:
             (chi-square with 3 dof; 16.27 = the 0.999 quantile; ``inf``: no gate, the paper's
             filter; ours).
         reset_after_rejections: after this many consecutive rejected fixes the filter restarts
-            on the current fix (count; ours).
+            on the current fix (count; 0: never, the gate only rejects; ours).
         max_spread_m: past this position spread (m) the estimate is not claimed (ours).
     """
 
@@ -253,8 +253,8 @@ class KalmanParams:
             self.innovation_gate > 0.0, f"KalmanParams.innovation_gate must be > 0 (inf: no gate), got {self.innovation_gate!r}"
         )
         check(
-            self.reset_after_rejections >= 1,
-            f"KalmanParams.reset_after_rejections must be an integer >= 1, got {self.reset_after_rejections!r}",
+            isinstance(self.reset_after_rejections, int) and self.reset_after_rejections >= 0,
+            f"KalmanParams.reset_after_rejections must be an integer >= 0 (0: never restart), got {self.reset_after_rejections!r}",
         )
         check_max_spread("KalmanParams", self.max_spread_m)
 
@@ -398,7 +398,7 @@ class KalmanLocalizer:
         S = self._P[np.ix_(_POSE, _POSE)] + own
         if float(innovation @ np.linalg.solve(S, innovation)) > p.innovation_gate:
             self._rejected += 1
-            if self._rejected >= p.reset_after_rejections:
+            if p.reset_after_rejections and self._rejected >= p.reset_after_rejections:
                 self._start(fix, np.diag(np.diag(own)))
             return
         self._rejected = 0
