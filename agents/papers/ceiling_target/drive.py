@@ -58,9 +58,15 @@ class DriveResult:
     inside_95: float  # share of those steps inside the reported 95 % region
 
 
+#: the paper's robot dead-reckons between targets for as long as it drives: crowdloc's claim limit
+#: (ours, issue 19: ``max_spread_m``) is off, so Table 5's drive without correction has an estimate
+#: at every target as the paper's had
+AS_IN_PAPER: dict[str, Any] = {"max_spread_m": math.inf}
+
+
 def drive(task: DriveTask) -> DriveResult:
     """Run one drive (module docstring)."""
-    kwargs: dict[str, Any] = {"localizer": "ceiling_target", "localizer_params": dict(task.localizer) or None}
+    kwargs: dict[str, Any] = {"localizer": "ceiling_target", "localizer_params": {**AS_IN_PAPER, **dict(task.localizer)}}
     if task.camera:
         kwargs["camera"] = dict(task.camera)
     env = gym.make(ENV_ID, crowd_size=task.crowd, **kwargs)

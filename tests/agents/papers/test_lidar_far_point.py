@@ -259,19 +259,21 @@ def test_quick_run_writes_report_and_figures(tmp_path: Path, capsys: pytest.Capt
 
 def _check_consistency(results: dict, report: str) -> None:
     """NEES against the truth beside the errors (issue 19): per configuration and crowd size, per run, for the
-    reference; finite (both localizers report a covariance) and in the report's consistency tables."""
+    reference; numbers over every estimate (both localizers report a covariance; a singular one
+    counts, as inf) and in the report's consistency tables."""
     from localizers.registry import LOCALIZERS
 
     assert LOCALIZERS["mcl_lidar"].covariance and LOCALIZERS["far_point_mcl"].covariance
     assert set(results["consistency"]) == set(results["stats"])
     for key, fit in results["consistency"].items():
-        assert np.isfinite(fit["nees_median"]) and 0.0 <= fit["inside_95"] <= 1.0, key
+        # a number, or None in the JSON for inf: over half the updates left a collapsed (singular) particle set
+        assert (fit["nees_median"] is None or fit["nees_median"] >= 0.0) and 0.0 <= fit["inside_95"] <= 1.0, key
         estimates = sum(len(r["errors_m"]) for r in results["runs"] if f"{r['key']}@{r['crowd_size']}" == key)
         assert fit["steps"] > 0 and fit["steps"] + fit["excluded"] == estimates, key  # every estimate asked for
     assert set(results["reference_consistency"]) == set(results["reference"])
-    assert all(np.isfinite(f["nees_median"]) for f in results["reference_consistency"].values())
-    assert all(np.isfinite(r["nees_median"]) and 0.0 <= r["inside_95"] <= 1.0 for r in results["runs"])
-    assert all(np.isfinite(ep["reference_nees_median"]) for ep in results["episodes"])
+    assert all(f["nees_median"] is None or f["nees_median"] >= 0.0 for f in results["reference_consistency"].values())
+    assert all((r["nees_median"] is None or r["nees_median"] >= 0.0) and 0.0 <= r["inside_95"] <= 1.0 for r in results["runs"])
+    assert all(ep["reference_nees_median"] is None or ep["reference_nees_median"] >= 0.0 for ep in results["episodes"])
     lines = report.splitlines()
     heads = [i for i, line in enumerate(lines) if "(NEES vs truth) |" in line and "+ far points: NEES median |" in line]
     assert len(heads) == 4  # the sampling sweep, the hit sweep, the AMCL-like rows, the crowd sizes
@@ -279,6 +281,7 @@ def _check_consistency(results: dict, report: str) -> None:
     pair = ex.both(ex.sampling_params(ex.QUICK_SAMPLINGS[0]))
     fits = [results["consistency"][f"{c.key}@{ex.CROWD_SIZE}"] for c in pair]
     missing = [f"{100 * f['excluded'] / (f['steps'] + f['excluded']):.0f} %" for f in fits]
-    want = [t for f, m in zip(fits, missing) for t in (*consistency.cells(True, f["nees_median"], f["inside_95"]), m)]
+    medians = [math.inf if f["nees_median"] is None else f["nees_median"] for f in fits]  # the JSON's None: inf
+    want = [t for f, md, m in zip(fits, medians, missing) for t in (*consistency.cells(True, md, f["inside_95"]), m)]
     assert [c.strip() for c in sampling[2:8]] == want
     assert report.count("Consistent: median about 2.37, inside about 95 %") == 4
