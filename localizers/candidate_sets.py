@@ -71,7 +71,7 @@ Knowing when it is lost (issue 19; ours, the paper says nothing of it):
   every frame for ``lost_after_s``, the localizer declares itself lost: every set and the
   coast are dropped and it starts again from this frame's bearings, as after ``reset``
   (invalid until a new set determines). Measured recovery after a kidnap (>= 2 m, at 10 s):
-  tests/localizers/study_gauss_lost.py.
+  python -m tests.localizers.lost_figures gauss_kidnap.
 * ``max_spread_m``: past this position spread the estimate is not claimed.
 """
 

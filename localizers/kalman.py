@@ -33,7 +33,7 @@ of it), each a parameter of :class:`KalmanParams`:
   3 dof) is rejected; after ``reset_after_rejections`` consecutive rejections the filter is
   re-initialized on the current fix (velocity and acceleration states from their initial
   stds). A kidnapped robot (>= 2 m) is found again about 0.5 s after the next frame with a
-  valid fix (measured: tests/localizers/study_gauss_lost.py).
+  valid fix (measured: python -m tests.localizers.lost_figures gauss_kidnap).
 * ``max_spread_m``: past this position spread the estimate is not claimed.
 """
 

@@ -8,17 +8,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-import envs  # noqa: F401
-from localizers.base import BearingMeasurement, OdometryDelta, PoseEstimate, ScanMeasurement
+from localizers.base import PoseEstimate
 from localizers.geometry import compose
 from localizers.motion import sample_odometry
-
-#: a gentle circle: forward at 40 % of top speed, turning at 20 % of the top turn rate
-CIRCLE = np.array([0.4, 0.2], dtype=np.float32)
+from tests.localizers.lost import blank, drive, during
 
 
 def motion_model_spread(
@@ -34,17 +30,6 @@ def motion_model_spread(
         poses = compose(poses, sample_odometry(rng, d, alphas, size=samples))
         out[k] = math.sqrt(poses[:, 0].var() + poses[:, 1].var())
     return out
-
-
-def blank(measurement: Any) -> Any:
-    """The frame a sensor gives when it sees nothing: no bearings; every beam at its maximum range."""
-    if isinstance(measurement, BearingMeasurement):
-        return BearingMeasurement.empty()
-    if isinstance(measurement, ScanMeasurement):
-        return ScanMeasurement(
-            np.full_like(measurement.ranges_m, measurement.max_range_m), measurement.angles_rad, measurement.max_range_m
-        )
-    raise TypeError(f"no blank frame for {type(measurement).__name__}")
 
 
 @dataclass
@@ -79,29 +64,19 @@ def coast(
     localizer_params: dict[str, Any] | None = None,
     **env_kwargs: Any,
 ) -> Coast:
-    """Drive :data:`CIRCLE` for ``localized_steps`` with the localizer seeing its sensor, then
-    ``coast_steps`` more feeding it the odometry and blank frames only."""
-    env = gym.make(env_id, localizer=localizer, localizer_params=localizer_params or {}, **env_kwargs)
-    wrapper = env
-    while not hasattr(wrapper, "localizer"):
-        wrapper = wrapper.env
-    env.reset(seed=seed)
-    for _ in range(localized_steps):
-        env.step(CIRCLE)
-    loc = wrapper.localizer
-    start = loc.estimate
-    base = wrapper.env
-    odometry_key = wrapper._odometry_key
-    frame = wrapper._decode(base.unwrapped.last_observation[wrapper._sensor_key], wrapper._sensor_meta)
-    alphas = np.asarray(base.unwrapped.sensor_metadata["odometry"]["alphas"], dtype=np.float64)
-    increments, estimates = [], []
-    for _ in range(coast_steps):
-        obs, *_ = base.step(CIRCLE)
-        d = np.asarray(obs[odometry_key], dtype=np.float64)
-        increments.append(d)
-        loc.predict(OdometryDelta(float(d[0]), float(d[1]), float(d[2])))
-        loc.update(blank(frame))
-        estimates.append(loc.estimate)
-    env.close()
+    """Drive :data:`tests.localizers.lost.CIRCLE` for ``localized_steps`` with the localizer
+    seeing its sensor, then ``coast_steps`` more feeding it the odometry and blank frames only."""
+    run = drive(
+        localizer,
+        env_id,
+        localized_steps + coast_steps,
+        seed,
+        localizer_params=localizer_params,
+        frame=during(blank, localized_steps + 1),
+        **env_kwargs,
+    )
+    start = run.estimates[localized_steps - 1]
+    alphas = np.asarray(run.sensor_metadata["odometry"]["alphas"], dtype=np.float64)
     origin = start.as_array() if start.valid else np.zeros(3)
-    return Coast(start, estimates, motion_model_spread(origin, np.array(increments), alphas))
+    reference = motion_model_spread(origin, run.odometry[localized_steps:], alphas)
+    return Coast(start, run.estimates[localized_steps:], reference)

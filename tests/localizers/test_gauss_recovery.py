@@ -1,6 +1,6 @@
 """Localizers that know when they are lost (issue 19): kidnapping, blind coasting, one landmark,
 an odometry jump, for dead_reckoning, resection, kalman and candidate_sets. The figures the
-bounds come from: ``python -m tests.localizers.study_gauss_lost`` (before and after in the
+bounds come from: ``python -m tests.localizers.lost_figures gauss_coast gauss_one_landmark gauss_kidnap gauss_odometry_jump`` (before and after in the
 commit that added this file)."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ import math
 import numpy as np
 import pytest
 
-from tests.localizers.stress import no_landmarks, one_landmark, stress_run
+from tests.localizers.lost import CROWDED, EVENT_S, GAUSS_KIDNAP, STATIC, drive, no_landmarks, odometry_jump, one_landmark
 
-CROWDED = ("crowdloc/RoboCupCrowded-v0", {"crowd_size": 3})
+CROWDED_KW = {"crowd_size": 3}
 SEEDS = range(10)
 
 
@@ -21,8 +21,8 @@ def test_a_kidnapped_robot_is_found_again(name: str, within_s: float) -> None:
     # circle in the crowded field, kidnapped (>= 2 m) at 10 s; measured (10 seeds), recovered
     # (error < 0.2 m for 1 s) after: kalman 0.5-10 s, candidate_sets 0-8 s, resection 0-4.9 s;
     # valid estimates more than 1 m off for at most 0.5 s (kalman: the 15 rejected fixes), 0.2 s, 0 s
-    runs = [stress_run(name, CROWDED[0], seed=s, policy="circle", kidnap_at_s=10.0, **CROWDED[1]) for s in SEEDS]
-    recovered = [r.recovery_s() <= within_s for r in runs]
+    runs = [drive(name, CROWDED, 1200, s, **GAUSS_KIDNAP, **CROWDED_KW) for s in SEEDS]
+    recovered = [r.recovery_s(hold_s=1.0) <= within_s for r in runs]
     assert sum(recovered) >= len(runs) - 1, f"{name}: recovered within {within_s} s on {sum(recovered)}/{len(runs)} seeds"
     wrong = [r.longest_wrong_s() for r in runs]
     assert max(wrong) <= 1.0, f"{name}: valid estimates more than 1 m off for {wrong} s"
@@ -32,7 +32,7 @@ def test_dead_reckoning_stops_claiming_a_pose_it_cannot_know() -> None:
     # it cannot notice a kidnapping: its spread passes max_spread_m (1 m) 10-25 s after it on the
     # random walk (measured; on the gentle circle it takes longer than the 30 s of the run)
     for s in SEEDS[:6]:
-        r = stress_run("dead_reckoning", CROWDED[0], seed=s, kidnap_at_s=10.0, **CROWDED[1])
+        r = drive("dead_reckoning", CROWDED, 1200, s, policy="random_walk", **GAUSS_KIDNAP, **CROWDED_KW)
         assert not r.valid[-1], f"seed {s}: still claims a pose, error {r.error_m[-1]:.2f} m"
         assert r.spread_m[r.valid].max() <= 1.0
 
@@ -40,32 +40,28 @@ def test_dead_reckoning_stops_claiming_a_pose_it_cannot_know() -> None:
 def test_candidate_sets_drop_a_contradicted_pose_on_the_static_field() -> None:
     # random walk on the static field (it also drives into walls, where the odometry goes on
     # counting): before issue 19 valid estimates were more than 1 m off for up to 30.6 s; now 6.9 s
-    runs = [stress_run("candidate_sets", seed=s, kidnap_at_s=10.0) for s in range(10)]
+    runs = [drive("candidate_sets", STATIC, 1200, s, policy="random_walk", **GAUSS_KIDNAP) for s in range(10)]
     wrong = [r.longest_wrong_s() for r in runs]
     assert max(wrong) <= 10.0, wrong
 
 
 def test_candidate_sets_widen_while_blind_for_333_s() -> None:
-    free = stress_run(
-        "candidate_sets", policy="circle", duration_s=343.0, frames=no_landmarks(300), localizer_params={"max_spread_m": math.inf}
-    )
+    free = drive("candidate_sets", STATIC, 10290, frame=no_landmarks(300), localizer_params={"max_spread_m": math.inf})
     blind = free.window(10.0)
     assert free.valid[blind].all()
     spread = free.spread_m[blind]
     assert (np.diff(spread) >= -1e-12).all() and spread[-1] > 10 * spread[0]
     assert free.outside_3sd(blind) <= 0.01  # before: 0.91 (spread 0.088 m while 2.8 m off)
-    limited = stress_run("candidate_sets", policy="circle", duration_s=343.0, frames=no_landmarks(300))
+    limited = drive("candidate_sets", STATIC, 10290, frame=no_landmarks(300))
     assert not limited.valid[-1] and (limited.spread_m[limited.valid] <= 1.0).all()
 
 
 def test_kalman_with_one_landmark_is_not_overconfident() -> None:
-    r = stress_run(
-        "kalman", policy="circle", duration_s=70.0, frames=one_landmark(300), localizer_params={"max_spread_m": math.inf}
-    )
+    r = drive("kalman", STATIC, 2100, frame=one_landmark(300), localizer_params={"max_spread_m": math.inf})
     assert r.outside_3sd(r.window(10.0)) <= 0.05  # before: 0.88 (measured here; 0.46 in the issue)
 
 
 def test_kalman_recovers_from_a_10_m_odometry_jump() -> None:
-    r = stress_run("kalman", policy="circle", duration_s=40.0, odometry_jump_m=10.0)
-    assert r.recovery_s() <= 2.0  # measured 0.6 s (before: 3.4 m off after 30 s)
+    r = drive("kalman", STATIC, 1200, odometry=odometry_jump(10.0, (300,)), event_s=EVENT_S)
+    assert r.recovery_s(hold_s=1.0) <= 2.0  # measured 0.6 s (before: 3.4 m off after 30 s)
     assert r.error_m[-1] < 0.2

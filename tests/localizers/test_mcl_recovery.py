@@ -1,28 +1,38 @@
 """Particle filters that know when they are lost (issue 19): kidnapping, one landmark in view,
 swapped landmark ids, an odometry jump, blocked scans. Driven by tests/localizers/lost.py; the
-figures behind the bounds: ``python benchmarks/lost_localizers.py``."""
+figures behind the bounds: ``python -m tests.localizers.lost_figures``."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from localizers.base import ScanMeasurement
-from tests.localizers.lost import EVENT_S, ROOM, ROOM_KW, STATIC, drive, one_landmark, swapped
+from tests.localizers.lost import (
+    EVENT_S,
+    MCL_RUN,
+    ROOM,
+    ROOM_KW,
+    STATIC,
+    drive,
+    odometry_jump,
+    one_landmark,
+    swapped,
+    zero_scans,
+)
 
-KIDNAP_STEP_BEARING, KIDNAP_STEP_ROOM = 300, 400  # t = 10 s at 30 Hz, at 40 Hz
+KIDNAP_STEP_BEARING, KIDNAP_STEP_ROOM = 301, 401  # the first step after t = 10 s at 30 Hz, at 40 Hz
 
 
 def test_one_landmark_in_view_claims_no_pose() -> None:
     # before issue 19: 888 of 10,000 steps claimed, 860 of them 1-12 m off at a spread of 0.29 m
-    run = drive("mcl_bearing", STATIC, 3000, 0, policy="random_walk", frame=one_landmark)
+    run = drive("mcl_bearing", STATIC, 3000, 0, policy="random_walk", frame=one_landmark())
     assert run.wrong_claims() == 0
 
 
 @pytest.mark.parametrize("name", ["mcl_bearing_paper", "mcl_bearing"])
 def test_swapped_landmark_ids_claim_no_wrong_pose(name: str) -> None:
     # before: mcl_bearing_paper claimed every step, 1628 of 1800 more than 1 m off
-    run = drive(name, STATIC, 900, 0, policy="random_walk", frame=swapped)
+    run = drive(name, STATIC, 900, 0, policy="random_walk", frame=swapped())
     assert run.wrong_claims() <= 9, run.wrong_claims()
 
 
@@ -32,7 +42,7 @@ def test_bearing_filters_relocalize_after_a_kidnapping(name: str, recovered_at_l
     # mcl_bearing_paper 4/10, median 16.3 s (before: 5/10 and 4/10, with 3546 and 7331 claims > 1 m off)
     times, longest = [], 0.0
     for seed in range(10):
-        run = drive(name, STATIC, 1200, seed, policy="random_walk", kidnap_at=KIDNAP_STEP_BEARING)
+        run = drive(name, STATIC, 1200, seed, policy="random_walk", kidnap_at=KIDNAP_STEP_BEARING, **MCL_RUN)
         times.append(run.recovery_s(0.2))
         longest = max(longest, run.longest_wrong_s())
     assert sum(t <= 30.0 for t in times) >= recovered_at_least, times
@@ -61,41 +71,38 @@ def test_lidar_filters_after_a_kidnapping(name: str, params: dict, recovered_at_
     # but stops claiming a pose within 5 s (before: 5/10 and 2/10, with up to 30 s of wrong claims).
     times, longest = [], 0.0
     for seed in range(6):
-        run = drive(name, ROOM, 1600, seed, localizer_params=params, kidnap_at=KIDNAP_STEP_ROOM, **ROOM_KW)
+        run = drive(name, ROOM, 1600, seed, localizer_params=params, kidnap_at=KIDNAP_STEP_ROOM, **MCL_RUN, **ROOM_KW)
         times.append(run.recovery_s(0.3))
         longest = max(longest, run.longest_wrong_s())
     assert sum(t <= 30.0 for t in times) >= recovered_at_least, times
     assert longest <= longest_s, longest
 
 
-def jump(k: int, d: np.ndarray) -> np.ndarray:
-    """A 10 m odometry jump at t = 10 s: two 5 m forward increments the robot does not make."""
-    return d + np.array([5.0, 0.0, 0.0]) if k in (KIDNAP_STEP_ROOM, KIDNAP_STEP_ROOM + 1) else d
+#: a 10 m odometry jump at t = 10 s: two 5 m forward increments the robot does not make
+jump = odometry_jump(5.0, (KIDNAP_STEP_ROOM, KIDNAP_STEP_ROOM + 1))
 
 
 @pytest.mark.parametrize(("name", "params"), [("mcl_lidar", {"recovery": True}), ("far_point_mcl", {"mcl": {"recovery": True}})])
 def test_lidar_recovery_after_a_10_m_odometry_jump(name: str, params: dict) -> None:
     # before: 1.4-1.5 m off at the end, every step claimed
-    run = drive(name, ROOM, 1600, 0, localizer_params=params, odometry=jump, **ROOM_KW)
-    run.event_s = EVENT_S
+    run = drive(name, ROOM, 1600, 0, localizer_params=params, odometry=jump, event_s=EVENT_S, **MCL_RUN, **ROOM_KW)
     assert run.valid[-40:].all() and np.nanmax(run.error_m[-40:]) < 0.2
     assert run.longest_wrong_s() <= 6.0
 
 
 def test_plain_lidar_mcl_stops_claiming_after_a_10_m_odometry_jump() -> None:
     # before: 3.3 m off at the end, claimed with a spread of 0.00 m
-    run = drive("mcl_lidar", ROOM, 1600, 0, odometry=jump, **ROOM_KW)
+    run = drive("mcl_lidar", ROOM, 1600, 0, odometry=jump, **MCL_RUN, **ROOM_KW)
     assert run.wrong_claims() == 0
 
 
-def zeros(k: int, f: ScanMeasurement) -> ScanMeasurement:
-    """All-zero scans (a blocked sensor) from 10 s to 20 s."""
-    return ScanMeasurement(np.zeros_like(f.ranges_m), f.angles_rad, f.max_range_m) if 400 <= k < 800 else f
+#: all-zero scans (a blocked sensor) after 10 s to 20 s
+zeros = zero_scans(401, 801)
 
 
 @pytest.mark.parametrize("name", ["mcl_lidar", "far_point_mcl"])
 def test_blocked_scans_do_not_move_the_lidar_filters(name: str) -> None:
     # before: mcl_lidar 1128 claims > 1 m off (2.1 m after 30 s of good scans with recovery)
-    run = drive(name, ROOM, 2000, 0, frame=zeros, **ROOM_KW)
+    run = drive(name, ROOM, 2000, 0, frame=zeros, **MCL_RUN, **ROOM_KW)
     assert run.wrong_claims() == 0
     assert np.nanmax(run.error_m[-40:]) < 0.2
