@@ -125,7 +125,8 @@ class LidarMCLParams:
         min_particles, max_particles: limits of the KLD set size.
         recovery: augmented MCL, random particles when the short-term likelihood average
             drops below the long-term one (Table 8.3), drawn from the scan (see
-            ``recovery_candidates``).
+            ``recovery_candidates``). On by default (ours, issue 19); off is the paper's plain
+            MCL, as its reproduction runs it.
         alpha_slow, alpha_fast: rates of the long- and short-term averages (kept with or
             without ``recovery``: they also tell when the filter is lost).
         lost_ratio: lost detection (ours): no pose is claimed while the short-term average of
@@ -183,7 +184,7 @@ class LidarMCLParams:
     kld_bin_theta_rad: float = math.radians(10.0)
     min_particles: int = 100
     max_particles: int = 5000
-    recovery: bool = False
+    recovery: bool = True
     alpha_slow: float = 0.001
     alpha_fast: float = 0.1
     initial_position_std_m: float = 0.1

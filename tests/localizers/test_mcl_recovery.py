@@ -59,10 +59,10 @@ def test_bearing_filters_relocalize_after_a_kidnapping(name: str, recovered_at_l
 @pytest.mark.parametrize(
     ("name", "params", "recovered_at_least", "longest_s"),
     [
-        ("mcl_lidar", {"recovery": True}, 4, 6.0),
-        ("far_point_mcl", {"mcl": {"recovery": True}}, 4, 20.0),
-        ("mcl_lidar", {}, 0, 6.0),
-        ("far_point_mcl", {}, 0, 6.0),
+        ("mcl_lidar", {}, 4, 6.0),  # recovery is on by default (ours)
+        ("far_point_mcl", {}, 4, 20.0),
+        ("mcl_lidar", {"recovery": False}, 0, 6.0),  # the paper's plain MCL
+        ("far_point_mcl", {"mcl": {"recovery": False}}, 0, 6.0),
     ],
 )
 def test_lidar_filters_after_a_kidnapping(name: str, params: dict, recovered_at_least: int, longest_s: float) -> None:
