@@ -24,6 +24,17 @@ odometry increments, and the particles are moved once, by the composed increment
 update is due (after ``update_min_travel_m`` of travel or ``update_min_rotation_rad`` of
 turning; the paper localizes every 0.5 m). The alpha model's noise therefore refers to the
 motion between two updates, not to the simulation step.
+
+Consistency (measured, ``crowdloc reproduce lidar-far-point``, 10 seeds, NEES against the
+truth at the updates): with the paper's beam model on all 1081 beams, each beam counted as
+independent, the weights after an update are so peaked that resampling leaves copies of one
+particle: the covariance is singular (NEES inf) on most updates at sampling >= 0.2 and the
+NEES median is in the millions at 0.1, with errors of 8-9 cm. This is the beam model's
+independence assumption, not a bug: ROS amcl's defaults (likelihood field, 30 beams) are
+consistent in the same runs (NEES median 1.97, 84 % of updates inside the 95 % region); the
+reference (these defaults on the LIDAR at 1.9 m, which sees over the crowd) has a NEES median
+of 20-24. Between updates the covariance grows with the odometry not yet applied
+(:func:`localizers.particles.motion_covariance`).
 """
 
 from __future__ import annotations
