@@ -418,8 +418,16 @@ class BoxLayout(NamedTuple):
     every: NDArray[np.bool_]
 
 
-#: per (height, mask) of an upright layout: the rows of the parts cut there, their radii there, whether they occlude
-_UprightCut = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]
+#: per (height, mask) of an upright layout: the rows of the parts cut there, their radii there, whether they
+#: occlude, and how to take their positions (a slice where the rows are consecutive)
+_UprightCut = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], "slice | NDArray[np.int64]"]
+
+
+def consecutive(rows: NDArray[np.int64]) -> slice | NDArray[np.int64]:
+    """Consecutive rows as a slice (indexing gives a view), else the rows themselves."""
+    if rows.size and np.array_equal(rows, np.arange(rows[0], rows[0] + rows.size)):
+        return slice(int(rows[0]), int(rows[0]) + rows.size)
+    return rows
 
 
 class Figures:
@@ -427,6 +435,8 @@ class Figures:
 
     Made by :meth:`FigureModel.pose`; a snapshot of the world holds one.
     """
+
+    __slots__ = ("_angles", "_boxes", "_occluders", "_positions", "_sections", "_slope", "_upright_cuts", "_xy", "layout")
 
     def __init__(
         self,
@@ -496,10 +506,12 @@ class Figures:
         cut = self._upright_cuts.get((height_m, occluders_only))
         if cut is None:  # once per height between resets: which parts, and their radii there
             index, _, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind, keep)
-            cut = self._upright_cuts[(height_m, occluders_only)] = (m.row[index], radii, m.occludes[index])
-        rows, radii, occludes = cut
+            rows = m.row[index]
+            rows.setflags(write=False)
+            cut = self._upright_cuts[(height_m, occluders_only)] = (rows, radii, m.occludes[index], consecutive(rows))
+        rows, radii, occludes, take = cut
         assert self._positions is not None
-        return Section(self._positions[rows], radii, rows, occludes)
+        return Section(self._positions[take], radii, rows, occludes)  # a slice: a view of the positions, no copy
 
 
 #: what a body's shape is sized by: a person's ranges, a car's sizes, or nothing (column, ball)

@@ -24,7 +24,7 @@ import pymunk
 import pymunk.batch as pbatch
 from numpy.typing import NDArray
 
-from envs.bodies import FigureModel, Figures, turn_to_travel
+from envs.bodies import FigureModel, Figures, consecutive, turn_to_travel
 from envs.config import BOUNDARY_SEGMENTS, WorldConfig
 from envs.crowds import BodySpec, Crowd, build_crowd
 from envs.state import Rows, WorldState, robot_pose
@@ -476,9 +476,5 @@ def _inside_convex(corners: NDArray[np.float64], x: float, y: float) -> bool:
 
 
 def _as_slice(rows: NDArray[np.int64]) -> Rows:
-    """Consecutive rows as a slice (views, no copies per step), else the index array."""
-    if rows.size == 0:
-        return slice(1, 1)
-    if np.array_equal(rows, np.arange(rows[0], rows[-1] + 1)):
-        return slice(int(rows[0]), int(rows[-1]) + 1)
-    return rows
+    """Consecutive rows as a slice (views, no copies per step), else the index array; no rows: an empty slice after the robot."""
+    return slice(1, 1) if rows.size == 0 else consecutive(rows)
