@@ -73,6 +73,11 @@ Knowing when it is lost (issue 19; ours, the paper says nothing of it):
   (invalid until a new set determines). Measured recovery after a kidnap (>= 2 m, at 10 s):
   python -m tests.localizers.lost_figures gauss_kidnap.
 * ``max_spread_m``: past this position spread the estimate is not claimed.
+
+Consistency (measured, ``crowdloc reproduce bearing-candidates``, 20 seeds): cautious in Exp 1
+(median 0.40, 95 % inside), about right in Exp 2 with K = 10 (1.34, 89 %); with fewer sets it
+is overconfident (K = 1: 4.54, 59 %; K = 5: 1.89, 79 %): one set's best candidates spread less
+than the error of the frame they came from.
 """
 
 from __future__ import annotations

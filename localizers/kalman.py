@@ -35,6 +35,12 @@ of it), each a parameter of :class:`KalmanParams`:
   stds). A kidnapped robot (>= 2 m) is found again about 0.5 s after the next frame with a
   valid fix (measured: python -m tests.localizers.lost_figures gauss_kidnap).
 * ``max_spread_m``: past this position spread the estimate is not claimed.
+
+Consistency (measured, ``crowdloc reproduce bearing-candidates``, 20 seeds, run with the gate
+and without the restart): Exp 1 NEES median 1.25, 92 % of steps inside the 95 % region;
+Exp 2 5.48 and 58 %: among the crowd's contacts and fast turns the constant-acceleration
+model's prediction is too sure between fixes. Before issue 19 (independent axes, the odometry
+as velocity noise) the medians were 641 and 84.
 """
 
 from __future__ import annotations

@@ -13,6 +13,14 @@ are stored *struct-of-arrays*: an array of shape ``(3, N)`` whose rows are x, y 
 heading, so every vector operation runs over one contiguous row of N values. The motion
 model is the alpha model of :mod:`localizers.motion` (Probabilistic Robotics,
 sample_motion_model_odometry), applied to the odometry increment.
+
+Consistency (measured, ``crowdloc reproduce bearing-candidates``, 20 seeds, NEES of the pose
+against the truth over the steps with a pose): ``mcl_bearing_paper`` is cautious (median 1.00 in
+Exp 1, 0.091 in Exp 2; 90 % and 100 % of steps inside the 95 % region): its unweighted set,
+re-seeded from arcs, is wider than its error. ``mcl_bearing`` is consistent in Exp 2 (0.65, 96 %)
+and overconfident in Exp 1 (2790, 28 %): where the small pole L5 is out of range its distractor
+fits a wrong pose, and with two landmarks in view a wrong pose on the circle through them fits
+the bearings exactly; the set collapses there with a small spread.
 """
 
 from __future__ import annotations

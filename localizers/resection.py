@@ -35,6 +35,12 @@ danger circle and, when the robot is inside a landmark triangle whose angles are
 ``min_conditioning = 0.1`` (ours) therefore accepts such geometries and rejects e.g. a robot
 within ~1 % of the circle's radius from it, where a 1 deg bearing error would move the
 solution by more than ~17 % of the distance to the landmarks.
+
+Consistency of baseline (2) (measured, ``crowdloc reproduce bearing-candidates``, 20 seeds): in
+Exp 2 NEES median 1.56, 84 % of fixes inside the 95 % region; in Exp 1 2401 and 14 %: where
+L5 is out of range, its distractor is taken for it, and the fix from that wrong bearing is
+metres off with the small covariance of a well-conditioned triple. The covariance knows the
+bearing noise, not a misidentification.
 """
 
 from __future__ import annotations
