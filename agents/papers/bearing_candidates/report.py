@@ -217,9 +217,14 @@ def exp2_section(exp2: Exp2Stats, cond: Conditions, plan: Plan, figure: Path) ->
     ]
 
 
+def sweep_header(study: SweepStudy, xname: str) -> list[str]:
+    """The head of a sweep's tables: a column per swept value."""
+    return ["| method | " + " | ".join(f"{xname} = {p:g}" for p in study.points) + " |", "|---|" + "---:|" * len(study.points)]
+
+
 def sweep_table(study: SweepStudy, xname: str) -> list[str]:
     """One row per method, one cell (error, availability, failure) per swept value."""
-    lines = ["| method | " + " | ".join(f"{xname} = {p:g}" for p in study.points) + " |", "|---|" + "---:|" * len(study.points)]
+    lines = sweep_header(study, xname)
     for m in SWEEP_METHODS:
         cells = []
         for p in study.points:
@@ -237,7 +242,7 @@ def sweep_table(study: SweepStudy, xname: str) -> list[str]:
 
 def sweep_consistency_table(study: SweepStudy, xname: str) -> list[str]:
     """The rows of :func:`sweep_table` again, a cell (NEES median, inside 95 %) per swept value over the same window."""
-    lines = ["| method | " + " | ".join(f"{xname} = {p:g}" for p in study.points) + " |", "|---|" + "---:|" * len(study.points)]
+    lines = sweep_header(study, xname)
     for m in SWEEP_METHODS:
         if not consistency.reports_covariance(m.localizer):
             lines.append(f"| {m.label} | " + " | ".join([consistency.NO_COVARIANCE] * len(study.points)) + " |")
