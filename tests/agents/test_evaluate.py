@@ -54,7 +54,9 @@ def test_cli_eval_writes_tables_plots_trajectories_and_a_gif(tmp_path: Path, cap
     md = (out / "summary.md").read_text()
     assert "| policy | localizer | crowd |" in md and "| spin | candidate_sets | 3 |" in md
     # the consistency columns, right after the error columns
-    assert "| heading error RMS [deg] | NEES median (consistent: 2.37) | inside 95% region (consistent: 0.95) | failure rate" in md
+    assert (
+        "| heading error RMS [deg] | NEES median (consistent: 2.37) | inside 95% region (consistent: 0.95) | failure rate" in md
+    )
     for r in rows:
         assert float(r["nees_mean"]) >= 0.0 and 0.0 <= float(r["inside_95"]) <= 1.0 and float(r["nees_median"]) >= 0.0
     assert all(0.0 <= float(r["covariance_missing"]) <= 1.0 for r in rows)
