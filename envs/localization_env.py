@@ -147,11 +147,11 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         for sensor in self._commanded:
             sensor.command(commanded, self._sensor_rng)
         # wheel slip (RobotConfig.slip_fraction): the body moves and turns less than commanded
-        rc = self.config.robot
-        last_v, last_omega = self._last_command
-        self._last_command = (v, omega)
         lost = 0.0
-        if self._slips:  # (nothing is drawn when no slip is set)
+        if self._slips:  # (nothing is drawn, nor the last command kept, when no slip is set)
+            rc = self.config.robot
+            last_v, last_omega = self._last_command
+            self._last_command = (v, omega)
             in_contact = rc.slip_in_contact > 0 and self.world.robot_touching()
             lost = rc.slip_fraction(abs(v - last_v) / dt, abs(omega - last_omega) / dt, in_contact, self._world_rng)
         slip = 1.0 - lost

@@ -121,6 +121,7 @@ class World:
         self.figure_model = FigureModel([(b.shape, b.radius_m, b.height_m, b.occludes, b.sizes) for b in self._specs])
         #: rows of the cars: their footprint is a box that turns to face their travel
         self.car_rows = np.array([i + 1 for i, b in enumerate(self._specs) if b.shape == "car"], dtype=np.int64)
+        self._has_cars, self._has_people = bool(self.car_rows.size), self.figure_model.has_people
         self._car_turn_rate = np.array([b.car.turn_rate_rps for b in self._specs if b.shape == "car" and b.car is not None])
         self._others = _as_slice(np.concatenate([[0], self.member_rows]).astype(np.int64))  # the robot and every member
         statics = (
@@ -432,7 +433,7 @@ class World:
                 body.position = (float(xy[0]), float(xy[1]))
                 cmd[row, 0:2] = 0.0
                 self.space.reindex_shapes_for_body(body)
-        if self.car_rows.size:
+        if self._has_cars:
             cars = self.car_rows
             cmd[cars, 2] = turn_to_travel(self.angles[cars], self.velocities[cars], dt, self._car_turn_rate)
         pbatch.set_space_bodies(self.space, _FIELDS_COMMAND, self._command_buffer)
@@ -441,7 +442,8 @@ class World:
         self.time_s += dt
         self.step_count += 1
         self.read_state()
-        self.figure_model.advance(self.velocities, dt)
+        if self._has_people:  # (the gait; nothing to move without people)
+            self.figure_model.advance(self.velocities, dt)
 
     def robot_touching(self) -> bool:
         """Whether our robot is in contact with anything (a wall, a pole, a crowd member, the

@@ -257,7 +257,7 @@ class BearingCamera(SensorBase):
         noise = rng.standard_normal((self.count,)) * cfg.noise_std_rad
         views = self._views(state)
         visible = views[: self.count]
-        obs, distracted, false = _bearing_slots(
+        obs, flags = _bearing_slots(
             state.positions[0],
             state.angles[0],
             self._targets_xy,
@@ -269,7 +269,7 @@ class BearingCamera(SensorBase):
             cfg.false_detection_probability,
         )
         # fixed shapes (one flag per landmark), so that vector envs can stack the infos
-        return obs.reshape(-1), {"visible_landmarks": visible, "false_detections": false, "distractor_detections": distracted}
+        return obs.reshape(-1), {"visible_landmarks": visible, "false_detections": flags[0], "distractor_detections": flags[1]}
 
     def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None:
         """Sight lines to the landmarks truly in view and to the distractors reported, the
@@ -335,9 +335,9 @@ def _bearing_slots(
     noise: NDArray[np.float64],
     dropout: float,
     false_rate: float,
-) -> tuple[NDArray[np.float32], NDArray[np.bool_], NDArray[np.bool_]]:
-    """Fill the ``(L, 3)`` camera slots; also ``(L,)`` which slots hold a distractor and which
-    a random false detection.
+) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+    """Fill the ``(L, 3)`` camera slots; also ``(2, L)`` which slots hold a random false
+    detection (row 0) and which a distractor (row 1).
 
     ``targets_xy`` and ``in_view`` hold the ``L`` landmarks, then the distractors. Per slot,
     first match wins: a random false detection; nothing when the slot drops out (a missed
@@ -347,11 +347,10 @@ def _bearing_slots(
     n = draws.shape[1]
     obs = np.zeros((n, 3), dtype=np.float32)
     nearest = _nearest_in_view(origin, targets_xy[n:], distractor_slot, in_view[n:], n)
-    distracted = np.zeros(n, dtype=np.bool_)
-    false = np.zeros(n, dtype=np.bool_)
+    flags = np.zeros((2, n), dtype=np.bool_)  # one array to hand back: false detections, distractors
     for j in range(n):
         if draws[1, j] < false_rate:
-            false[j] = True
+            flags[0, j] = True
             bearing = (draws[2, j] * 2.0 - 1.0) * math.pi
         elif draws[0, j] < dropout:
             continue
@@ -359,11 +358,11 @@ def _bearing_slots(
             bearing = math.atan2(targets_xy[j, 1] - origin[1], targets_xy[j, 0] - origin[0]) - heading + noise[j]
         elif nearest[j] >= 0:
             d = n + nearest[j]
-            distracted[j] = True
+            flags[1, j] = True
             bearing = math.atan2(targets_xy[d, 1] - origin[1], targets_xy[d, 0] - origin[0]) - heading + noise[j]
         else:
             continue
         obs[j, 0] = 1.0
         obs[j, 1] = math.cos(bearing)
         obs[j, 2] = math.sin(bearing)
-    return obs, distracted, false
+    return obs, flags
