@@ -199,8 +199,8 @@ class KalmanParams:
             (:func:`localizers.resection.fix_covariance`), used by the innovation gate and
             the reset (rad; ours).
         innovation_gate: a fix whose normalized innovation squared exceeds this is rejected
-            (chi-square with 3 dof; 16.27 = the 0.999 quantile; ``inf``: no gate, the paper's
-            filter; ours).
+            (chi-square with 3 dof; 16.27 = the 0.999 quantile; ``inf``: no gate; ours, the
+            paper says nothing of outlying fixes).
         reset_after_rejections: after this many consecutive rejected fixes the filter restarts
             on the current fix (count; 0: never, the gate only rejects; ours).
         max_spread_m: past this position spread (m) the estimate is not claimed (ours).
