@@ -19,7 +19,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
-from agents.metrics import chi2_quantile, pose_nees
+from agents import consistency, metrics
 from agents.navigation import CorridorFollower
 from agents.policies import make_policy
 from envs.localization_env import LocalizationEnv
@@ -106,15 +106,14 @@ def drive(task: DriveTask) -> DriveResult:
                       "x_cm": 100 * (truth[0] - target["x_m"]), "y_cm": 100 * (truth[1] - target["y_m"])})  # fmt: skip
     env.close()
     finite = [e for e in errors if math.isfinite(e)]
-    nees = pose_nees(
-        np.array(estimates).reshape(-1, 3), np.array(truths[1:]).reshape(-1, 3), np.array(covariances).reshape(-1, 3, 3)
+    nees = consistency.run_nees(
+        "ceiling_target", np.array(estimates).reshape(-1, 3), np.array(truths[1:]).reshape(-1, 3), np.array(covariances)
     )
-    nees = nees[np.isfinite(nees)]
+    fit = metrics.consistency(nees, consistency.POSE_DOF)  # over the steps with an estimate and a covariance
     return DriveResult(
         task, stops, steps * base.config.dt_s, bool(terminated), policy.remeasures, policy.missed, contacts,
         localizer.fixes, max(finite) if finite else math.nan, errors, travelled,
-        float(np.median(nees)) if nees.size else math.nan,
-        float(np.mean(nees <= chi2_quantile(0.95, 3))) if nees.size else math.nan,
+        fit.nees_median, fit.inside_95,
     )  # fmt: skip
 
 
