@@ -64,13 +64,22 @@ def bearing_information(pose: ArrayLike, landmarks_xy: ArrayLike, bearing_std_ra
     return (H.T @ H) / (bearing_std_rad * bearing_std_rad)
 
 
-def odometry_process_noise(pose: ArrayLike, increment: ArrayLike, alphas: ArrayLike) -> Array:
+def odometry_process_noise(
+    pose: ArrayLike,
+    increment: ArrayLike,
+    alphas: ArrayLike,
+    *,
+    min_translation_std_m: float = 0.0,
+    min_rotation_std_rad: float = 0.0,
+) -> Array:
     """``(3, 3)`` pose covariance added by one odometry increment under the alpha model.
 
     Args:
         pose: ``(3,)`` pose at the start of the increment (its heading orients the noise).
         increment: ``(3,)`` odometry increment ``(dx, dy, dtheta)`` in that pose's frame.
         alphas: ``(4,)`` alpha1..alpha4.
+        min_translation_std_m, min_rotation_std_rad: noise floors added in quadrature to the
+            translation's and each rotation's sd (as a particle filter's motion model has them).
 
     Returns:
         ``G diag(std^2) G^T`` with ``G`` the Jacobian of the pose after the motion with
@@ -78,10 +87,11 @@ def odometry_process_noise(pose: ArrayLike, increment: ArrayLike, alphas: ArrayL
     """
     rot1, trans, _ = np.asarray(to_rot_trans_rot(increment), dtype=np.float64)
     std = np.asarray(odometry_noise_std(increment, alphas), dtype=np.float64)
+    var = std * std + np.array([min_rotation_std_rad**2, min_translation_std_m**2, min_rotation_std_rad**2])
     phi = float(np.asarray(pose, dtype=np.float64)[2]) + rot1
     c, s = np.cos(phi), np.sin(phi)
     G = np.array([[-trans * s, c, 0.0], [trans * c, s, 0.0], [1.0, 0.0, 1.0]])
-    return (G * (std * std)) @ G.T
+    return (G * var) @ G.T
 
 
 def _visibility(visible: ArrayLike | Sequence[Sequence[int]], T: int, L: int) -> NDArray[np.bool_]:

@@ -636,11 +636,6 @@ class BearingMCL(_ParticleLocalizer):
         return slow, fast
 
     @property
-    def injecting(self) -> bool:
-        """Whether augmented MCL injects random particles: ``w_fast < injection_ratio w_slow``."""
-        return self._averages.lost(self._params.injection_ratio)
-
-    @property
     def lost(self) -> bool:
         """Whether the bearings have contradicted the estimate for ``lost_after_s`` (:mod:`localizers.contradiction`)."""
         return self._contradiction.lost

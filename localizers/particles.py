@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import PoseEstimate, finite_covariance
+from localizers.bounds import odometry_process_noise
 from localizers.geometry import circular_mean, wrap_angle
 from localizers.motion import odometry_noise_std, to_rot_trans_rot
 
@@ -164,26 +165,19 @@ def motion_covariance(
     """``(3, 3)`` covariance of ``compose(pose, delta)`` with the increment drawn from the alpha model.
 
     First-order propagation (the EKF prediction of Probabilistic Robotics Table 7.1 with the
-    odometry model of sec. 5.4): ``F cov F^T + G Q G^T``, ``F`` the Jacobian of the composition
-    in the pose, ``G`` in ``(rot1, trans, rot2)``, ``Q`` the alpha model's variances (floors added
-    in quadrature, as :func:`propagate_particles` does). A particle filter reports it for motion
+    odometry model of sec. 5.4): ``F cov F^T`` plus the increment's own noise
+    (:func:`localizers.bounds.odometry_process_noise`, floors added in quadrature as
+    :func:`propagate_particles` does), ``F`` the Jacobian of the composition in the pose. A particle filter reports it for motion
     it has not yet applied to its particles, a dead-reckoned pose for every increment.
     """
     p = np.asarray(pose, dtype=np.float64)
     rot1, trans, _ = (float(v) for v in to_rot_trans_rot(delta))
-    std = odometry_noise_std(delta, alphas)
-    q = np.array(
-        [
-            float(std[0]) ** 2 + min_rotation_std_rad**2,
-            float(std[1]) ** 2 + min_translation_std_m**2,
-            float(std[2]) ** 2 + min_rotation_std_rad**2,
-        ]
-    )
     phi = float(p[2]) + rot1
-    c, s = math.cos(phi), math.sin(phi)
-    F = np.array([[1.0, 0.0, -trans * s], [0.0, 1.0, trans * c], [0.0, 0.0, 1.0]])
-    G = np.array([[-trans * s, c, 0.0], [trans * c, s, 0.0], [1.0, 0.0, 1.0]])
-    return F @ np.asarray(cov, dtype=np.float64) @ F.T + (G * q) @ G.T
+    F = np.array([[1.0, 0.0, -trans * math.sin(phi)], [0.0, 1.0, trans * math.cos(phi)], [0.0, 0.0, 1.0]])
+    noise = odometry_process_noise(
+        p, delta, alphas, min_translation_std_m=min_translation_std_m, min_rotation_std_rad=min_rotation_std_rad
+    )
+    return F @ np.asarray(cov, dtype=np.float64) @ F.T + noise
 
 
 class LikelihoodAverages:
