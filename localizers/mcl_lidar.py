@@ -450,7 +450,7 @@ class LidarMCL:
         ranges = np.ascontiguousarray(ranges[::stride])
         angles = np.ascontiguousarray(angles[::stride])
         used = ranges.size if p.model == "beam" else int(np.count_nonzero(ranges < max_range))
-        if used == 0 or not informative(ranges, max_range, p):
+        if not informative(ranges, max_range, p):  # (no beam short of max_range is never informative)
             # nothing observed: the particles only move (once motion is due), nothing is weighed
             if self._travel_m >= p.update_min_travel_m or self._turn_rad >= p.update_min_rotation_rad:
                 self._apply_motion(rng)

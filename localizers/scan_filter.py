@@ -20,7 +20,6 @@ leave some bins unread; wider bins give several beams the same point.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass, field
@@ -31,13 +30,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import (
-    DEFAULT_MAX_SPREAD_M,
     LandmarkMap,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     ScanMeasurement,
-    check_max_spread,
     checked_dt,
     checked_odometry,
     require_reset,
@@ -323,18 +320,13 @@ class FarPointMCLParams:
     """``far_point_mcl`` (defaults: ``configs/localizers/far_point_mcl.yaml``).
 
     Attributes:
-        mcl: the LIDAR MCL that consumes the processed scans (its own ``max_spread_m`` is
-            replaced by the one below).
+        mcl: the LIDAR MCL that consumes the processed scans; its estimate is this
+            localizer's, its ``max_spread_m`` the limit past which no pose is claimed.
         filter: accumulation and far-point extraction.
-        max_spread_m: no pose is claimed while the position spread exceeds this (ours).
     """
 
     mcl: LidarMCLParams = field(default_factory=LidarMCLParams)
     filter: ScanFilterParams = field(default_factory=ScanFilterParams)
-    max_spread_m: float = DEFAULT_MAX_SPREAD_M
-
-    def __post_init__(self) -> None:
-        check_max_spread("FarPointMCLParams", self.max_spread_m)
 
 
 class FarPointMCL:
@@ -350,8 +342,7 @@ class FarPointMCL:
     def __init__(self, landmarks: LandmarkMap, params: FarPointMCLParams, *, dt_s: float) -> None:
         self.params = params
         self._step_limit_m = landmarks.step_limit_m
-        mcl = dataclasses.replace(params.mcl, max_spread_m=params.max_spread_m)
-        self.mcl = LidarMCL(landmarks, mcl, dt_s=checked_dt(type(self).__name__, dt_s))
+        self.mcl = LidarMCL(landmarks, params.mcl, dt_s=checked_dt(type(self).__name__, dt_s))
         self.filter = ScanFilter(params.filter)
         self._ready = False
         self._last: ScanMeasurement | None = None

@@ -27,9 +27,15 @@ LOCALIZED, COASTING = 150, 300
 SLACK = 0.8
 
 
+def spread_limit(name: str, max_spread_m: float) -> dict:
+    """The localizer parameters setting ``max_spread_m`` (far_point_mcl's is its MCL's)."""
+    limit = {"max_spread_m": max_spread_m}
+    return {"mcl": limit} if name == "far_point_mcl" else limit
+
+
 @pytest.mark.parametrize(("name", "env_id", "kwargs"), CASES, ids=[c[0] for c in CASES])
 def test_coasting_widens_the_spread_at_least_as_fast_as_the_odometry_noise(name: str, env_id: str, kwargs: dict) -> None:
-    run = coast(name, env_id, LOCALIZED, COASTING, localizer_params={"max_spread_m": math.inf}, **kwargs)
+    run = coast(name, env_id, LOCALIZED, COASTING, localizer_params=spread_limit(name, math.inf), **kwargs)
     valid = run.valid
     if not run.start.valid:
         assert not valid.any(), f"{name}: without a fix it must not claim one while coasting"
@@ -46,11 +52,11 @@ def test_coasting_widens_the_spread_at_least_as_fast_as_the_odometry_noise(name:
 
 @pytest.mark.parametrize(("name", "env_id", "kwargs"), CASES, ids=[c[0] for c in CASES])
 def test_past_max_spread_a_coasting_localizer_claims_no_pose(name: str, env_id: str, kwargs: dict) -> None:
-    free = coast(name, env_id, LOCALIZED, COASTING, localizer_params={"max_spread_m": math.inf}, **kwargs)
+    free = coast(name, env_id, LOCALIZED, COASTING, localizer_params=spread_limit(name, math.inf), **kwargs)
     if not free.valid.any():
         return  # never claims a pose while coasting: nothing to limit
     limit = 0.5 * float(np.nanmax(free.spreads))
-    limited = coast(name, env_id, LOCALIZED, COASTING, localizer_params={"max_spread_m": limit}, **kwargs)
+    limited = coast(name, env_id, LOCALIZED, COASTING, localizer_params=spread_limit(name, limit), **kwargs)
     spreads = np.array([e.position_spread_m for e in limited.estimates])
     assert not (limited.valid & (spreads > limit)).any(), f"{name}: claimed a pose with a spread over max_spread_m {limit:.3f}"
     assert not limited.valid[-1], f"{name}: still claims a pose at the end, spread {spreads[-1]:.3f} m > {limit:.3f} m"

@@ -18,7 +18,6 @@ the same steps); each configuration's error is measured against it and against t
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -296,9 +295,7 @@ def run_episode(task: EpisodeTask) -> Episode:
     log = _UpdateLog(rec, crowd_xy, task.snapshot)
     lidar = world.lidar_name()
     scan_map = rec.localizer_map("scan", lidar)
-    loc = make_localizer(
-        "far_point_mcl", scan_map, dt_s=rec.dt_s, params={"mcl": pass_config().mcl_params(), "max_spread_m": math.inf}
-    )
+    loc = make_localizer("far_point_mcl", scan_map, dt_s=rec.dt_s, params={"mcl": pass_config().mcl_params()})
     if not isinstance(loc, FarPointMCL):
         raise TypeError(f"far_point_mcl built a {type(loc).__name__}")
     out = replay_into(loc, rec, episode_rng(task.seed, task.crowd_size), prior=start_prior(rec), measurement="scan",
