@@ -219,3 +219,11 @@ def test_a_car_crowds_radius_must_cover_its_box(tmp_path: Path) -> None:
 def test_impossible_cars_are_refused(change: dict[str, float], message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         dataclasses.replace(CAR, **change)
+
+
+def test_a_car_placed_with_a_non_finite_heading_is_refused(hall: Path) -> None:
+    env = gym.make("crowdloc/CrowdedRoom-v0", world=str(hall))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="place_body: angle must be finite, got nan"):
+        env.unwrapped.world.place_crowd_member(0, CAR_AT, angle=math.nan)
+    env.close()

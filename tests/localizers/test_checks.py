@@ -20,7 +20,8 @@ from localizers.base import (
     checked_odometry,
     require_reset,
 )
-from localizers.registry import BUILTIN_LOCALIZERS, LOCALIZERS, make_localizer
+from localizers.registry import BUILTIN_LOCALIZERS, LOCALIZERS, load_params, make_localizer
+from localizers.schema import ConfigError
 
 NAMES = sorted(BUILTIN_LOCALIZERS)  # not the toy plug-ins other test modules register
 BOX = np.array([[0.0, 0.0, 10.0, 0.0], [10.0, 0.0, 10.0, 8.0], [10.0, 8.0, 0.0, 8.0], [0.0, 8.0, 0.0, 0.0]])
@@ -128,3 +129,16 @@ def test_the_helpers() -> None:
     ):
         checked_odometry("X", OdometryDelta(1e20, -2.0, 3.0), 5.0)
     assert MAP.step_limit_m == float(np.hypot(10.0, 8.0))
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.nan])
+@pytest.mark.parametrize("name", [n for n in BUILTIN_LOCALIZERS if n != "far_point_mcl"])
+def test_a_bad_claim_limit_is_refused_naming_it(name: str, bad: float) -> None:
+    with pytest.raises(ConfigError, match=rf"max_spread_m must be > 0 m \(inf: no limit\), got {bad!r}"):
+        load_params(name, {"max_spread_m": bad})
+
+
+def test_far_point_mcls_claim_limit_is_its_mcls() -> None:
+    assert load_params("far_point_mcl", {"mcl": {"max_spread_m": 0.3}}).mcl.max_spread_m == 0.3
+    with pytest.raises(ConfigError, match="max_spread_m"):
+        load_params("far_point_mcl", {"max_spread_m": 0.3})  # no second limit at the top level
