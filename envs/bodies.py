@@ -55,7 +55,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.schema import check
+from localizers.schema import check, check_rgb
 
 #: a person moving slower than this stands: legs together, heading and gait phase frozen
 STAND_SPEED_MPS = 0.05
@@ -65,6 +65,18 @@ HIP_FRACTION, CROTCH_FRACTION, SHOULDER_FRACTION = 0.53, 0.47, 0.82
 SHAPES = ("column", "ball", "person", "car")
 #: part kinds
 LEG, TORSO, HEAD, COLUMN, BALL = 0, 1, 2, 3, 4
+
+
+Rgb = tuple[int, int, int]
+#: the colour of bodies without a palette (a soccer robot's column) and of the ball, 0-255
+COLUMN_RGB: Rgb = (60, 60, 64)
+BALL_RGB: Rgb = (235, 120, 30)
+
+
+def _check_palette(value: tuple[Rgb, ...], where: str) -> None:
+    check(len(value) > 0, f"{where} must be a non-empty list of RGB colours, got {value!r}")
+    for i, colour in enumerate(value):
+        check_rgb(colour, f"{where}[{i}]")
 
 
 def _check_range(name: str, value: tuple[float, float], lo: float, hi: float) -> None:
@@ -89,9 +101,18 @@ class PersonConfig:
     head_radius_m: tuple[float, float] = (0.08, 0.10)  # the head's section with the hair
     cadence_hz: float = 1.8  # steps per second while walking
     max_step_m: float = 0.8  # the longest step, heel to heel
+    # clothing and hair, drawn per person at every reset (what a camera sees; 0-255 RGB)
+    shirt_rgb: tuple[Rgb, ...] = (
+        (178, 42, 40), (40, 70, 150), (228, 228, 222), (32, 32, 34), (88, 138, 62), (222, 180, 42), (120, 120, 128),
+        (150, 88, 140), (60, 120, 170), (200, 110, 60),
+    )  # fmt: skip
+    trousers_rgb: tuple[Rgb, ...] = ((40, 45, 62), (30, 30, 32), (92, 82, 70), (62, 72, 112), (150, 140, 120), (70, 70, 74))
+    head_rgb: tuple[Rgb, ...] = ((36, 26, 20), (72, 50, 36), (22, 22, 22), (150, 120, 80), (190, 160, 130), (120, 100, 90))
 
     def __post_init__(self) -> None:
         _check_range("height_m", self.height_m, 0.5, 2.5)
+        for name in ("shirt_rgb", "trousers_rgb", "head_rgb"):
+            _check_palette(getattr(self, name), f"person.{name}")
         for name in ("leg_radius_m", "hip_half_width_m", "torso_radius_m", "head_radius_m"):
             _check_range(name, getattr(self, name), 0.005, 0.5)
         check(
@@ -135,8 +156,17 @@ class CarConfig:
     wheelbase_m: float = 2.65
     track_m: float = 1.55
     turn_rate_rps: float = 1.0
+    # paint, drawn per car at every reset; the cabin's glass and the tyres (0-255 RGB)
+    body_rgb: tuple[Rgb, ...] = (
+        (225, 225, 228), (28, 28, 30), (150, 152, 158), (160, 30, 34), (36, 60, 120), (200, 200, 190), (60, 90, 70),
+    )  # fmt: skip
+    cabin_rgb: Rgb = (48, 58, 68)
+    wheel_rgb: Rgb = (26, 26, 26)
 
     def __post_init__(self) -> None:
+        _check_palette(self.body_rgb, "car.body_rgb")
+        check_rgb(self.cabin_rgb, "car.cabin_rgb")
+        check_rgb(self.wheel_rgb, "car.wheel_rgb")
         for name in (
             "length_m", "width_m", "height_m", "sill_m", "beltline_m", "cabin_length_m", "cabin_width_m",
             "wheel_radius_m", "wheel_width_m", "wheelbase_m", "track_m", "turn_rate_rps",
@@ -221,6 +251,30 @@ _NO_POINTS = np.zeros((0, 2))
 _NO_ROWS = np.zeros(0, dtype=np.int64)
 _NO_POINTS.setflags(write=False)
 _NO_ROWS.setflags(write=False)
+
+
+class Appearance(NamedTuple):
+    """The moving bodies as a camera renders them (:meth:`Figures.appearance`).
+
+    Attributes:
+        disc_xy: ``(P, 2)`` centres, ``disc_r`` ``(P,)``, ``disc_z0``, ``disc_z1`` ``(P,)`` the
+            heights each spans, ``disc_rgb`` ``(P, 3)``, ``disc_row`` ``(P,)`` its body row.
+        side_a, side_b: ``(4Q, 2)`` the sides of the box parts (four per box, counter-clockwise),
+            ``side_z0``, ``side_z1``, ``side_rgb`` ``(4Q, 3)``, ``side_box`` ``(4Q,)`` which box.
+    """
+
+    disc_xy: NDArray[np.float64]
+    disc_r: NDArray[np.float64]
+    disc_z0: NDArray[np.float64]
+    disc_z1: NDArray[np.float64]
+    disc_rgb: NDArray[np.float64]
+    disc_row: NDArray[np.int64]
+    side_a: NDArray[np.float64]
+    side_b: NDArray[np.float64]
+    side_z0: NDArray[np.float64]
+    side_z1: NDArray[np.float64]
+    side_rgb: NDArray[np.float64]
+    side_box: NDArray[np.int64]
 
 
 class Section(NamedTuple):
@@ -436,7 +490,10 @@ class Figures:
     Made by :meth:`FigureModel.pose`; a snapshot of the world holds one.
     """
 
-    __slots__ = ("_angles", "_boxes", "_occluders", "_positions", "_sections", "_slope", "_upright_cuts", "_xy", "layout")
+    __slots__ = (
+        "_angles", "_boxes", "_occluders", "_positions", "_sections", "_slope", "_upright_cuts", "_xy", "box_rgb", "layout",
+        "part_rgb",
+    )  # fmt: skip
 
     def __init__(
         self,
@@ -447,8 +504,13 @@ class Figures:
         positions: NDArray[np.float64] | None = None,
         boxes: BoxLayout | None = None,
         angles: NDArray[np.float64] | None = None,
+        part_rgb: NDArray[np.float64] | None = None,
+        box_rgb: NDArray[np.float64] | None = None,
     ) -> None:
         self.layout = layout
+        #: ``(P, 3)`` every disc part's colour and ``(Q, 3)`` every box part's, 0-255 (what a camera sees)
+        self.part_rgb = np.zeros((layout.row.size, 3)) if part_rgb is None else part_rgb
+        self.box_rgb = np.zeros((0, 3)) if box_rgb is None else box_rgb
         self._xy = xy
         self._slope = slope
         self._positions = positions  # the bodies' positions (an upright layout's parts stand at their centres; boxes)
@@ -486,6 +548,37 @@ class Figures:
         if found is None:
             found = self._occluders[height_m] = self._cut(height_m, True)
         return found
+
+    def appearance(self) -> Appearance:
+        """Every part as a camera sees it: the discs upright at their centre half-way up (a
+        leg's lean is a few centimetres there), the boxes whole (a wheel as a box of its
+        diameter), each with its height interval and colour. Legs start at the floor."""
+        m = self.layout
+        z0 = np.maximum(m.z_lo, 0.0)
+        mid = 0.5 * (z0 + m.z_hi)
+        centres = self.xy + self.slope * (mid - m.z_ref)[:, None] if m.row.size else np.zeros((0, 2))
+        radius = m.radius
+        q = self._boxes
+        if q is None:
+            none = np.zeros((0, 2))
+            return Appearance(centres, radius, z0, m.z_hi, self.part_rgb, m.row, none, none, np.zeros(0), np.zeros(0),
+                              np.zeros((0, 3)), np.zeros(0, dtype=np.int64))  # fmt: skip
+        assert self._positions is not None and self._angles is not None
+        half = q.half.copy()
+        wheel = q.wheel_r > 0
+        half[wheel, 0] = q.wheel_r[wheel]
+        c, s = np.cos(self._angles[q.row]), np.sin(self._angles[q.row])
+        cx = self._positions[q.row, 0] + q.offset[:, 0] * c - q.offset[:, 1] * s
+        cy = self._positions[q.row, 1] + q.offset[:, 0] * s + q.offset[:, 1] * c
+        # corners counter-clockwise: front right, front left, rear left, rear right
+        fx, fy = np.array([1.0, 1.0, -1.0, -1.0]), np.array([-1.0, 1.0, 1.0, -1.0])
+        lx, ly = half[:, 0:1] * fx, half[:, 1:2] * fy  # (Q, 4) in the box's frame
+        corners = np.stack([cx[:, None] + lx * c[:, None] - ly * s[:, None], cy[:, None] + lx * s[:, None] + ly * c[:, None]], -1)
+        a = corners.reshape(-1, 2)
+        b = np.roll(corners, -1, axis=1).reshape(-1, 2)
+        rep = np.repeat
+        return Appearance(centres, radius, z0, m.z_hi, self.part_rgb, m.row, a, b, rep(q.z_lo, 4), rep(q.z_hi, 4),
+                          rep(self.box_rgb, 4, axis=0), rep(np.arange(q.row.size), 4))  # fmt: skip
 
     def _cut(self, height_m: float, occluders_only: bool) -> Section:
         discs = self._cut_discs(height_m, occluders_only)
@@ -542,7 +635,10 @@ class FigureModel:
         self._max_step = np.zeros(self.body_count)
         self._empty: Figures | None = None
         self.boxes = _box_layout(shapes)
+        #: ``(Q, 3)`` the box parts' colours: a car's body paint (drawn per reset), its cabin's glass, its tyres
+        self.box_rgb = np.zeros((0 if self.boxes is None else self.boxes.row.size, 3))
         self._build(None)
+        self._paint(None)
 
     @property
     def has_people(self) -> bool:
@@ -579,6 +675,10 @@ class FigureModel:
                 self._cadence[b] = person.cadence_hz
                 self._max_step[b] = person.max_step_m
             # a car has box parts only (_box_layout)
+        #: ``(P, 3)`` every disc part's colour (a person's clothes and hair: :meth:`_paint`)
+        self.part_rgb = np.array([BALL_RGB if kind == BALL else COLUMN_RGB for _, kind, *_ in parts], dtype=np.float64).reshape(
+            -1, 3
+        )
         columns = list(zip(*parts)) if parts else [()] * 9
         lateral, sign, z_ref, z_lo, z_hi, radius = (np.asarray(c, dtype=np.float64) for c in columns[2:8])
         self.layout = Layout(
@@ -600,15 +700,46 @@ class FigureModel:
         self._no_slope = np.zeros((len(parts), 2))
         self._no_slope.setflags(write=False)
 
+    def _paint(self, rng: np.random.Generator | None) -> None:
+        """Clothes and hair for every person, paint for every car, from their palettes (each
+        palette's first colour without ``rng``)."""
+        m = self.layout
+        self.part_rgb, self.box_rgb = self.part_rgb.copy(), self.box_rgb.copy()  # figures handed out keep theirs
+
+        def pick(palette: tuple[Rgb, ...]) -> Rgb:
+            return palette[int(rng.integers(len(palette)))] if rng is not None else palette[0]
+
+        for i, (shape, _, _, _, sizes) in enumerate(self.shapes):
+            if shape == "person":
+                assert isinstance(sizes, PersonConfig)
+                parts = np.flatnonzero(m.row == i + 1)
+                shirt, trousers, head = pick(sizes.shirt_rgb), pick(sizes.trousers_rgb), pick(sizes.head_rgb)
+                for p in parts:
+                    kind = m.kind[p]
+                    self.part_rgb[p] = trousers if kind == LEG else shirt if kind == TORSO else head
+            elif shape == "car" and self.boxes is not None:
+                assert isinstance(sizes, CarConfig)
+                boxes = np.flatnonzero(self.boxes.row == i + 1)  # four wheels, the body, the cabin (CarConfig.boxes)
+                self.box_rgb[boxes[:4]] = sizes.wheel_rgb
+                self.box_rgb[boxes[4]] = pick(sizes.body_rgb)
+                self.box_rgb[boxes[5]] = sizes.cabin_rgb
+        self.part_rgb.setflags(write=False)
+        self.box_rgb.setflags(write=False)
+
     def reset(self, rng: np.random.Generator, velocities: NDArray[np.float64]) -> None:
         """New sizes for every person (drawn from ``rng`` only when there are people), standing still.
 
-        A person starts facing a random direction with a random gait phase.
+        A person starts facing a random direction with a random gait phase. Clothes and paint
+        are drawn from a child of ``rng`` (:meth:`numpy.random.Generator.spawn`), which leaves
+        ``rng``'s own draws as they were.
         """
         self.swing_tan[:] = 0.0
         if not self.has_people:
+            if self.boxes is not None:
+                self._paint(rng.spawn(1)[0])
             return
         self._build(rng)
+        self._paint(rng.spawn(1)[0])
         rows = self.person_rows
         self.heading[rows] = rng.uniform(-math.pi, math.pi, rows.size)
         self.phase[rows] = rng.uniform(0.0, 2.0 * math.pi, rows.size)
@@ -641,10 +772,11 @@ class FigureModel:
             if self._empty is None or self._empty.layout is not m:
                 self._empty = Figures(m, np.zeros((0, 2)), np.zeros((0, 2)))
             return self._empty
+        rgb = (self.part_rgb, self.box_rgb)
         if self._upright_cuts is not None:  # no legs: each part stands at its body's centre
-            return Figures(m, None, self._no_slope, self._upright_cuts, positions, boxes, angles)
+            return Figures(m, None, self._no_slope, self._upright_cuts, positions, boxes, angles, *rgb)
         xy, slope = _pose_parts(positions, m.row, m.kind, m.lateral, m.swing_sign, self.heading, self.swing_tan)
-        return Figures(m, xy, slope, None, positions, boxes, angles)
+        return Figures(m, xy, slope, None, positions, boxes, angles, *rgb)
 
 
 def _box_layout(shapes: list[tuple[str, float, float, bool, Sizes]]) -> BoxLayout | None:

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 import crowdloc_configs
 from envs.crowds import CrowdConfig
 from envs.features import FeatureConfig
+from envs.features.base import Segment
 from envs.sensors import SensorConfig
 from localizers.schema import ConfigError, check, from_mapping, load_yaml
 
@@ -162,10 +163,6 @@ class GoalConfig:
         check(self.radius_m > 0, f"goal.radius_m must be > 0, got {self.radius_m}")
         check(self.hold_s >= 0, f"goal.hold_s must be >= 0, got {self.hold_s}")
         check(0 <= self.still_fraction < 1, f"goal.still_fraction must be in [0, 1), got {self.still_fraction}")
-
-
-#: one static segment with its height interval: (x1, y1, x2, y2, bottom, top), metres
-Segment = tuple[float, float, float, float, float, float]
 
 
 @dataclass(frozen=True)
@@ -314,6 +311,13 @@ class WorldConfig:
                 isinstance(feature, FeatureConfig), f"world {self.name!r}: feature {name!r} is not a feature config: {feature!r}"
             )
             feature.check_world(self, name)
+            for solid in feature.solids():
+                check(
+                    bool(np.all((solid.corners >= (xmin, ymin)) & (solid.corners <= (xmax, ymax)))),
+                    f"world {self.name!r}: feature {name!r}: {solid.kind or 'solid'} {solid.name!r} (corners "
+                    f"{np.round(solid.corners, 3).tolist()}) must lie inside the boundary walls x [{xmin:g}, {xmax:g}], "
+                    f"y [{ymin:g}, {ymax:g}]",
+                )
         clash = sorted(set(self.features) & (set(self.crowds) | set(self.sensors)))
         check(not clash, f"world {self.name!r}: {clash} name a feature and a sensor or crowd")
         object.__setattr__(self, "features", dict(self.features))
@@ -383,13 +387,17 @@ class WorldConfig:
     def static_segments(self, in_map: bool = False) -> NDArray[np.float64]:
         """``(S, 6)`` every static segment ``(x1, y1, x2, y2, bottom, top)``: the arena boundary
         (counter-clockwise, the first :data:`BOUNDARY_SEGMENTS` rows) and the extra walls, from the
-        floor to ``wall_height_m``, then each piece of furniture's. With ``in_map`` the furniture
-        stands where the localizers' map has it (``map_offset_m``)."""
+        floor to ``wall_height_m``, then each piece of furniture's, then the sides of the
+        features' solids (buildings, poles, trees: :meth:`FeatureConfig.segments`), feature by
+        feature in config order. With ``in_map`` the furniture stands where the localizers' map
+        has it (``map_offset_m``)."""
         xmin, ymin, xmax, ymax = self.arena_m
         boundary = [(xmin, ymin, xmax, ymin), (xmax, ymin, xmax, ymax), (xmax, ymax, xmin, ymax), (xmin, ymax, xmin, ymin)]
         rows: list[Segment] = [(*wall, 0.0, self.wall_height_m) for wall in boundary + [tuple(w) for w in self.walls]]
         for piece in self.furniture:
             rows += piece.segments(in_map)
+        for feature in self.features.values():
+            rows += feature.segments()
         return np.asarray(rows, dtype=np.float64).reshape(-1, 6)
 
     def wall_segments(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -19,7 +19,7 @@ environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -91,7 +91,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         self._commanded = [
             s for s in self.sensors.values() if getattr(type(s), "command", SensorBase.command) is not SensorBase.command
         ]
-        self.observation_space = spaces.Dict({s.key: s.space() for s in self.sensors.values()})  # type: ignore[assignment]  # gym.Env types it as a generic Space
+        self.observation_space = spaces.Dict(observation_entries(self.sensors.values()))  # type: ignore[assignment]  # gym.Env types it as a generic Space
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self._overlays: list[Overlay] = []
         self._renderer: Any = None
@@ -261,7 +261,10 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         state = self.world.snapshot()
         for sensor in self.sensors.values():
             value, extra = sensor.observe(state, self._sensor_rng)
-            obs[sensor.key] = value
+            if isinstance(value, dict):  # a sensor of several entries (space() is a Dict)
+                obs.update(value)
+            else:
+                obs[sensor.key] = value
             info.update(extra)
         self._last_obs = obs
         self._last_info = info
@@ -276,6 +279,32 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         if not (-1.0 <= v <= 1.0 and -1.0 <= w <= 1.0):
             raise ValueError(f"action {[v, w]} is outside the action space [-1, 1]^2 (or not finite)")
         return v, w
+
+
+def observation_entries(sensors: Iterable[Sensor]) -> dict[str, spaces.Space[Any]]:
+    """The observation's entries by key: each sensor's ``space()`` under its ``key``, or, where
+    ``space()`` is a ``spaces.Dict`` (a stereo camera's detections and, when asked for, its
+    images), each of its entries under its own key (the sensor's ``key`` among them: the entry
+    its ``draw`` and the localizers read).
+
+    Raises:
+        ConfigError: if two sensors write the same key, or a Dict lacks the sensor's key.
+    """
+    entries: dict[str, spaces.Space[Any]] = {}
+    owner: dict[str, str] = {}
+    for sensor in sensors:
+        space = sensor.space()
+        parts: dict[str, spaces.Space[Any]] = dict(space.spaces) if isinstance(space, spaces.Dict) else {sensor.key: space}
+        if sensor.key not in parts:
+            raise ConfigError(f"sensor {sensor.name!r}: its observation entries {sorted(parts)} lack its key {sensor.key!r}")
+        for key, part in parts.items():
+            if key in entries:
+                raise ConfigError(
+                    f"sensors {owner[key]!r} and {sensor.name!r} both write observation key {key!r}; give one of them another key"
+                )
+            entries[key] = part
+            owner[key] = sensor.name
+    return entries
 
 
 def apply_overrides(config: WorldConfig, crowd_size: int | None = None, **overrides: Any) -> WorldConfig:

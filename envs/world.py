@@ -54,15 +54,16 @@ class ContactEvent:
 
 @numba.njit(cache=True)
 def _driving_forces(
-    v_now: NDArray[np.float64], v_want: NDArray[np.float64], dt: float, max_accel: float, mass: float
+    v_now: NDArray[np.float64], v_want: NDArray[np.float64], dt: float, max_accel: float, mass: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """Forces ``(N, 2)`` that bring velocities ``v_now`` to ``v_want`` in one step, capped at ``max_accel``."""
+    """Forces ``(N, 2)`` that bring velocities ``v_now`` to ``v_want`` in one step, capped at
+    ``max_accel``, for bodies of ``mass`` ``(N,)``."""
     out = np.empty_like(v_now)
     for i in range(v_now.shape[0]):
         ax = (v_want[i, 0] - v_now[i, 0]) / dt
         ay = (v_want[i, 1] - v_now[i, 1]) / dt
         a = math.sqrt(ax * ax + ay * ay)
-        scale = mass * (min(1.0, max_accel / a) if a > 0 else 1.0)
+        scale = mass[i] * (min(1.0, max_accel / a) if a > 0 else 1.0)
         out[i, 0] = ax * scale
         out[i, 1] = ay * scale
     return out
@@ -423,7 +424,7 @@ class World:
             rows = crowd.member_rows
             cmd[rows, 0:2] = self.velocities[rows]
             cmd[rows, 3:5] = _driving_forces(
-                self.velocities[rows], wants.member_velocity, dt, _CROWD_MAX_ACCEL_MPS2, crowd.config.mass_kg
+                self.velocities[rows], wants.member_velocity, dt, _CROWD_MAX_ACCEL_MPS2, crowd.member_mass_kg
             )
             if wants.ball_velocity is not None:
                 cmd[crowd.rows[crowd.count], 0:2] = wants.ball_velocity

@@ -220,3 +220,13 @@ def check(condition: bool, message: str) -> None:
     """
     if not condition:
         raise ConfigError(message)
+
+
+def check_rgb(value: Any, where: str) -> None:
+    """Raise :class:`ConfigError` unless ``value`` is an RGB colour: three integers 0-255 (``where`` names it)."""
+    check(
+        isinstance(value, (tuple, list))
+        and len(value) == 3
+        and all(isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 255 for c in value),
+        f"{where} must be three integers 0-255, got {value!r}",
+    )

@@ -155,6 +155,8 @@ class Crowd:
         rows: the world's body rows of its bodies (set by the world), members first.
         member_rows: the rows of its members only (a slice: they are consecutive).
         held: ``(M,)`` members frozen in place by a scripted driver.
+        member_mass_kg: ``(M,)`` each member's mass (``mass_kg`` for all by default; a crowd of
+            people and cars sets its own), which the world's driving forces use.
     """
 
     fill: tuple[int, int, int] = (60, 60, 60)
@@ -164,12 +166,19 @@ class Crowd:
         self.name = name
         self.config = config
         self.world_config = world
-        self.count = int(config.count)
-        self.radii_m = np.full(self.count, config.radius_m)
-        self.held = np.zeros(self.count, dtype=np.bool_)
-        self.max_speed = np.full(self.count, config.speed_mps)
+        self.size_members(int(config.count))
         self.rows = np.zeros(0, dtype=np.int64)
         self.member_rows = slice(0, 0)
+
+    def size_members(self, count: int) -> None:
+        """Make the per-member arrays for ``count`` members of the config's size, speed and mass
+        (a crowd with members besides ``config.count``, such as standing groups, calls it again)."""
+        c = self.config
+        self.count = count
+        self.radii_m = np.full(count, c.radius_m)
+        self.held = np.zeros(count, dtype=np.bool_)
+        self.max_speed = np.full(count, c.speed_mps)
+        self.member_mass_kg = np.full(count, c.mass_kg)
 
     def bodies(self) -> list[BodySpec]:
         """The crowd's bodies, members first (override to add a ball or other bodies)."""

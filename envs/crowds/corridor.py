@@ -274,10 +274,7 @@ class CorridorCrowd(Crowd):
         self.sizes = sizes = config.sizes
         self.walkers = int(config.count)
         self.standing = int(sum(sizes))
-        self.count = self.walkers + self.standing
-        self.radii_m = np.full(self.count, config.radius_m)
-        self.held = np.zeros(self.count, dtype=np.bool_)
-        self.max_speed = np.full(self.count, config.speed_mps)
+        self.size_members(self.walkers + self.standing)
         self.group_of = np.repeat(np.arange(len(sizes)), sizes).astype(np.int64)
         self.seg_a, self.seg_b = world.wall_segments()
         x0, y0, x1, y1 = world.field_m

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envs.features.base import FeatureConfig, register_feature
-from localizers.schema import check
+from localizers.schema import check, check_rgb
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -59,13 +59,6 @@ LABEL_NAMES = {
 def colour_label(name: str) -> int:
     """The pixel label of target colour ``name``."""
     return LABEL_COLOUR + list(PALETTE).index(name)
-
-
-def _check_rgb(value: Any, where: str) -> None:
-    check(
-        len(value) == 3 and all(isinstance(c, int) and 0 <= c <= 255 for c in value),
-        f"{where} must be three integers 0-255, got {value!r}",
-    )
 
 
 @dataclass(frozen=True)
@@ -111,8 +104,8 @@ class SignConfig:
             self.size_m[0] > 0 and self.size_m[1] > 0,
             f"sign at ({self.x_m}, {self.y_m}): size_m must be positive, got {self.size_m}",
         )
-        _check_rgb(self.rgb, "sign rgb")
-        _check_rgb(self.text_rgb, "sign text_rgb")
+        check_rgb(self.rgb, "sign rgb")
+        check_rgb(self.text_rgb, "sign text_rgb")
 
 
 class Primitives(NamedTuple):
@@ -183,7 +176,7 @@ class CeilingConfig(FeatureConfig):
             f"ceiling.light_size_m must be positive, got {self.light_size_m}",
         )
         for name in ("rgb", "joint_rgb", "light_rgb", "sprinkler_rgb"):
-            _check_rgb(getattr(self, name), f"ceiling.{name}")
+            check_rgb(getattr(self, name), f"ceiling.{name}")
         names = [t.name for t in self.targets]
         check(len(set(names)) == len(names), f"ceiling.targets: names repeat: {names}")
         ys = [t.y_m for t in self.targets]

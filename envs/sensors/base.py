@@ -57,7 +57,10 @@ class Sensor(Protocol):
     """What the env calls on a sensor.
 
     ``observe`` returns the observation array (inside ``space()``: float32, or uint8 for images) and a dict of
-    ground-truth facts for ``info``. ``command`` sees the exact commanded increment before
+    ground-truth facts for ``info``. A sensor with several observation entries (a stereo
+    camera's detections and its images) returns a ``spaces.Dict`` from ``space()``, one of
+    whose keys is its ``key``, and a dict of arrays from ``observe``; the env puts each entry
+    under its own key. ``command`` sees the exact commanded increment before
     every physics step (odometry records it). ``metadata`` is what a localizer or a
     recording needs to interpret the readings (plain numbers and arrays, no env objects).
     ``draw`` adds the sensor to a rendered frame; ``draw_layer`` says whether it goes
@@ -69,13 +72,15 @@ class Sensor(Protocol):
     config: Any
     draw_layer: str
 
-    def space(self) -> spaces.Box: ...
+    def space(self) -> spaces.Box | spaces.Dict: ...
 
     def reset(self) -> None: ...
 
     def command(self, delta: NDArray[np.float64], rng: np.random.Generator) -> None: ...
 
-    def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[Any], dict[str, Any]]: ...
+    def observe(
+        self, state: WorldState, rng: np.random.Generator
+    ) -> tuple[NDArray[Any] | dict[str, NDArray[Any]], dict[str, Any]]: ...
 
     def metadata(self) -> dict[str, Any]: ...
 
