@@ -1,0 +1,10 @@
+"""The machinery of the stereo camera sensor (:mod:`envs.sensors.stereo_camera`).
+
+- :mod:`.scene`: the world as a forward camera sees it, packed into flat arrays (static solids
+  with their façades, the walls, the moving bodies' parts with their colours);
+- :mod:`.render`: the image mode's column ray caster (RGB images with exposure and noise);
+- :mod:`.geometric`: the fast mode, the same edges computed from the geometry.
+
+The image functions that also run on real camera frames (the vertical edge filter, trinocular
+matching, the paper's triangulation) are in :mod:`localizers.stereo_vision`.
+"""

@@ -1,0 +1,541 @@
+"""The fast mode: the edges the image mode would detect, computed from the world's geometry.
+
+Instead of rendering three images and filtering them, the fast mode lists the vertical lines
+of the world where a colour changes as the middle camera sees it, and gives each the filter
+response the image mode's tall filter would measure at each detection row:
+
+- *façade breaks*: the vertical edges inside the façades (windows, panels, pilasters, doors:
+  :class:`envs.stereo.scene.StaticScene`'s breaks), on the sides that face the camera;
+- *corners and silhouettes* of every convex object (buildings, poles, trunks, crowns, the
+  box parts of cars): a corner where two sides facing the camera meet (their colours differ
+  by their shading), a silhouette where a side facing the camera meets one facing away (the
+  object's colour against whatever the line of sight meets behind it, or the sky or the
+  ground);
+- the two *silhouettes* of every disc part (people's legs, torsos, heads) against what is behind.
+
+For each line and detection row, the response per channel is the sum, over the line's height
+runs, of the share of the filter window's rows the run covers at the line's depth times the
+colour step across it (right minus left): exactly what the image filter gives for a sharp edge
+with uniform colours either side. The line counts at a row only if its line of sight (through
+the middle of the covered part) is clear up to it; a silhouette's background is what that
+line of sight meets beyond it. An object narrower in the image than half the filter's width
+(a far pole) gives a proportionally weaker response, as it does in the images.
+
+Approximations (documented, measured against the image mode in the tests): occlusion and the
+background are taken on one line of sight per row rather than over the window; the colours of
+a corner or silhouette are taken at that line's height; lines closer together than half the
+filter's width are not mixed (the weaker of two of a type is dropped, :func:`suppress`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from envs.stereo.render import NEAR_M
+from envs.stereo.scene import StaticScene
+
+Array = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+_EPS_M = 1e-3
+#: bins of columns for the line-of-sight queries
+_BIN_PX = 8
+SEGMENT, DISC = 0, 1
+
+
+@numba.njit(cache=True, inline="always")
+def _facade(p: int, s: float, z: float, prof_first: IntArray, int_s1: Array, int_first_run: IntArray, run_z1: Array,
+            run_rgb: Array, out: Array) -> None:  # fmt: skip
+    """The colour of façade profile ``p`` at ``(s, z)`` into ``out`` (3,)."""
+    g = prof_first[p]
+    g_end = prof_first[p + 1]
+    while g < g_end - 1 and s >= int_s1[g]:
+        g += 1
+    j = int_first_run[g]
+    last = int_first_run[g + 1] - 1
+    while j < last and z >= run_z1[j]:
+        j += 1
+    for c in range(3):
+        out[c] = run_rgb[j, c]
+
+
+@numba.njit(cache=True)
+def _entries(
+    cam: Array, fwd: Array, focal: float, cx: float, width: int, max_range: float,
+    seg_a: Array, seg_b: Array, seg_z0: Array, seg_z1: Array, cull: NDArray[np.bool_],
+    disc_xy: Array, disc_r: Array, disc_z0: Array, disc_z1: Array,
+) -> tuple[Array, Array, IntArray, IntArray, IntArray]:  # fmt: skip
+    """Everything a line of sight can meet, in the camera's (right X, forward Z) frame, binned by column.
+
+    Returns:
+        geometry ``(N, 7)``: ``(x0, z0, x1, z1, height bottom, height top, nearest depth)``
+        (a segment's ends, or a disc's centre and radius in ``x1``); ``kind`` ``(N,)``
+        (SEGMENT, DISC) and ``ref`` ``(N,)`` (segment or disc index) are in ``index``;
+        ``bins``: CSR ``(first (B + 1,), members)`` sorted by nearest depth within each bin.
+    """
+    n_seg = seg_a.shape[0]
+    n_disc = disc_xy.shape[0]
+    total = n_seg + n_disc
+    geom = np.empty((total, 7))
+    kind = np.empty(total, dtype=np.int64)
+    ref = np.empty(total, dtype=np.int64)
+    k_lo = np.empty(total, dtype=np.int64)
+    k_hi = np.empty(total, dtype=np.int64)
+    fx, fy = fwd[0], fwd[1]
+    rx, ry = fy, -fx
+    n = 0
+    for i in range(n_seg):
+        ax = seg_a[i, 0] - cam[0]
+        ay = seg_a[i, 1] - cam[1]
+        bx = seg_b[i, 0] - cam[0]
+        by = seg_b[i, 1] - cam[1]
+        if cull[i] and -ax * (by - ay) + ay * (bx - ax) <= 0.0:
+            continue
+        xa = ax * rx + ay * ry
+        za = ax * fx + ay * fy
+        xb = bx * rx + by * ry
+        zb = bx * fx + by * fy
+        if (za < NEAR_M and zb < NEAR_M) or (za > max_range and zb > max_range):
+            continue
+        ca_x, ca_z, cb_x, cb_z = xa, za, xb, zb
+        if ca_z < NEAR_M:
+            t = (NEAR_M - za) / (zb - za)
+            ca_x = xa + t * (xb - xa)
+            ca_z = NEAR_M
+        elif cb_z < NEAR_M:
+            t = (NEAR_M - za) / (zb - za)
+            cb_x = xa + t * (xb - xa)
+            cb_z = NEAR_M
+        ua = cx + focal * ca_x / ca_z
+        ub = cx + focal * cb_x / cb_z
+        lo = max(0.0, min(ua, ub))
+        hi = min(width - 1e-9, max(ua, ub))
+        if hi < lo:
+            continue
+        geom[n, 0] = xa
+        geom[n, 1] = za
+        geom[n, 2] = xb
+        geom[n, 3] = zb
+        geom[n, 4] = seg_z0[i]
+        geom[n, 5] = seg_z1[i]
+        geom[n, 6] = min(ca_z, cb_z)
+        kind[n] = SEGMENT
+        ref[n] = i
+        k_lo[n] = int(lo) // _BIN_PX
+        k_hi[n] = int(hi) // _BIN_PX
+        n += 1
+    for i in range(n_disc):
+        px = disc_xy[i, 0] - cam[0]
+        py = disc_xy[i, 1] - cam[1]
+        xc = px * rx + py * ry
+        zc = px * fx + py * fy
+        r = disc_r[i]
+        if zc - r < NEAR_M or zc - r > max_range:
+            continue
+        a = zc * zc - r * r
+        d = xc * xc + zc * zc - r * r
+        if a <= 0.0 or d <= 0.0:
+            continue
+        root = r * math.sqrt(d)
+        lo = max(0.0, cx + focal * (xc * zc - root) / a)
+        hi = min(width - 1e-9, cx + focal * (xc * zc + root) / a)
+        if hi < lo:
+            continue
+        geom[n, 0] = xc
+        geom[n, 1] = zc
+        geom[n, 2] = r
+        geom[n, 3] = 0.0
+        geom[n, 4] = disc_z0[i]
+        geom[n, 5] = disc_z1[i]
+        geom[n, 6] = zc - r
+        kind[n] = DISC
+        ref[n] = i
+        k_lo[n] = int(lo) // _BIN_PX
+        k_hi[n] = int(hi) // _BIN_PX
+        n += 1
+    bins = (width + _BIN_PX - 1) // _BIN_PX
+    first = np.zeros(bins + 1, dtype=np.int64)
+    for e in range(n):
+        for b in range(k_lo[e], k_hi[e] + 1):
+            first[b + 1] += 1
+    for b in range(bins):
+        first[b + 1] += first[b]
+    fill = first[:-1].copy()
+    members = np.empty(first[bins], dtype=np.int64)
+    for e in range(n):
+        for b in range(k_lo[e], k_hi[e] + 1):
+            members[fill[b]] = e
+            fill[b] += 1
+    for b in range(bins):  # insertion sort by nearest depth
+        for i in range(first[b] + 1, first[b + 1]):
+            j = i
+            while j > first[b] and geom[members[j - 1], 6] > geom[members[j], 6]:
+                tmp = members[j - 1]
+                members[j - 1] = members[j]
+                members[j] = tmp
+                j -= 1
+    index = np.empty((n, 2), dtype=np.int64)
+    index[:, 0] = kind[:n]
+    index[:, 1] = ref[:n]
+    return geom[:n], index[:, 0].copy(), index[:, 1].copy(), first, members
+
+
+@numba.njit(cache=True, inline="always")
+def _crossing(geom: Array, kind: int, e: int, t: float) -> tuple[float, float]:
+    """Depth and distance along the segment (0 for a disc) where the line ``X = t Z`` meets entry
+    ``e`` (the near crossing of a disc), depth -1 where it does not."""
+    if kind == SEGMENT:
+        xa, za, xb, zb = geom[e, 0], geom[e, 1], geom[e, 2], geom[e, 3]
+        dx = xb - xa
+        dz = zb - za
+        denom = dx - t * dz
+        if denom == 0.0:
+            return -1.0, 0.0
+        lam = (t * za - xa) / denom
+        if lam < 0.0 or lam > 1.0:
+            return -1.0, 0.0
+        return za + lam * dz, lam
+    xc, zc, r = geom[e, 0], geom[e, 1], geom[e, 2]
+    q = 1.0 + t * t
+    b = t * xc + zc
+    d = b * b - q * (xc * xc + zc * zc - r * r)
+    if d < 0.0:
+        return -1.0, 0.0
+    return (b - math.sqrt(d)) / q, 0.0
+
+
+@numba.njit(cache=True)
+def _sight(
+    u: float, slope: float, depth_lo: float, depth_hi: float, stop_at_first: bool,
+    focal: float, cx: float, cam_h: float, geom: Array, kind: IntArray, first: IntArray, members: IntArray,
+) -> tuple[int, float, float]:  # fmt: skip
+    """The nearest thing the line of sight through column ``u``, rising ``slope`` metres per
+    metre of depth from the camera's height, meets between depths ``depth_lo`` and ``depth_hi``
+    (its height interval holding the line's height there): ``(entry, depth, lambda)``, entry -1
+    if none. With ``stop_at_first`` any such crossing is returned (an occlusion test)."""
+    t = (u - cx) / focal
+    b = int(u) // _BIN_PX
+    if b < 0 or b >= first.shape[0] - 1:
+        return -1, 0.0, 0.0
+    best = -1
+    best_z = depth_hi
+    best_lam = 0.0
+    for m in range(first[b], first[b + 1]):
+        e = members[m]
+        if geom[e, 6] >= best_z:
+            break  # sorted by nearest depth: nothing nearer follows
+        z, lam = _crossing(geom, kind[e], e, t)
+        if z <= depth_lo or z >= best_z:
+            continue
+        height = cam_h + slope * z
+        if height < geom[e, 4] or height >= geom[e, 5]:
+            continue
+        best = e
+        best_z = z
+        best_lam = lam
+        if stop_at_first:
+            break
+    return best, best_z, best_lam
+
+
+@numba.njit(cache=True)
+def _colour_at(
+    e: int, depth: float, lam: float, slope: float, v: float, geom: Array, kind: IntArray, ref: IntArray,
+    n_static: int, seg_profile: IntArray, seg_length: Array, seg_rgb: Array, side_rgb: Array, disc_rgb: Array,
+    prof_first: IntArray, int_s1: Array, int_first_run: IntArray, run_z1: Array, run_rgb: Array,
+    background: Array, cam_h: float, out: Array,
+) -> None:  # fmt: skip
+    """The colour of entry ``e`` where a line of sight meets it (``depth``, ``lam``), or the
+    background row ``v`` where ``e`` is -1."""
+    if e < 0:
+        row = min(max(int(v), 0), background.shape[0] - 1)
+        for c in range(3):
+            out[c] = background[row, c]
+        return
+    i = ref[e]
+    if kind[e] == DISC:
+        for c in range(3):
+            out[c] = disc_rgb[i, c]
+        return
+    if i >= n_static:
+        for c in range(3):
+            out[c] = side_rgb[i - n_static, c]
+        return
+    p = seg_profile[i]
+    if p < 0:
+        for c in range(3):
+            out[c] = seg_rgb[i, c]
+        return
+    _facade(p, lam * seg_length[i], cam_h + slope * depth, prof_first, int_s1, int_first_run, run_z1, run_rgb, out)
+
+
+@numba.njit(cache=True)
+def _window(z0: float, z1: float, depth: float, row: int, half: int, focal: float, cy: float, cam_h: float) -> tuple[float, float]:
+    """The share of the filter window (rows ``row - half`` to ``row + half``) that the heights
+    ``[z0, z1)`` at ``depth`` cover, and the middle height of the covered part."""
+    top = cam_h + (cy - (row - half)) * depth / focal
+    bottom = cam_h + (cy - (row + half + 1)) * depth / focal
+    lo = max(z0, bottom)
+    hi = min(z1, top)
+    if hi <= lo:
+        return 0.0, 0.0
+    return (hi - lo) / (top - bottom), 0.5 * (lo + hi)
+
+
+@numba.njit(cache=True)
+def lines(
+    cam: Array, fwd: Array, focal: float, cx: float, cy: float, width: int, cam_h: float, max_range: float,
+    rows: IntArray, half: int, margin_px: float, min_response: float, narrow_px: float,
+    seg_a: Array, seg_b: Array, seg_z0: Array, seg_z1: Array, cull: NDArray[np.bool_], n_static: int,
+    seg_profile: IntArray, seg_length: Array, seg_rgb: Array, side_rgb: Array,
+    obj_first: IntArray, obj_count: IntArray, obj_z0: Array, obj_z1: Array,
+    seg_first_brk: IntArray, brk_xy: Array, brk_first_run: IntArray, brun_z0: Array, brun_z1: Array,
+    brun_left: Array, brun_right: Array,
+    disc_xy: Array, disc_r: Array, disc_z0: Array, disc_z1: Array, disc_rgb: Array,
+    prof_first: IntArray, int_s1: Array, int_first_run: IntArray, run_z1: Array, run_rgb: Array,
+    background: Array,
+) -> tuple[Array, Array, IntArray, Array]:  # fmt: skip
+    """Every vertical colour line the middle camera sees, with its response at each detection row.
+
+    ``seg_*`` hold the static segments followed by the moving box sides (``n_static`` static
+    ones); objects (convex solids, then the boxes) are runs of consecutive segments.
+
+    Returns:
+        ``X``, ``Z`` ``(N,)``: each line's point in the middle camera's (right, forward) frame;
+        ``level`` ``(N,)``: the detection row; ``response`` ``(N, 3)``: the filter's response per
+        channel (right minus left, at unit gain). Only lines whose largest response reaches
+        ``min_response`` are kept.
+    """
+    geom, kind, ref, first, members = _entries(cam, fwd, focal, cx, width, max_range, seg_a, seg_b, seg_z0, seg_z1, cull,
+                                               disc_xy, disc_r, disc_z0, disc_z1)  # fmt: skip
+    fx, fy = fwd[0], fwd[1]
+    rx, ry = fy, -fx
+    levels = rows.shape[0]
+    cap = 4096
+    out_x = np.empty(cap)
+    out_z = np.empty(cap)
+    out_l = np.empty(cap, dtype=np.int64)
+    out_r = np.empty((cap, 3))
+    n = 0
+    left = np.empty(3)
+    right = np.empty(3)
+    resp = np.empty(3)
+    u_lo = margin_px
+    u_hi = width - margin_px
+    # ---- façade breaks, side by side
+    for i in range(n_static):
+        lo_b = seg_first_brk[i]
+        hi_b = seg_first_brk[i + 1]
+        if hi_b == lo_b:
+            continue
+        ax = seg_a[i, 0] - cam[0]
+        ay = seg_a[i, 1] - cam[1]
+        bx = seg_b[i, 0] - cam[0]
+        by = seg_b[i, 1] - cam[1]
+        if -ax * (by - ay) + ay * (bx - ax) <= 0.0:
+            continue  # seen from inside its solid: a back face
+        for k in range(lo_b, hi_b):
+            px = brk_xy[k, 0] - cam[0]
+            py = brk_xy[k, 1] - cam[1]
+            z = px * fx + py * fy
+            if z < NEAR_M or z > max_range:
+                continue
+            x = px * rx + py * ry
+            u = cx + focal * x / z
+            if u < u_lo or u >= u_hi:
+                continue
+            for lv in range(levels):
+                for c in range(3):
+                    resp[c] = 0.0
+                mid_lo = 1e300
+                mid_hi = -1e300
+                for j in range(brk_first_run[k], brk_first_run[k + 1]):
+                    share, mid = _window(brun_z0[j], brun_z1[j], z, rows[lv], half, focal, cy, cam_h)
+                    if share <= 0.0:
+                        continue
+                    mid_lo = min(mid_lo, mid)
+                    mid_hi = max(mid_hi, mid)
+                    for c in range(3):
+                        resp[c] += share * (brun_right[j, c] - brun_left[j, c])
+                if abs(resp[0]) < min_response and abs(resp[1]) < min_response and abs(resp[2]) < min_response:
+                    continue
+                slope = (0.5 * (mid_lo + mid_hi) - cam_h) / z
+                e, _, _ = _sight(u, slope, NEAR_M, z - _EPS_M, True, focal, cx, cam_h, geom, kind, first, members)
+                if e >= 0 or n >= cap:
+                    continue
+                out_x[n] = x
+                out_z[n] = z
+                out_l[n] = lv
+                for c in range(3):
+                    out_r[n, c] = resp[c]
+                n += 1
+    # ---- corners and silhouettes of the objects (static solids, then the boxes)
+    for o in range(obj_first.shape[0]):
+        f0 = obj_first[o]
+        cnt = obj_count[o]
+        zlo = obj_z0[o]
+        zhi = obj_z1[o]
+        # the object's extent in the image: narrow objects respond weakly
+        u_min = 1e300
+        u_max = -1e300
+        for q in range(cnt):
+            s = f0 + q
+            px = seg_a[s, 0] - cam[0]
+            py = seg_a[s, 1] - cam[1]
+            z = px * fx + py * fy
+            if z < NEAR_M:
+                u_min = -1e300
+                break
+            uu = cx + focal * (px * rx + py * ry) / z
+            u_min = min(u_min, uu)
+            u_max = max(u_max, uu)
+        narrow = 1.0 if u_min == -1e300 else min(1.0, (u_max - u_min) / narrow_px)
+        for q in range(cnt):
+            s = f0 + q
+            prev = f0 + (q - 1 + cnt) % cnt
+            ax = seg_a[s, 0] - cam[0]
+            ay = seg_a[s, 1] - cam[1]
+            bx = seg_b[s, 0] - cam[0]
+            by = seg_b[s, 1] - cam[1]
+            front = -ax * (by - ay) + ay * (bx - ax) > 0.0
+            pax = seg_a[prev, 0] - cam[0]
+            pay = seg_a[prev, 1] - cam[1]
+            front_prev = -pax * (ay - pay) + pay * (ax - pax) > 0.0  # prev side ends at this corner
+            if not front and not front_prev:
+                continue
+            z = ax * fx + ay * fy
+            if z < NEAR_M or z > max_range:
+                continue
+            x = ax * rx + ay * ry
+            u = cx + focal * x / z
+            if u < u_lo or u >= u_hi:
+                continue
+            for lv in range(levels):
+                share, mid = _window(zlo, zhi, z, rows[lv], half, focal, cy, cam_h)
+                if share <= 0.0:
+                    continue
+                slope = (mid - cam_h) / z
+                e, _, _ = _sight(u, slope, NEAR_M, z - _EPS_M, True, focal, cx, cam_h, geom, kind, first, members)
+                if e >= 0:
+                    continue
+                v = cy - focal * slope
+                if front_prev:  # the side ending here: its colour at its end
+                    _side_colour(prev, seg_length[prev], mid, n_static, seg_profile, seg_rgb, side_rgb, prof_first, int_s1,
+                                 int_first_run, run_z1, run_rgb, left)  # fmt: skip
+                if front:
+                    _side_colour(s, 0.0, mid, n_static, seg_profile, seg_rgb, side_rgb, prof_first, int_s1, int_first_run,
+                                 run_z1, run_rgb, right)  # fmt: skip
+                if not (front and front_prev):  # a silhouette: what lies behind on the open side
+                    eb, zb, lamb = _sight(u, slope, z + _EPS_M, max_range, False, focal, cx, cam_h, geom, kind, first, members)
+                    _colour_at(eb, zb, lamb, slope, v, geom, kind, ref, n_static, seg_profile, seg_length, seg_rgb, side_rgb,
+                               disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background, cam_h,
+                               right if front_prev else left)  # fmt: skip
+                weight = share if front and front_prev else share * narrow
+                big = 0.0
+                for c in range(3):
+                    resp[c] = weight * (right[c] - left[c])
+                    big = max(big, abs(resp[c]))
+                if big < min_response or n >= cap:
+                    continue
+                out_x[n] = x
+                out_z[n] = z
+                out_l[n] = lv
+                for c in range(3):
+                    out_r[n, c] = resp[c]
+                n += 1
+    # ---- the silhouettes of the discs
+    for i in range(disc_xy.shape[0]):
+        px = disc_xy[i, 0] - cam[0]
+        py = disc_xy[i, 1] - cam[1]
+        xc = px * rx + py * ry
+        zc = px * fx + py * fy
+        r = disc_r[i]
+        if zc - r < NEAR_M or zc > max_range:
+            continue
+        d2 = xc * xc + zc * zc
+        if d2 <= r * r:
+            continue
+        dist = math.sqrt(d2)
+        tangent = math.sqrt(d2 - r * r)
+        narrow = min(1.0, 2.0 * focal * r / zc / narrow_px)
+        for side in (-1.0, 1.0):  # -1: the left silhouette (smaller u), +1: the right one
+            # the tangent point: turn the direction to the centre by asin(r / dist) toward the side
+            ang = math.atan2(xc, zc) + side * math.asin(r / dist)
+            x = tangent * math.sin(ang)
+            z = tangent * math.cos(ang)
+            if z < NEAR_M:
+                continue
+            u = cx + focal * x / z
+            if u < u_lo or u >= u_hi:
+                continue
+            for lv in range(levels):
+                share, mid = _window(disc_z0[i], disc_z1[i], z, rows[lv], half, focal, cy, cam_h)
+                if share <= 0.0:
+                    continue
+                slope = (mid - cam_h) / z
+                e, _, _ = _sight(u, slope, NEAR_M, z - _EPS_M, True, focal, cx, cam_h, geom, kind, first, members)
+                if e >= 0:
+                    continue
+                v = cy - focal * slope
+                eb, zb, lamb = _sight(u, slope, z + _EPS_M, max_range, False, focal, cx, cam_h, geom, kind, first, members)
+                if side < 0:
+                    _colour_at(eb, zb, lamb, slope, v, geom, kind, ref, n_static, seg_profile, seg_length, seg_rgb, side_rgb,
+                               disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background, cam_h, left)  # fmt: skip
+                    for c in range(3):
+                        right[c] = disc_rgb[i, c]
+                else:
+                    _colour_at(eb, zb, lamb, slope, v, geom, kind, ref, n_static, seg_profile, seg_length, seg_rgb, side_rgb,
+                               disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background, cam_h, right)  # fmt: skip
+                    for c in range(3):
+                        left[c] = disc_rgb[i, c]
+                big = 0.0
+                for c in range(3):
+                    resp[c] = share * narrow * (right[c] - left[c])
+                    big = max(big, abs(resp[c]))
+                if big < min_response or n >= cap:
+                    continue
+                out_x[n] = x
+                out_z[n] = z
+                out_l[n] = lv
+                for c in range(3):
+                    out_r[n, c] = resp[c]
+                n += 1
+    return out_x[:n].copy(), out_z[:n].copy(), out_l[:n].copy(), out_r[:n].copy()
+
+
+@numba.njit(cache=True)
+def _side_colour(
+    s: int, along: float, z: float, n_static: int, seg_profile: IntArray, seg_rgb: Array, side_rgb: Array,
+    prof_first: IntArray, int_s1: Array, int_first_run: IntArray, run_z1: Array, run_rgb: Array, out: Array,
+) -> None:  # fmt: skip
+    """The colour of segment ``s`` at ``along`` metres from its first end and height ``z``."""
+    if s >= n_static:
+        for c in range(3):
+            out[c] = side_rgb[s - n_static, c]
+        return
+    p = seg_profile[s]
+    if p < 0:
+        for c in range(3):
+            out[c] = seg_rgb[s, c]
+        return
+    _facade(p, along, z, prof_first, int_s1, int_first_run, run_z1, run_rgb, out)
+
+
+def suppress(u: Array, types: IntArray, strength: Array, within_px: float) -> NDArray[np.bool_]:
+    """Which edges to keep: of two of one type closer than ``within_px``, the weaker is dropped
+    (the image filter cannot tell them apart either)."""
+    keep = np.ones(u.shape[0], dtype=np.bool_)
+    if u.shape[0] < 2:
+        return keep
+    order = np.lexsort((u, types))
+    su, st, ss = u[order], types[order], strength[order]
+    close = (np.diff(st) == 0) & (np.diff(su) < within_px)
+    for i in np.flatnonzero(close):  # few: neighbouring lines of one type
+        a, b = order[i], order[i + 1]
+        if keep[a] and keep[b]:
+            keep[b if ss[i] >= ss[i + 1] else a] = False
+    return keep
