@@ -1,8 +1,9 @@
 """Sensors as plug-ins: one module per sensor type, registered by type name.
 
 Built in: ``odometry`` (:mod:`.odometry`), ``bearing_camera`` (:mod:`.bearing_camera`),
-``lidar`` (:mod:`.lidar`), ``sonar`` (:mod:`.sonar`) and ``ceiling_camera`` (:mod:`.ceiling_camera`), the last two on the shared
-:class:`~envs.sensors.ranging.RangeSensor`. See :mod:`.base` for the interface and
+``lidar`` (:mod:`.lidar`), ``sonar`` (:mod:`.sonar`) (those two on the shared
+:class:`~envs.sensors.ranging.RangeSensor`), ``ceiling_camera`` (:mod:`.ceiling_camera`) and
+``stereo_camera`` (:mod:`.stereo_camera`). See :mod:`.base` for the interface and
 ``docs/architecture.md`` for adding one.
 """
 
@@ -24,6 +25,7 @@ from envs.sensors.lidar import Lidar, LidarConfig
 from envs.sensors.odometry import Odometry, OdometryConfig
 from envs.sensors.ranging import RangeSensor
 from envs.sensors.sonar import Sonar, SonarConfig
+from envs.sensors.stereo_camera import StereoCamera, StereoCameraConfig
 
 __all__ = [
     "BearingCamera",
@@ -41,6 +43,8 @@ __all__ = [
     "SensorType",
     "Sonar",
     "SonarConfig",
+    "StereoCamera",
+    "StereoCameraConfig",
     "build_sensor",
     "register_sensor",
     "sensor_type",

@@ -280,7 +280,7 @@ class ColumnRenderer:
         self._count = np.zeros(self.width, dtype=np.int64)
         self._static_count = scene.seg_a.shape[0]
         self._no_noise = np.zeros(1, dtype=np.float32)
-        self._background = background_rows(self.height, self.cy)
+        self.background = background_rows(self.height, self.cy)
 
     def render(
         self,
@@ -316,6 +316,6 @@ class ColumnRenderer:
         ref_profile = np.concatenate((sc.seg_profile, np.full(n_sides + disc_xy.shape[0], -1, dtype=np.int64)))
         image = np.empty((self.height, self.width, 3), dtype=np.uint8)
         _fill(image, self.focal, self.cy, self.cam_h, *buffers, ref_z0, ref_z1, ref_rgb, ref_profile,
-              sc.prof_first, sc.int_s0, sc.int_s1, sc.int_first_run, sc.run_z0, sc.run_z1, sc.run_rgb, self._background,
+              sc.prof_first, sc.int_s0, sc.int_s1, sc.int_first_run, sc.run_z0, sc.run_z1, sc.run_rgb, self.background,
               float(gain), self._no_noise if noise is None else noise)  # fmt: skip
         return image

@@ -1,0 +1,416 @@
+"""A trinocular stereo camera that finds typed vertical edges (the far-landmark paper, paper D).
+
+Three level, forward-looking cameras in a row, ``baseline_m`` (the paper's 19 cm) from one to
+the next, the middle one ``forward_m`` ahead of the robot's centre at ``height_m``. Each frame
+the sensor reports the vertical edges seen by all three cameras, each as a detection slot
+``(valid, type, inverse range 1/m, bearing rad)``:
+
+1. **edges**: at 5 detection rows in the upper part of the image, the paper's tall filter
+   (101 x 7 at 640 x 480, scaled to the resolution) on each colour channel; an edge's *type*
+   is its channel, row and polarity (rising or falling), 30 types
+   (:func:`localizers.stereo_vision.edge_type`);
+2. **matching**: left and right edges of one type, each pair confirmed by an edge of that type in
+   the middle camera half-way between them (:func:`localizers.stereo_vision.match_trinocular`);
+3. **range and bearing** from the outer pair's disparity by the paper's eqs. (2)-(5),
+   converted to the robot frame (:func:`localizers.stereo_vision.rig_range_bearing`): the
+   range error grows as ``r^2 / (f b)``.
+
+Two modes produce step 1:
+
+- ``mode: image``: each camera renders an RGB image of the 2.5-D world (a column ray caster,
+  :mod:`envs.stereo.render`: façades, poles, trees, people in their clothes, cars; a person a few
+  metres away covers the upper rows, a building behind rises above them), with an exposure
+  gain that drifts (auto exposure) and pixel noise; the edges are found on the images, as on a
+  real robot's;
+- ``mode: fast`` (the default): the same edges computed from the geometry
+  (:mod:`envs.stereo.geometric`: façade breaks, corners and silhouettes with the filter's
+  response at each row), projected into each camera with ``edge_noise_px`` of pixel noise,
+  then matched and triangulated exactly as in the image mode. Training and sweeps use it; a
+  test shows both modes find the same edges on a clean scene.
+
+The images are in the observation only with ``images: true`` (keys ``<key>_left``,
+``<key>_middle``, ``<key>_right``, uint8 ``(H, W, 3)``); the fast mode then renders them
+too. Detections beyond ``slots`` are dropped, the weakest first; the kept ones fill the slots
+from left to right in the image. ``info["<key>_detections"]`` counts them,
+``info["<key>_dropped"]`` the dropped.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from envs.sensors.base import SensorBase, SensorConfig, register_sensor
+from envs.state import WorldState
+from envs.stereo.geometric import lines, suppress
+from envs.stereo.render import ColumnRenderer
+from envs.stereo.scene import Rig, static_scene
+from localizers.schema import check
+from localizers.stereo_vision import (
+    CHANNEL_COLOURS,
+    EDGE_TYPES,
+    LEVELS,
+    EdgeDetector,
+    EdgeList,
+    TrinocularRig,
+    check_rows,
+    edge_types,
+    edge_types_parts,
+    filter_size,
+)
+
+if TYPE_CHECKING:
+    from envs.config import WorldConfig
+
+#: one slot: (valid, type, inverse range 1/m, bearing rad)
+SLOT_FIELDS = ("valid", "type", "inverse_range_m", "bearing_rad")
+CAMERAS = ("left", "middle", "right")
+_NOISE_POOL = 1 << 18  # noise offsets drawn per frame (the pool holds this plus one frame)
+
+#: overrides that make the cameras ideal (no pixel noise, no exposure changes, no edge noise): for tests and studies
+IDEAL = {"pixel_noise_std": 0.0, "gain_std": 0.0, "edge_noise_px": 0.0}
+
+
+@dataclass(frozen=True)
+class StereoCameraConfig(SensorConfig):
+    """Three forward cameras in a row and their edge detection (module docstring).
+
+    Defaults: the paper's rig (19 cm between neighbours) of 640 x 480 webcams with a 60 deg
+    horizontal field of view (f = 554 px; ours: the paper names the BUFFALO BSW200MBK, not its
+    lens), about 1 m up (ours: the robot's photo). ``detection_rows_px``: the 5 rows, top to
+    bottom, in the image's upper part (None: evenly from 1/8 to 11/24 of the height, 60-220 at
+    480 px); ``threshold``: the least filter response of an edge, in 0-255 units of the
+    channel step it sees (ours: the paper thresholds without giving the value);
+    ``match_tolerance_px``: how near the middle camera's edge must be to the pair's midpoint;
+    ``min_range_m``, ``max_range_m``: the depths matching considers (nearer than where the
+    three views overlap nothing can be matched: ``2 baseline f / width``).
+    Image mode: ``pixel_noise_std`` (0-255 units), the exposure gain's auto-exposure drift
+    (``gain_std`` per step, pulled back to 1 at ``gain_rho`` per step, within ``gain_range``);
+    fast mode: ``edge_noise_px``, the sd of an edge's column in each camera.
+    """
+
+    key: str = "stereo"
+    mode: Literal["fast", "image"] = "fast"
+    images: bool = False
+    width_px: int = 640
+    height_px: int = 480
+    focal_px: float = 554.26
+    principal_point_px: tuple[float, float] | None = None  # (cx, cy); None: the image centre
+    baseline_m: float = 0.19
+    height_m: float = 1.0
+    forward_m: float = 0.2
+    detection_rows_px: tuple[int, ...] | None = None
+    threshold: float = 18.0
+    match_tolerance_px: float = 1.5
+    min_range_m: float = 1.0
+    max_range_m: float = 100.0
+    slots: int = 96
+    edge_noise_px: float = 0.4
+    pixel_noise_std: float = 2.0
+    gain_std: float = 0.01
+    gain_rho: float = 0.98
+    gain_range: tuple[float, float] = (0.8, 1.2)
+    render_range_m: float = 200.0  # nothing farther is drawn or seen
+
+    def __post_init__(self) -> None:
+        where = "stereo_camera"
+        check(self.mode in ("fast", "image"), f"{where}.mode must be 'fast' or 'image', got {self.mode!r}")
+        check(32 <= self.width_px <= 4096, f"{where}.width_px must be in 32..4096, got {self.width_px}")
+        check(32 <= self.height_px <= 4096, f"{where}.height_px must be in 32..4096, got {self.height_px}")
+        for name in ("focal_px", "baseline_m", "min_range_m", "max_range_m", "match_tolerance_px", "threshold", "render_range_m"):
+            value = getattr(self, name)
+            check(math.isfinite(value) and value > 0, f"{where}.{name} must be finite and > 0, got {value}")
+        cx, cy = self.principal
+        check(
+            0 < cx < self.width_px and 0 < cy < self.height_px,
+            f"{where}.principal_point_px {(cx, cy)} must lie inside the {self.width_px} x {self.height_px} image",
+        )
+        check(math.isfinite(self.height_m) and self.height_m > 0, f"{where}.height_m must be finite and > 0, got {self.height_m}")
+        check(math.isfinite(self.forward_m), f"{where}.forward_m must be finite, got {self.forward_m}")
+        check(self.min_range_m < self.max_range_m, f"{where}: min_range_m {self.min_range_m} must be below max_range_m {self.max_range_m}")
+        overlap = self.overlap_depth_m
+        check(
+            overlap < self.min_range_m,
+            f"{where}: the cameras do not overlap where matching starts: with baseline_m {self.baseline_m} (outer pair "
+            f"{2 * self.baseline_m:g} m), focal_px {self.focal_px} and width_px {self.width_px} the three views share "
+            f"nothing nearer than {overlap:.3g} m, beyond min_range_m {self.min_range_m}",
+        )
+        rows, _ = filter_size(self.width_px, self.height_px)
+        check_rows(self.rows, self.height_px, rows, f"{where}.detection_rows_px")
+        check(len(self.rows) == LEVELS, f"{where}.detection_rows_px must be {LEVELS} rows, got {self.rows}")
+        check(1 <= self.slots <= 1024, f"{where}.slots must be in 1..1024, got {self.slots}")
+        for name in ("edge_noise_px", "pixel_noise_std", "gain_std"):
+            value = getattr(self, name)
+            check(math.isfinite(value) and value >= 0, f"{where}.{name} must be finite and >= 0, got {value}")
+        check(0 <= self.gain_rho < 1, f"{where}.gain_rho must be in [0, 1), got {self.gain_rho}")
+        lo, hi = self.gain_range
+        check(0 < lo <= 1 <= hi < math.inf, f"{where}.gain_range must hold 1 and be positive, got {self.gain_range}")
+
+    @property
+    def principal(self) -> tuple[float, float]:
+        """``(cx, cy)``: the principal point (the image centre by default)."""
+        if self.principal_point_px is None:
+            return (0.5 * self.width_px, 0.5 * self.height_px)
+        return (float(self.principal_point_px[0]), float(self.principal_point_px[1]))
+
+    @property
+    def rows(self) -> tuple[int, ...]:
+        """The detection rows, top to bottom (level 0 first)."""
+        if self.detection_rows_px is not None:
+            return tuple(int(r) for r in self.detection_rows_px)
+        return tuple(int(round(self.height_px * (1.5 + k) / 12.0)) for k in range(LEVELS))
+
+    @property
+    def overlap_depth_m(self) -> float:
+        """The depth from which all three cameras see a point: ``2 baseline f / width``."""
+        return 2.0 * self.baseline_m * self.focal_px / self.width_px
+
+    def rig(self) -> Rig:
+        cx, cy = self.principal
+        return Rig(self.focal_px, cx, cy, self.width_px, self.height_px, self.height_m, self.forward_m, self.baseline_m)
+
+
+@register_sensor("stereo_camera", StereoCameraConfig)
+class StereoCamera(SensorBase):
+    """The trinocular camera (module docstring). :meth:`render` draws any pose's three images;
+    :meth:`views` the last frame's with its detections marked."""
+
+    draw_layer = "over"
+
+    def __init__(self, name: str, config: StereoCameraConfig, world: WorldConfig, state: WorldState) -> None:
+        self.name = name
+        self.key = config.key
+        self.config = config
+        c = config
+        self.rig_geometry = c.rig()
+        self.scene = static_scene(world)
+        fr, fc = filter_size(c.width_px, c.height_px)
+        self.detector = EdgeDetector(c.rows, fr, fc, c.threshold)
+        cx, cy = c.principal
+        self.matcher = TrinocularRig(
+            c.focal_px, cx, c.baseline_m, c.min_range_m, c.max_range_m, c.match_tolerance_px, c.forward_m, 0.0
+        )
+        self.renderer = ColumnRenderer(self.scene, c.focal_px, cx, cy, c.width_px, c.height_px, c.height_m, c.render_range_m)
+        self._rows = np.asarray(c.rows, dtype=np.int64)
+        self._half = fr // 2
+        self._margin_px = fc // 2 + 1.0  # an edge nearer the border than the filter's half width is not found
+        sc = self.scene
+        n_static = sc.seg_a.shape[0]
+        self._n_static = n_static
+        self._static_cull = np.ascontiguousarray(sc.seg_floor & (sc.seg_z1 >= c.height_m))
+        obj_z0 = np.array([sc.seg_z0[f] for f in sc.obj_first], dtype=np.float64)
+        obj_z1 = np.array([sc.seg_z1[f] for f in sc.obj_first], dtype=np.float64)
+        self._obj = (sc.obj_first, sc.obj_count, obj_z0, obj_z1)
+        frame = c.height_px * c.width_px * 3
+        self._noise = np.zeros(0, dtype=np.float32)
+        self._frame = frame
+        self._gain = 1.0
+        self._fresh = True
+        self.last_images: tuple[NDArray[np.uint8], ...] | None = None
+        self.last_edges: tuple[EdgeList, ...] = ()
+        self.last_slots = np.zeros((c.slots, 4), dtype=np.float32)
+        self._state_of_images: WorldState | None = None
+
+    # ------------------------------------------------------------------ interface
+    def space(self) -> spaces.Box | spaces.Dict:
+        c = self.config
+        low = np.tile(np.array([0.0, 0.0, 0.0, -math.pi], dtype=np.float32), (c.slots, 1))
+        high = np.tile(np.array([1.0, EDGE_TYPES - 1, 1.0 / c.min_range_m, math.pi], dtype=np.float32), (c.slots, 1))
+        slots = spaces.Box(low, high, dtype=np.float32)
+        if not c.images:
+            return slots
+        image = spaces.Box(0, 255, shape=(c.height_px, c.width_px, 3), dtype=np.uint8)
+        return spaces.Dict({self.key: slots, **{f"{self.key}_{cam}": image for cam in CAMERAS}})
+
+    def reset(self) -> None:
+        self._fresh = True
+        self._gain = 1.0
+        self.last_images = None
+        self._state_of_images = None
+
+    def metadata(self) -> dict[str, Any]:
+        c, r = self.config, self.rig_geometry
+        return {
+            "width_px": c.width_px,
+            "height_px": c.height_px,
+            "focal_px": r.focal_px,
+            "cx_px": r.cx_px,
+            "cy_px": r.cy_px,
+            "baseline_m": c.baseline_m,
+            "forward_m": c.forward_m,
+            "height_m": c.height_m,
+            "rows_px": list(c.rows),
+            "slots": c.slots,
+            "min_range_m": c.min_range_m,
+            "max_range_m": c.max_range_m,
+            "edge_types": EDGE_TYPES,
+            "slot_fields": list(SLOT_FIELDS),
+            "mode": c.mode,
+        }
+
+    # ------------------------------------------------------------------ frames
+    def _moving(self, state: WorldState) -> tuple[NDArray[np.float64], ...]:
+        app = state.figures.appearance()
+        return (app.side_a, app.side_b, app.side_z0, app.side_z1, app.side_rgb,
+                app.disc_xy, app.disc_r, app.disc_z0, app.disc_z1, app.disc_rgb)  # fmt: skip
+
+    def render(
+        self, pose: NDArray[np.float64], state: WorldState, gain: float = 1.0, noise_offsets: tuple[int, ...] | None = None
+    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.uint8]]:
+        """The three cameras' images (left, middle, right) at robot ``pose`` among ``state``'s bodies.
+
+        Args:
+            gain: the exposure gain; ``noise_offsets``: where each image reads the noise pool
+                (None: no noise; the pool is filled at the first frame after a reset).
+        """
+        cams, forward = self.rig_geometry.cameras(np.asarray(pose, dtype=np.float64))
+        moving = self._moving(state)
+        out = []
+        for j in range(3):
+            noise = None
+            if noise_offsets is not None and self._noise.size:
+                start = int(noise_offsets[j])
+                noise = self._noise[start : start + self._frame]
+            out.append(self.renderer.render(cams[j], forward, moving, gain, noise))
+        return out[0], out[1], out[2]
+
+    def _step_exposure(self, rng: np.random.Generator) -> None:
+        c = self.config
+        if self._fresh:
+            if c.pixel_noise_std > 0 and (c.mode == "image" or c.images):
+                self._noise = (rng.standard_normal(_NOISE_POOL + self._frame) * c.pixel_noise_std).astype(np.float32)
+            self._gain = 1.0
+            self._fresh = False
+        if c.gain_std > 0:
+            lo, hi = c.gain_range
+            self._gain = float(np.clip(1.0 + c.gain_rho * (self._gain - 1.0) + c.gain_std * rng.standard_normal(), lo, hi))
+
+    def _render_frame(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.uint8], ...]:
+        offsets = tuple(int(v) for v in rng.integers(_NOISE_POOL, size=3)) if self._noise.size else None
+        images = self.render(state.robot_pose, state, self._gain, offsets)
+        self.last_images = images
+        self._state_of_images = state
+        return images
+
+    def _image_edges(self, images: tuple[NDArray[np.uint8], ...]) -> tuple[EdgeList, EdgeList, EdgeList]:
+        left, middle, right = (self.detector.detect(image) for image in images)
+        return left, middle, right
+
+    def _fast_edges(self, state: WorldState, rng: np.random.Generator) -> tuple[EdgeList, EdgeList, EdgeList]:
+        c, r = self.config, self.rig_geometry
+        cams, forward = r.cameras(state.robot_pose)
+        app = state.figures.appearance()
+        sc = self.scene
+        seg_a = np.concatenate((sc.seg_a, app.side_a))
+        seg_b = np.concatenate((sc.seg_b, app.side_b))
+        seg_z0 = np.concatenate((sc.seg_z0, app.side_z0))
+        seg_z1 = np.concatenate((sc.seg_z1, app.side_z1))
+        cull = np.concatenate((self._static_cull, np.zeros(app.side_a.shape[0], dtype=np.bool_)))
+        obj_first, obj_count, obj_z0, obj_z1 = self._obj
+        boxes = app.side_a.shape[0] // 4
+        if boxes:
+            obj_first = np.concatenate((obj_first, self._n_static + 4 * np.arange(boxes)))
+            obj_count = np.concatenate((obj_count, np.full(boxes, 4, dtype=np.int64)))
+            obj_z0 = np.concatenate((obj_z0, app.side_z0[::4]))
+            obj_z1 = np.concatenate((obj_z1, app.side_z1[::4]))
+        x, z, level, response = lines(
+            cams[1], forward, r.focal_px, r.cx_px, r.cy_px, r.width_px, r.height_m, c.render_range_m,
+            self._rows, self._half, self._margin_px, c.threshold / c.gain_range[1], float(self.detector.filter_cols // 2),
+            seg_a, seg_b, seg_z0, seg_z1, cull, self._n_static, sc.seg_profile, sc.seg_length, sc.seg_rgb, app.side_rgb,
+            obj_first, obj_count, obj_z0, obj_z1,
+            sc.seg_first_brk, sc.brk_xy, sc.brk_first_run, sc.brun_z0, sc.brun_z1, sc.brun_left, sc.brun_right,
+            app.disc_xy, app.disc_r, app.disc_z0, app.disc_z1, app.disc_rgb,
+            sc.prof_first, sc.int_s1, sc.int_first_run, sc.run_z1, sc.run_rgb, self.renderer.background,
+        )  # fmt: skip
+        strength = np.abs(response) * self._gain  # (N, 3)
+        line, channel = np.nonzero(strength >= c.threshold)
+        types = edge_types(channel, level[line], response[line, channel] < 0)
+        power = strength[line, channel].astype(np.float32)
+        out = []
+        # the left camera sits baseline_m left of the middle one: a point X right of the middle camera is X + b right of it
+        for lateral in (c.baseline_m, 0.0, -c.baseline_m):
+            u = r.cx_px + r.focal_px * (x[line] + lateral) / z[line]
+            if c.edge_noise_px > 0:
+                u = u + rng.standard_normal(u.shape[0]) * c.edge_noise_px
+            inside = (u >= self._margin_px) & (u < r.width_px - self._margin_px)
+            ui, ti, si = u[inside], types[inside], power[inside]
+            keep = suppress(ui, ti, si, self._margin_px)
+            ui, ti, si = ui[keep], ti[keep], si[keep]
+            order = np.lexsort((ui, ti))
+            out.append(EdgeList(ui[order], ti[order], si[order]))
+        return out[0], out[1], out[2]
+
+    def observe(
+        self, state: WorldState, rng: np.random.Generator
+    ) -> tuple[NDArray[np.float32] | dict[str, NDArray[Any]], dict[str, Any]]:
+        c = self.config
+        self._step_exposure(rng)
+        images = self._render_frame(state, rng) if (c.mode == "image" or c.images) else None
+        if c.mode == "image":
+            assert images is not None
+            edges = self._image_edges(images)
+        else:
+            edges = self._fast_edges(state, rng)
+        self.last_edges = edges
+        matches = self.matcher.match(*edges)
+        slots, dropped = self._slots(matches)
+        self.last_slots = slots
+        info = {f"{self.key}_detections": int(min(matches.type.size, c.slots)), f"{self.key}_dropped": dropped}
+        if not c.images:
+            return slots, info
+        assert images is not None
+        return {self.key: slots, **{f"{self.key}_{cam}": img for cam, img in zip(CAMERAS, images)}}, info
+
+    def _slots(self, matches: Any) -> tuple[NDArray[np.float32], int]:
+        c = self.config
+        slots = np.zeros((c.slots, 4), dtype=np.float32)
+        count = matches.type.size
+        if count == 0:
+            return slots, 0
+        ranges, bearings = self.matcher.range_bearing(matches)
+        keep = np.arange(count)
+        if count > c.slots:  # the weakest go
+            keep = np.argsort(-matches.strength, kind="stable")[: c.slots]
+        keep = keep[np.argsort(-bearings[keep], kind="stable")]  # left to right in the image
+        n = keep.size
+        slots[:n, 0] = 1.0
+        slots[:n, 1] = matches.type[keep]
+        slots[:n, 2] = np.minimum(1.0 / ranges[keep], 1.0 / c.min_range_m)
+        slots[:n, 3] = bearings[keep]
+        return slots, count - n
+
+    # ------------------------------------------------------------------ drawing
+    def views(self, state: WorldState) -> NDArray[np.uint8]:
+        """The three cameras' last images side by side (rendered now in the fast mode), each with
+        its edges marked by type (:func:`localizers.stereo_vision.draw_detections`)."""
+        from localizers.stereo_vision import draw_detections
+
+        images = self.last_images
+        if images is None or self._state_of_images is not state:
+            images = self.render(state.robot_pose, state, self._gain)
+        marked = []
+        for image, edges in zip(images, self.last_edges or (None, None, None)):
+            if edges is None:
+                marked.append(image)
+            else:
+                marked.append(draw_detections(image, edges.u, edges.type, self._rows))
+        return np.concatenate(marked, axis=1)
+
+    def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None:
+        """A ray from the robot to each detection, in its channel's colour."""
+        slots = np.asarray(reading).reshape(-1, 4)
+        seen = slots[slots[:, 0] > 0.5]
+        if not seen.shape[0]:
+            return
+        x, y, theta = state.robot_pose
+        channel, _, _ = edge_types_parts(seen[:, 1].astype(np.int64))
+        rng = 1.0 / seen[:, 2]
+        ends = np.stack([x + rng * np.cos(theta + seen[:, 3]), y + rng * np.sin(theta + seen[:, 3])], axis=1)
+        for (ex, ey), ch in zip(ends, channel):
+            canvas.line((x, y), (ex, ey), CHANNEL_COLOURS[int(ch)], 1)
