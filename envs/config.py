@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from numbers import Real
 from pathlib import Path
 from typing import Literal
 
@@ -24,6 +25,16 @@ from envs.crowds import CrowdConfig
 from envs.features import FeatureConfig
 from envs.features.base import Segment
 from envs.sensors import SensorConfig
+from envs.view import (
+    BACKGROUND_PAD_PX,
+    CAPTION_PX,
+    FRAME_LONG_SIDE_PX,
+    MARGIN_PX,
+    MAX_BACKGROUND_PX,
+    background_size_px,
+    drawn_bounds,
+    fit,
+)
 from localizers.schema import ConfigError, check, from_mapping, load_yaml
 
 #: the first this-many rows of :meth:`WorldConfig.wall_segments` are the arena boundary
@@ -267,6 +278,9 @@ class WorldConfig:
     origin_m: tuple[float, float] = (0.0, 0.0)  # the field's lower-left corner (a corridor centred on x = 0)
     features: Mapping[str, FeatureConfig] = field(default_factory=dict)  # name -> static scenery tagged by type (a ceiling)
     goal: GoalConfig | None = None  # where an episode terminates (None: it only times out)
+    # the top view's window (width, height) in metres, centred on the robot and kept inside the
+    # world's bounds, for worlds too large for one frame; None shows the whole world
+    view_m: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         w, h = self.size_m
@@ -321,6 +335,39 @@ class WorldConfig:
         clash = sorted(set(self.features) & (set(self.crowds) | set(self.sensors)))
         check(not clash, f"world {self.name!r}: {clash} name a feature and a sensor or crowd")
         object.__setattr__(self, "features", dict(self.features))
+        self._check_view()
+
+    def _check_view(self) -> None:
+        """``view_m``: two finite sizes > 0, and not so small against the world that the follow
+        mode's background (the whole world at the view's scale, :mod:`envs.view`) would exceed
+        :data:`envs.view.MAX_BACKGROUND_PX` on a side."""
+        view = self.view_m
+        if view is None:
+            return
+        pair = isinstance(view, (tuple, list)) and len(view) == 2
+        pair = pair and all(isinstance(v, Real) and not isinstance(v, bool) for v in view)
+        check(
+            pair and all(math.isfinite(v) and v > 0 for v in view),
+            f"world {self.name!r}: view_m must be two finite numbers > 0 (the top view's width and height in metres) "
+            f"or None, got {view!r}",
+        )
+        view_w, view_h = float(view[0]), float(view[1])
+        object.__setattr__(self, "view_m", (view_w, view_h))
+        xmin, ymin, xmax, ymax = bounds = drawn_bounds(self)
+        scale = fit(view_w, view_h).scale
+        width, height = background_size_px(bounds, scale)
+        if max(width, height) > MAX_BACKGROUND_PX:
+            # the largest scale that fits, and the views that give it (either size suffices)
+            fits = (MAX_BACKGROUND_PX - 2 * BACKGROUND_PAD_PX - 1) / max(xmax - xmin, ymax - ymin)
+            least = [
+                math.ceil(100.0 * (FRAME_LONG_SIDE_PX - 2 * MARGIN_PX - caption) / fits) / 100.0 for caption in (0, CAPTION_PX)
+            ]
+            raise ConfigError(
+                f"world {self.name!r}: view_m = {list(view)} m is too small for a world of {xmax - xmin:g} m x "
+                f"{ymax - ymin:g} m: the top view's background (the whole world at {scale:.3g} px/m) would be "
+                f"{width} x {height} px, more than {MAX_BACKGROUND_PX} px on a side; a view_m of at least "
+                f"{least} m fits"
+            )
 
     def _check_dt_resolves_motion(self) -> None:
         """Refuse a ``dt_s`` in which a body travels more than its own radius in one step.

@@ -12,6 +12,13 @@ with even width and height so that video encoders accept it. Everything static (
 field outline, walls, landmark labels) is drawn once; a frame blits that background and
 draws the moving parts. Large point sets (particles, candidates, scans) are written into
 the pixel array with numpy instead of one pygame call per mark.
+
+A world too large for one frame sets ``view_m`` (:class:`~envs.config.WorldConfig`): the
+frame then shows a window of that many metres (and its margins) centred on the robot's true
+position, moved to stay inside the world's bounds. Its background is the whole world drawn
+once at the window's scale; each frame blits the part under the window and hands the moving
+parts, sensors and overlays a :class:`Canvas` whose origin follows the window, so they draw
+in world coordinates as before. The geometry (sizes, scales, the window) is :mod:`envs.view`.
 """
 
 from __future__ import annotations
@@ -37,6 +44,15 @@ from numpy.typing import ArrayLike, NDArray  # noqa: E402
 
 from envs.config import WorldConfig  # noqa: E402
 from envs.state import WorldState  # noqa: E402
+from envs.view import (  # noqa: E402
+    BACKGROUND_PAD_PX,
+    CAPTION_PX,
+    Bounds,
+    background_size_px,
+    drawn_bounds,
+    fit,
+    follow_window,
+)
 from localizers.base import Overlay  # noqa: E402
 
 if TYPE_CHECKING:
@@ -44,9 +60,6 @@ if TYPE_CHECKING:
 
 Color = tuple[int, int, int]
 
-FRAME_LONG_SIDE_PX = 600
-MARGIN_PX = 16
-CAPTION_PX = 20
 _FONT_PX = 16
 _LABEL_FONT_PX = 14
 _MIN_LANDMARK_PX = 5  # landmark discs are at least this radius so that thin poles show
@@ -81,38 +94,17 @@ def landmark_color(index: int) -> Color:
     return LANDMARK_PALETTE[index % len(LANDMARK_PALETTE)]
 
 
-def _world_bounds(config: WorldConfig) -> tuple[float, float, float, float]:
-    """``(xmin, ymin, xmax, ymax)`` covering the arena, extra walls and landmarks."""
-    xs = [config.arena_m[0], config.arena_m[2]]
-    ys = [config.arena_m[1], config.arena_m[3]]
-    for x1, y1, x2, y2 in config.walls:
-        xs += [x1, x2]
-        ys += [y1, y2]
-    for lm in config.landmarks:
-        xs.append(lm.x_m)
-        ys.append(lm.y_m)
-    return (min(xs), min(ys), max(xs), max(ys))
-
-
-def _layout(config: WorldConfig) -> tuple[float, tuple[float, float, float, float], int, int, float, float]:
-    """Scale (px/m), world bounds, frame width and height, and the pixel origin of ``(xmin, ymax)``."""
-    bounds = _world_bounds(config)
+def _layout(config: WorldConfig) -> tuple[float, Bounds, int, int, float, float]:
+    """Scale (px/m), world bounds, frame width and height, and the pixel position of the top left
+    corner of what the frame shows: the whole world (its ``(xmin, ymax)``) or the ``view_m`` window."""
+    bounds = drawn_bounds(config)
     xmin, ymin, xmax, ymax = bounds
-    span_x, span_y = xmax - xmin, ymax - ymin
-    scale = min(
-        (FRAME_LONG_SIDE_PX - 2 * MARGIN_PX) / span_x,
-        (FRAME_LONG_SIDE_PX - 2 * MARGIN_PX - CAPTION_PX) / span_y,
-    )
-    # even sizes: H.264 in yuv420p (what RecordVideo writes) rejects odd ones
-    width = 2 * math.ceil((span_x * scale + 2 * MARGIN_PX) / 2)
-    height = 2 * math.ceil((span_y * scale + 2 * MARGIN_PX + CAPTION_PX) / 2)
-    left = (width - span_x * scale) / 2
-    top = CAPTION_PX + (height - CAPTION_PX - span_y * scale) / 2
-    return scale, bounds, width, height, left, top
+    frame = fit(xmax - xmin, ymax - ymin) if config.view_m is None else fit(*config.view_m)
+    return frame.scale, bounds, frame.width, frame.height, frame.left, frame.top
 
 
 def frame_shape(config: WorldConfig) -> tuple[int, int, int]:
-    """``(H, W, 3)`` of every ``rgb_array`` frame rendered for ``config``."""
+    """``(H, W, 3)`` of every ``rgb_array`` frame rendered for ``config`` (the window's frame with ``view_m``)."""
     _, _, width, height, _, _ = _layout(config)
     return (height, width, 3)
 
@@ -316,6 +308,11 @@ class Canvas:
 class Renderer:
     """Draws an env; one per env, created by ``LocalizationEnv.render()``.
 
+    With the world's ``view_m`` set the frame follows the robot (see the module's doc): each
+    :meth:`draw` moves the window onto the robot's true position (:meth:`look_at`), and
+    :meth:`canvas` and :meth:`to_pixel` map through the window of the last frame drawn (the
+    world's centre before the first).
+
     Args:
         config: the world (fixes the frame size and the static background).
         render_mode: ``"rgb_array"`` (frames returned) or ``"human"`` (a pygame window).
@@ -334,11 +331,23 @@ class Renderer:
         self.render_mode = render_mode
         self.fps = fps
         self.scale, bounds, self.width, self.height, left, top = _layout(config)
-        xmin, _, _, ymax = bounds
+        xmin, ymin, xmax, ymax = self.bounds_m = bounds
         self.is_field = config.floor == "field"
         self.floor = FIELD_FLOOR if self.is_field else ROOM_FLOOR
         self.surface = pygame.Surface((self.width, self.height), 0, 32)
-        self._canvas_args = ((left, top), (xmin, ymax), self.floor, config.robot.radius_m)
+        self.view_m = config.view_m
+        self._view_px = (left, top)  # where the window's top left corner lies in the frame
+        self._background_size = (self.width, self.height)
+        origin = (left, top)  # the frame's pixel position of (xmin, ymax); in follow mode the background's
+        if self.view_m is not None:
+            self._background_size = background_size_px(bounds, self.scale)
+            origin = (float(BACKGROUND_PAD_PX), float(BACKGROUND_PAD_PX))
+        self._background_args = (origin, (xmin, ymax), self.floor, config.robot.radius_m)
+        self._canvas_args = self._background_args
+        self._offset_px = (0, 0)  # the background's pixel shown at the frame's (0, 0)
+        self.window_m: Bounds = bounds  # the region the window shows: the whole world without view_m
+        if self.view_m is not None:
+            self.look_at((0.5 * (xmin + xmax), 0.5 * (ymin + ymax)))
         self._font = _font(_FONT_PX)
         self._background: pygame.Surface | None = None  # drawn on the first frame, from the env's walls
         self._window: pygame.Surface | None = None
@@ -357,6 +366,24 @@ class Renderer:
         """Pixel ``(column, row)`` of world points (see :meth:`Canvas.to_pixel`)."""
         return self.canvas().to_pixel(xy)
 
+    def look_at(self, xy: ArrayLike) -> None:
+        """Follow mode: centre the window on the world point ``xy``, kept inside the world's bounds
+        (centred on them along an axis where they are narrower than the window). Without
+        ``view_m`` nothing changes: the frame shows the whole world."""
+        if self.view_m is None:
+            return
+        x, y = (float(v) for v in np.asarray(xy, dtype=np.float64).reshape(2))
+        x0, y0 = follow_window((x, y), self.view_m, self.bounds_m)
+        x1, y1 = x0 + self.view_m[0], y0 + self.view_m[1]
+        self.window_m = (x0, y0, x1, y1)
+        (pad_x, pad_y), (xmin, ymax), floor, radius = self._background_args
+        left, top = self._view_px
+        # a whole-pixel shift: the frame is the background's pixels under the window, unresampled
+        dx = round(pad_x + (x0 - xmin) * self.scale - left)
+        dy = round(pad_y + (ymax - y1) * self.scale - top)
+        self._offset_px = (dx, dy)
+        self._canvas_args = ((pad_x - dx, pad_y - dy), (xmin, ymax), floor, radius)
+
     # ------------------------------------------------------------------ frames
     def draw(self, env: LocalizationEnv, overlays: Iterable[Callable[[Canvas], Any]] = ()) -> NDArray[np.uint8] | None:
         """Draw the env's current state and the overlays.
@@ -367,7 +394,14 @@ class Renderer:
         state = env.world.snapshot()
         if self._background is None:
             self._background = self._draw_background(state)
-        self.surface.blit(self._background, (0, 0))
+        if self.view_m is None:
+            self.surface.blit(self._background, (0, 0))
+        else:
+            self.look_at(state.robot_pose[:2])
+            dx, dy = self._offset_px
+            shown = pygame.Rect(dx, dy, self.width, self.height).clip(self._background.get_rect())
+            self.surface.fill(BACKGROUND)
+            self.surface.blit(self._background, (shown.x - dx, shown.y - dy), shown)
         canvas = self.canvas()
         pose = state.robot_pose
         readings, info = env.last_observation, env.last_info
@@ -407,9 +441,9 @@ class Renderer:
     def _draw_background(self, state: WorldState) -> pygame.Surface:
         """Floor, field or room outline, walls and furniture (raised parts, a table's top, thin)
         and landmark labels."""
-        bg = pygame.Surface((self.width, self.height), 0, 32)
+        bg = pygame.Surface(self._background_size, 0, 32)
         bg.fill(BACKGROUND)
-        canvas = Canvas(bg, self.scale, *self._canvas_args)
+        canvas = Canvas(bg, self.scale, *self._background_args)
         cfg = self.config
         xmin, ymin, xmax, ymax = cfg.arena_m
         corner = canvas.to_pixel([[xmin, ymax], [xmax, ymin]])
@@ -425,9 +459,10 @@ class Renderer:
         for lm in cfg.landmarks:
             label = label_font.render(lm.name, True, FIELD_LINE if self.is_field else WALL)
             c, r = canvas._pt((lm.x_m, lm.y_m))
-            # labels sit toward the frame's centre so that edge landmarks keep theirs on screen
-            dx = 8 if c < self.width / 2 else -8 - label.get_width()
-            dy = 6 if r < self.height / 2 else -6 - label.get_height()
+            # labels sit toward the frame's (in follow mode: the world's) centre so that edge
+            # landmarks keep theirs on screen
+            dx = 8 if c < bg.get_width() / 2 else -8 - label.get_width()
+            dy = 6 if r < bg.get_height() / 2 else -6 - label.get_height()
             bg.blit(label, (c + dx, r + dy))
         return bg
 

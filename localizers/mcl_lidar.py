@@ -19,6 +19,18 @@ The measurement models and their numba kernels are in :mod:`localizers.beam_mode
 table and its cache in :mod:`localizers.range_table`; this module re-exports their public
 names.
 
+Map size (measured on a synthetic 150 m x 100 m campus of 1,000 walls, one core): the
+likelihood field is the only map model a ``likelihood_field`` filter builds (the ray-cast
+table is built by :meth:`LidarMCL.beam_model` alone, for ``model: beam``); at 5 cm it is
+6.2 M cells, 8 bytes each for the distances and 4 for the log field of each maximum range
+(75 MB), built in about 0.4 s plus 0.4 s for the log field. The beam model's table of the
+same grid at 720 directions would be 17 GB: the beam model is for rooms. What does not
+scale: ``recovery_candidates`` (and the particles of a reset without a prior) are uniform
+over the map bounds, so their density falls with the area: 20,000 candidates put about 4
+within 0.25 m and 10 deg of the true pose in the 7 m x 7 m room, and 0.015 on the campus,
+where injection therefore almost never recovers a lost filter; the weighing costs the
+same (about 20 ms).
+
 Motion is integrated lazily, as ROS amcl does: :meth:`LidarMCL.predict` composes the
 odometry increments, and the particles are moved once, by the composed increment, when an
 update is due (after ``update_min_travel_m`` of travel or ``update_min_rotation_rad`` of

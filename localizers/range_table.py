@@ -169,19 +169,105 @@ def build_range_table(
     return RangeTable(ranges, *meta, loaded=False)
 
 
+#: cells per side of the blocks of :func:`wall_distance_field` (1.2 m at 5 cm; measured on a
+#: campus-like map, 16 and 32 cells cost 10-25 % more)
+DISTANCE_BLOCK_CELLS = 24
+
+
+@numba.njit(cache=True, inline="always")
+def _segment_distance(px: float, py: float, x1: float, y1: float, ex: float, ey: float, length2: float) -> float:
+    """Distance from ``(px, py)`` to the segment ``(x1, y1) + t (ex, ey)``, ``t`` in ``[0, 1]``:
+    the nearest point by the clipped projection, a zero-length segment's point itself."""
+    t = 0.0
+    if length2 != 0.0:
+        t = min(max(((px - x1) * ex + (py - y1) * ey) / length2, 0.0), 1.0)
+    return math.hypot(px - (x1 + t * ex), py - (y1 + t * ey))
+
+
+@numba.njit(cache=True)
+def _fill_distance_field(walls: Array, x0: float, y0: float, res: float, nx: int, ny: int, block: int, slack: float) -> Array:
+    """:func:`wall_distance_field` by blocks of ``block x block`` cells (see there)."""
+    out = np.full((nx, ny), np.inf)
+    count = walls.shape[0]
+    if count == 0:
+        return out
+    x1 = walls[:, 0].copy()
+    y1 = walls[:, 1].copy()
+    ex = walls[:, 2] - walls[:, 0]
+    ey = walls[:, 3] - walls[:, 1]
+    length2 = ex * ex + ey * ey
+    from_centre = np.empty(count)
+    near = np.empty(count, dtype=np.int64)
+    for i0 in range(0, nx, block):
+        i1 = min(nx, i0 + block) - 1
+        xa = x0 + (i0 + 0.5) * res
+        xb = x0 + (i1 + 0.5) * res
+        for j0 in range(0, ny, block):
+            j1 = min(ny, j0 + block) - 1
+            ya = y0 + (j0 + 0.5) * res
+            yb = y0 + (j1 + 0.5) * res
+            # every cell centre of the block lies within r of its middle c: a wall at d from c is
+            # between d - r and d + r from each of them, so only walls with d <= min d + 2 r can
+            # be the nearest to any of them (slack: rounding)
+            cx = 0.5 * (xa + xb)
+            cy = 0.5 * (ya + yb)
+            r = 0.5 * math.hypot(xb - xa, yb - ya)
+            nearest = np.inf
+            for k in range(count):
+                d = _segment_distance(cx, cy, x1[k], y1[k], ex[k], ey[k], length2[k])
+                from_centre[k] = d
+                nearest = min(nearest, d)
+            limit = nearest + 2.0 * r + slack
+            m = 0
+            for k in range(count):
+                if from_centre[k] <= limit:
+                    near[m] = k
+                    m += 1
+            for i in range(i0, i1 + 1):
+                px = x0 + (i + 0.5) * res
+                for j in range(j0, j1 + 1):
+                    py = y0 + (j + 0.5) * res
+                    best = np.inf
+                    for q in range(m):
+                        k = near[q]
+                        best = min(best, _segment_distance(px, py, x1[k], y1[k], ex[k], ey[k], length2[k]))
+                    out[i, j] = best
+    return out
+
+
 def wall_distance_field(
     walls_m: ArrayLike, origin_xy_m: tuple[float, float], resolution_m: float, shape: tuple[int, int]
 ) -> Array:
-    """``(nx, ny)`` distance from each cell centre to the nearest wall segment (inf without walls)."""
-    walls = np.asarray(walls_m, dtype=np.float64).reshape(-1, 4)
-    nx, ny = shape
-    cx = origin_xy_m[0] + (np.arange(nx) + 0.5) * resolution_m
-    cy = origin_xy_m[1] + (np.arange(ny) + 0.5) * resolution_m
-    px, py = np.meshgrid(cx, cy, indexing="ij")
-    best = np.full(shape, np.inf)
-    for x1, y1, x2, y2 in walls:
-        ex, ey = x2 - x1, y2 - y1
-        length2 = ex * ex + ey * ey
-        t = np.zeros(shape) if length2 == 0.0 else np.clip(((px - x1) * ex + (py - y1) * ey) / length2, 0.0, 1.0)
-        np.minimum(best, np.hypot(px - (x1 + t * ex), py - (y1 + t * ey)), out=best)
-    return best
+    """``(nx, ny)`` distance from each cell centre to the nearest wall segment (inf without walls).
+
+    Cell ``(i, j)``'s centre is ``origin + (i + 1/2, j + 1/2) resolution``; a zero-length
+    segment is its point. Exact: each distance is computed by the clipped projection
+    ``t = clip(((p - a) . e) / |e|^2, 0, 1)``, ``hypot(p - (a + t e))``, and the minimum taken
+    over every wall that can be the nearest. Only the walls within a block's diagonal of the
+    nearest one to the middle of a block of :data:`DISTANCE_BLOCK_CELLS` x
+    :data:`DISTANCE_BLOCK_CELLS` cells are measured from its cells, so the cost is about
+    ``cells x (nearby walls) + blocks x walls`` instead of ``cells x walls``: a 150 m x 100 m
+    map at 5 cm (6 M cells) with 1,000 walls takes about 0.4 s on one core (measured; the
+    full-grid loop over walls it replaced, about 2 min), and the result, 8 bytes a cell (48 MB
+    there), is all the memory it needs besides a few arrays of one entry per wall. Serial, and
+    compiled once (numba's disk cache).
+
+    Raises:
+        ValueError: for a wall coordinate, origin or resolution that is not finite, a
+            resolution <= 0 or a negative shape.
+    """
+    walls = np.ascontiguousarray(np.asarray(walls_m, dtype=np.float64).reshape(-1, 4))
+    nx, ny = (int(n) for n in shape)
+    x0, y0 = (float(v) for v in origin_xy_m)
+    res = float(resolution_m)
+    if not (np.isfinite(walls).all() and math.isfinite(x0) and math.isfinite(y0) and math.isfinite(res) and res > 0.0):
+        raise ValueError(
+            f"wall_distance_field needs finite walls, origin and a resolution > 0, got origin {origin_xy_m!r}, "
+            f"resolution {resolution_m!r} and {int((~np.isfinite(walls)).any(axis=1).sum())} walls with a non-finite coordinate"
+        )
+    if nx < 0 or ny < 0:
+        raise ValueError(f"wall_distance_field: shape must be two counts >= 0, got {shape!r}")
+    # rounding of the distances compared against the block bound: ~1e-16 of the coordinates' size, taken generously
+    size = max(abs(x0), abs(y0), abs(x0 + nx * res), abs(y0 + ny * res), float(np.abs(walls).max(initial=0.0)))
+    slack = 1e-9 * (1.0 + size)
+    return _fill_distance_field(walls, x0, y0, res, nx, ny, DISTANCE_BLOCK_CELLS, slack)

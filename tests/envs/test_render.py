@@ -1,7 +1,10 @@
-"""Rendering: frame shape, landmark visibility colours, overlays, human mode and video recording."""
+"""Rendering: frame shape, landmark visibility colours, overlays, human mode, video recording, and the
+shipped worlds' frames as recorded before the follow mode (tests/envs/test_render_follow.py)."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +19,7 @@ from envs.render import HIDDEN_LANDMARK, Canvas, Renderer, frame_shape, landmark
 from localizers.base import Overlay
 
 ENV_IDS = list(envs.ENV_WORLDS)
+FRAMES = Path(__file__).resolve().parents[1] / "data" / "pinned" / "render_frames.json"
 MAGENTA = (255, 0, 255)
 CYAN = (0, 255, 255)
 STILL = np.zeros(2, dtype=np.float32)
@@ -252,3 +256,22 @@ def test_sonar_readings_are_drawn_where_they_hit() -> None:
     patch = frames[0][row - 2 : row + 3, col - 2 : col + 3].reshape(-1, 3)
     assert any(tuple(p) == SONAR_HIT for p in patch)
     assert not np.any(np.all(frames[1] == np.array(SONAR_HIT, dtype=np.uint8), axis=-1))  # no sonar, no sonar dots
+
+
+def test_whole_world_frames_are_the_ones_recorded_before_the_follow_mode() -> None:
+    # view_m (the follow mode) left every shipped world's top view as it was, bit for bit
+    pinned = json.loads(FRAMES.read_text())
+    versions = (pygame.version.ver, ".".join(map(str, pygame.get_sdl_version())))
+    if versions != (pinned["pygame"], pinned["sdl"]):
+        pytest.skip(f"frames recorded with pygame {pinned['pygame']}, SDL {pinned['sdl']} (fonts differ); here {versions}")
+    for env_id, world in envs.ENV_WORLDS.items():
+        env = gym.make(env_id, render_mode="rgb_array")
+        assert env.unwrapped.config.view_m is None
+        env.reset(seed=0)
+        frames = [env.render()]
+        for _ in range(5):
+            env.step(np.array([0.8, 0.3], dtype=np.float32))
+            frames.append(env.render())
+        env.close()
+        assert list(frame_shape(env.unwrapped.config)) == pinned["worlds"][world]["shape"]
+        assert [hashlib.sha256(f.tobytes()).hexdigest() for f in frames] == pinned["worlds"][world]["sha256"], world

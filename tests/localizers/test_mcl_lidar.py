@@ -18,8 +18,9 @@ from gymnasium.utils.env_checker import check_env
 from scipy import integrate, stats
 
 import envs  # noqa: F401  (registers the env ids)
+from localizers import mcl_lidar, range_table
 from localizers.base import LandmarkMap, Localizer, MeasurementError, OdometryDelta, PoseEstimate, ScanMeasurement
-from localizers.geometry import between, wrap_angle
+from localizers.geometry import between, compose, wrap_angle
 from localizers.mcl_lidar import (
     BeamModel,
     LidarMCL,
@@ -41,6 +42,7 @@ from localizers.raycast import cast_rays
 from localizers.registry import load_params
 from localizers.schema import ConfigError, from_mapping, load_yaml
 from localizers.wrappers import LocalizationObservation
+from tests.localizers.campus import campus_walls
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs" / "localizers"
 ROOM = np.array([[0, 0, 7, 0], [7, 0, 7, 7], [7, 7, 0, 7], [0, 7, 0, 0]], dtype=np.float64)
@@ -498,6 +500,54 @@ def test_is_a_localizer_with_an_overlay() -> None:
     ov = loc.overlay()
     assert ov.poses.shape == (50, 3) and ov.weights.shape == (50,)
     assert not loc.estimate.valid  # no prior, nothing weighed yet
+
+
+# --- campus scale ----------------------------------------------------------------------------
+
+
+def test_likelihood_field_on_a_campus_never_builds_a_range_table(monkeypatch: pytest.MonkeyPatch) -> None:
+    # 150 m x 100 m with 300 walls and a 360-beam LIDAR of 100 m: the likelihood field is 6 M
+    # cells (0.3 s); a ray-cast table of the same grid at 720 directions would be 17 GB
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the likelihood-field filter built a ray-cast table")
+
+    monkeypatch.setattr(range_table, "build_range_table", refuse)
+    monkeypatch.setattr(mcl_lidar, "build_range_table", refuse)
+    walls = campus_walls(np.random.default_rng(1), count=300)
+    campus = LandmarkMap(np.zeros((0, 2)), (), (0.0, 0.0, 150.0, 100.0), walls)
+    params = LidarMCLParams(
+        model="likelihood_field", z_hit=0.5, z_short=0.0, z_max=0.0, z_rand=0.5,  # the reproduction's amcl settings
+        update_min_travel_m=0.0, update_min_rotation_rad=0.0, recovery_candidates=2000,
+    )  # fmt: skip
+    loc = LidarMCL(campus, params, dt_s=0.1)
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+
+    def scan(pose: np.ndarray) -> ScanMeasurement:
+        ranges = cast_rays(
+            pose[:2], angles + pose[2], 100.0, np.ascontiguousarray(walls[:, :2]), np.ascontiguousarray(walls[:, 2:]),
+            np.zeros((0, 2)), np.zeros(0),
+        )  # fmt: skip
+        return ScanMeasurement(ranges, angles, 100.0)
+
+    pose = np.array([60.0, 40.0, 0.3])
+    loc.reset(np.random.default_rng(0), PoseEstimate(*pose, np.diag([0.04, 0.04, 0.01])))
+    step = np.array([0.5, 0.0, 0.05])
+    for _ in range(6):
+        loc.predict(OdometryDelta(*step))
+        pose = np.asarray(compose(pose, step))
+        loc.update(scan(pose))
+    assert loc.updates == 6 and pose_error(loc.estimate, pose)[0] < 0.2
+    field = loc.likelihood_field()
+    assert field.distance_m.shape == (3040, 2040)  # the bounds plus 1 m each side at 5 cm
+    # kidnapped: recovery injects particles drawn from candidates over the whole map, weighed by the field
+    injected: list[int] = []
+    draw = loc._injected
+    monkeypatch.setattr(loc, "_injected", lambda count, *rest: injected.append(count) or draw(count, *rest))
+    for _ in range(3):
+        loc.predict(OdometryDelta(*step))
+        loc.update(scan(np.array([120.0, 20.0, 2.0])))
+    assert sum(injected) > 0
+    assert loc._beam_models == {} and loc.likelihood_field() is field
 
 
 # --- bad input -------------------------------------------------------------------------------
