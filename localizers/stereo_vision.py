@@ -519,7 +519,8 @@ def _candidates(
     fill: bool, res: NDArray[np.float64], idx: NDArray[np.int64],
 ) -> int:  # fmt: skip
     """Every (left, right, middle) triple of one type whose disparity is in the window and whose
-    middle edge is within ``tol`` of the pair's midpoint; counted, and written when ``fill``."""
+    middle edge is within ``tol`` of the pair's midpoint; all counted, and written when ``fill``
+    as long as ``res`` has room."""
     sl, sm, sr = _type_starts(tl), _type_starts(tm), _type_starts(tr)
     n = 0
     for t in range(30):
@@ -531,7 +532,7 @@ def _candidates(
                 mid = 0.5 * (ul[i] + ur[j])
                 k = _lower_bound(um, sm[t], sm[t + 1], mid - tol)
                 while k < sm[t + 1] and um[k] <= mid + tol:
-                    if fill:
+                    if fill and n < res.shape[0]:
                         res[n] = abs(um[k] - mid)
                         idx[3 * n] = i
                         idx[3 * n + 1] = j
@@ -615,15 +616,27 @@ def match_trinocular(
     el = check_edges(left, "match_trinocular: left")
     em = check_edges(middle, "match_trinocular: middle")
     er = check_edges(right, "match_trinocular: right")
+    return match_checked(el, em, er, d_min, d_max, tol)
+
+
+def match_checked(el: EdgeList, em: EdgeList, er: EdgeList, d_min: float, d_max: float, tol: float) -> Matches:
+    """:func:`match_trinocular` on lists already checked and sorted by ``(type, u)`` (:func:`check_edges`)
+    with the disparity window ``[d_min, d_max]`` (:func:`disparity_window`) and a positive ``tol``:
+    for callers whose lists come from this module's kernels or the simulator's, every step."""
     if el.u.size == 0 or em.u.size == 0 or er.u.size == 0:
         return empty_matches()
     args = (el.type, el.u, em.type, em.u, er.type, er.u, d_min, d_max, tol)
-    n = _candidates(*args, False, np.empty(0, np.float64), np.empty(0, np.int64))
+    cap = 4 * (el.u.size + er.u.size) + 64
+    res = np.empty(cap, np.float64)
+    idx = np.empty(3 * cap, np.int64)
+    n = _candidates(*args, True, res, idx)
     if n == 0:
         return empty_matches()
-    res = np.empty(n, np.float64)
-    idx = np.empty(3 * n, np.int64)
-    _candidates(*args, True, res, idx)
+    if n > cap:  # more candidates than the first guess: count them all, again
+        res = np.empty(n, np.float64)
+        idx = np.empty(3 * n, np.int64)
+        _candidates(*args, True, res, idx)
+    res, idx = res[:n], idx[: 3 * n]
     keep = _greedy(res, idx, el.u.size, em.u.size, er.u.size)
     triples = idx.reshape(n, 3)[keep]  # in generation order: by (type, left edge)
     i, j, k = triples[:, 0], triples[:, 1], triples[:, 2]

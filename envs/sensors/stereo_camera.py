@@ -48,8 +48,8 @@ from numpy.typing import NDArray
 
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.state import WorldState
-from envs.stereo.geometric import lines, suppress
-from envs.stereo.render import ColumnRenderer
+from envs.stereo.geometric import camera_edges, lines
+from envs.stereo.render import ColumnRenderer, Moving
 from envs.stereo.scene import Rig, static_scene
 from localizers.schema import check
 from localizers.stereo_vision import (
@@ -60,9 +60,11 @@ from localizers.stereo_vision import (
     EdgeList,
     TrinocularRig,
     check_rows,
+    disparity_window,
     edge_types,
     edge_types_parts,
     filter_size,
+    match_checked,
 )
 
 if TYPE_CHECKING:
@@ -133,7 +135,10 @@ class StereoCameraConfig(SensorConfig):
         )
         check(math.isfinite(self.height_m) and self.height_m > 0, f"{where}.height_m must be finite and > 0, got {self.height_m}")
         check(math.isfinite(self.forward_m), f"{where}.forward_m must be finite, got {self.forward_m}")
-        check(self.min_range_m < self.max_range_m, f"{where}: min_range_m {self.min_range_m} must be below max_range_m {self.max_range_m}")
+        check(
+            self.min_range_m < self.max_range_m,
+            f"{where}: min_range_m {self.min_range_m} must be below max_range_m {self.max_range_m}",
+        )
         overlap = self.overlap_depth_m
         check(
             overlap < self.min_range_m,
@@ -196,6 +201,7 @@ class StereoCamera(SensorBase):
         self.matcher = TrinocularRig(
             c.focal_px, cx, c.baseline_m, c.min_range_m, c.max_range_m, c.match_tolerance_px, c.forward_m, 0.0
         )
+        self._window = disparity_window(c.focal_px, c.baseline_m, c.min_range_m, c.max_range_m)
         self.renderer = ColumnRenderer(self.scene, c.focal_px, cx, cy, c.width_px, c.height_px, c.height_m, c.render_range_m)
         self._rows = np.asarray(c.rows, dtype=np.int64)
         self._half = fr // 2
@@ -255,7 +261,7 @@ class StereoCamera(SensorBase):
         }
 
     # ------------------------------------------------------------------ frames
-    def _moving(self, state: WorldState) -> tuple[NDArray[np.float64], ...]:
+    def _moving(self, state: WorldState) -> Moving:
         app = state.figures.appearance()
         return (app.side_a, app.side_b, app.side_z0, app.side_z1, app.side_rgb,
                 app.disc_xy, app.disc_r, app.disc_z0, app.disc_z1, app.disc_rgb)  # fmt: skip
@@ -332,19 +338,17 @@ class StereoCamera(SensorBase):
         line, channel = np.nonzero(strength >= c.threshold)
         types = edge_types(channel, level[line], response[line, channel] < 0)
         power = strength[line, channel].astype(np.float32)
-        out = []
+        xs, zs = x[line], z[line]
+        noise = rng.standard_normal((3, line.size)) * c.edge_noise_px if c.edge_noise_px > 0 else np.zeros((3, line.size))
+        within = float(self.detector.filter_cols // 2)
         # the left camera sits baseline_m left of the middle one: a point X right of the middle camera is X + b right of it
-        for lateral in (c.baseline_m, 0.0, -c.baseline_m):
-            u = r.cx_px + r.focal_px * (x[line] + lateral) / z[line]
-            if c.edge_noise_px > 0:
-                u = u + rng.standard_normal(u.shape[0]) * c.edge_noise_px
-            inside = (u >= self._margin_px) & (u < r.width_px - self._margin_px)
-            ui, ti, si = u[inside], types[inside], power[inside]
-            keep = suppress(ui, ti, si, self._margin_px)
-            ui, ti, si = ui[keep], ti[keep], si[keep]
-            order = np.lexsort((ui, ti))
-            out.append(EdgeList(ui[order], ti[order], si[order]))
-        return out[0], out[1], out[2]
+        lists = [
+            EdgeList(
+                *camera_edges(xs, zs, types, power, lateral, r.focal_px, r.cx_px, r.width_px, self._margin_px, noise[j], within)
+            )
+            for j, lateral in enumerate((c.baseline_m, 0.0, -c.baseline_m))
+        ]
+        return lists[0], lists[1], lists[2]
 
     def observe(
         self, state: WorldState, rng: np.random.Generator
@@ -358,7 +362,7 @@ class StereoCamera(SensorBase):
         else:
             edges = self._fast_edges(state, rng)
         self.last_edges = edges
-        matches = self.matcher.match(*edges)
+        matches = match_checked(*edges, *self._window, c.match_tolerance_px)
         slots, dropped = self._slots(matches)
         self.last_slots = slots
         info = {f"{self.key}_detections": int(min(matches.type.size, c.slots)), f"{self.key}_dropped": dropped}

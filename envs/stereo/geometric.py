@@ -24,7 +24,7 @@ line of sight meets beyond it. An object narrower in the image than half the fil
 Approximations (documented, measured against the image mode in the tests): occlusion and the
 background are taken on one line of sight per row rather than over the window; the colours of
 a corner or silhouette are taken at that line's height; lines closer together than half the
-filter's width are not mixed (the weaker of two of a type is dropped, :func:`suppress`).
+filter's width are not mixed (the weaker of two of a type is dropped, :func:`camera_edges`).
 """
 
 from __future__ import annotations
@@ -35,8 +35,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from envs.stereo.render import NEAR_M
-from envs.stereo.scene import StaticScene
+from envs.stereo.render import NEAR_M, TALL_M
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -68,14 +67,14 @@ def _entries(
     cam: Array, fwd: Array, focal: float, cx: float, width: int, max_range: float,
     seg_a: Array, seg_b: Array, seg_z0: Array, seg_z1: Array, cull: NDArray[np.bool_],
     disc_xy: Array, disc_r: Array, disc_z0: Array, disc_z1: Array,
-) -> tuple[Array, Array, IntArray, IntArray, IntArray]:  # fmt: skip
+) -> tuple[Array, IntArray, IntArray, IntArray, IntArray]:  # fmt: skip
     """Everything a line of sight can meet, in the camera's (right X, forward Z) frame, binned by column.
 
     Returns:
         geometry ``(N, 7)``: ``(x0, z0, x1, z1, height bottom, height top, nearest depth)``
         (a segment's ends, or a disc's centre and radius in ``x1``); ``kind`` ``(N,)``
-        (SEGMENT, DISC) and ``ref`` ``(N,)`` (segment or disc index) are in ``index``;
-        ``bins``: CSR ``(first (B + 1,), members)`` sorted by nearest depth within each bin.
+        (SEGMENT, DISC); ``ref`` ``(N,)`` (segment or disc index); the bins of columns as CSR
+        ``first`` ``(B + 1,)`` and ``members``, each bin sorted by nearest depth.
     """
     n_seg = seg_a.shape[0]
     n_disc = disc_xy.shape[0]
@@ -178,10 +177,7 @@ def _entries(
                 members[j - 1] = members[j]
                 members[j] = tmp
                 j -= 1
-    index = np.empty((n, 2), dtype=np.int64)
-    index[:, 0] = kind[:n]
-    index[:, 1] = ref[:n]
-    return geom[:n], index[:, 0].copy(), index[:, 1].copy(), first, members
+    return geom[:n], kind[:n].copy(), ref[:n].copy(), first, members
 
 
 @numba.njit(cache=True, inline="always")
@@ -273,17 +269,91 @@ def _colour_at(
     _facade(p, lam * seg_length[i], cam_h + slope * depth, prof_first, int_s1, int_first_run, run_z1, run_rgb, out)
 
 
+_MAX_BLOCKERS = 16
+
+
 @numba.njit(cache=True)
-def _window(z0: float, z1: float, depth: float, row: int, half: int, focal: float, cy: float, cam_h: float) -> tuple[float, float]:
-    """The share of the filter window (rows ``row - half`` to ``row + half``) that the heights
-    ``[z0, z1)`` at ``depth`` cover, and the middle height of the covered part."""
-    top = cam_h + (cy - (row - half)) * depth / focal
-    bottom = cam_h + (cy - (row + half + 1)) * depth / focal
-    lo = max(z0, bottom)
-    hi = min(z1, top)
-    if hi <= lo:
+def _blockers(
+    u: float, depth: float, cam_h: float, focal: float, cx: float, geom: Array, kind: IntArray, first: IntArray,
+    members: IntArray, lo: Array, hi: Array,
+) -> int:  # fmt: skip
+    """The heights at ``depth`` hidden from the camera along column ``u``, as disjoint intervals
+    ``[lo, hi)`` sorted upward; returns their count.
+
+    Something crossing the column at a nearer depth ``d`` over the heights ``[h0, h1)`` hides the
+    heights ``[cam_h + (h0 - cam_h) depth / d, cam_h + (h1 - cam_h) depth / d)`` at ``depth``
+    (the lines of sight that meet it)."""
+    t = (u - cx) / focal
+    b = int(u) // _BIN_PX
+    n = 0
+    if b < 0 or b >= first.shape[0] - 1:
+        return 0
+    limit = depth - _EPS_M
+    for m in range(first[b], first[b + 1]):
+        e = members[m]
+        if geom[e, 6] >= limit:
+            break  # sorted by nearest depth: nothing nearer follows
+        d, _ = _crossing(geom, kind[e], e, t)
+        if d <= NEAR_M or d >= limit:
+            continue
+        scale = depth / d
+        h0 = max(geom[e, 4], -TALL_M)
+        h1 = min(geom[e, 5], TALL_M)
+        a = cam_h + (h0 - cam_h) * scale
+        c = cam_h + (h1 - cam_h) * scale
+        # insert [a, c) keeping the list sorted and disjoint (merging what it touches)
+        i = 0
+        while i < n and hi[i] < a:
+            i += 1
+        j = i
+        while j < n and lo[j] <= c:
+            a = min(a, lo[j])
+            c = max(c, hi[j])
+            j += 1
+        if j == i:  # no overlap: shift right and insert
+            if n == _MAX_BLOCKERS:
+                continue  # (sixteen separate gaps in one column: ignore the rest)
+            for q in range(n, i, -1):
+                lo[q] = lo[q - 1]
+                hi[q] = hi[q - 1]
+            lo[i] = a
+            hi[i] = c
+            n += 1
+        else:  # intervals i..j-1 merge into one
+            lo[i] = a
+            hi[i] = c
+            shift = j - i - 1
+            for q in range(i + 1, n - shift):
+                lo[q] = lo[q + shift]
+                hi[q] = hi[q + shift]
+            n -= shift
+    return n
+
+
+@numba.njit(cache=True)
+def _seen(z0: float, z1: float, lo: Array, hi: Array, n: int) -> tuple[float, float]:
+    """The length of ``[z0, z1)`` outside the hidden intervals, and a height in its lowest visible stretch."""
+    if z1 <= z0:
         return 0.0, 0.0
-    return (hi - lo) / (top - bottom), 0.5 * (lo + hi)
+    total = z1 - z0
+    at = z0
+    where = -1.0e300
+    for i in range(n):
+        if hi[i] <= z0 or lo[i] >= z1:
+            continue
+        if where == -1.0e300 and lo[i] > at:
+            where = 0.5 * (at + min(lo[i], z1))
+        total -= min(hi[i], z1) - max(lo[i], z0)
+        at = max(at, hi[i])
+    if where == -1.0e300 and at < z1:
+        where = 0.5 * (at + z1)
+    return max(total, 0.0), where
+
+
+@numba.njit(cache=True, inline="always")
+def _window(depth: float, row: int, half: int, focal: float, cy: float, cam_h: float) -> tuple[float, float]:
+    """The heights at ``depth`` the filter window (rows ``row - half`` to ``row + half``) spans: ``(bottom, top)``."""
+    return cam_h + (cy - (row + half + 1)) * depth / focal, cam_h + (cy - (row - half)) * depth / focal
 
 
 @numba.njit(cache=True)
@@ -307,15 +377,15 @@ def lines(
     Returns:
         ``X``, ``Z`` ``(N,)``: each line's point in the middle camera's (right, forward) frame;
         ``level`` ``(N,)``: the detection row; ``response`` ``(N, 3)``: the filter's response per
-        channel (right minus left, at unit gain). Only lines whose largest response reaches
-        ``min_response`` are kept.
+        channel (right minus left, at unit gain), counting only the window's rows where the line
+        is in sight. Only lines whose largest response reaches ``min_response`` are kept.
     """
     geom, kind, ref, first, members = _entries(cam, fwd, focal, cx, width, max_range, seg_a, seg_b, seg_z0, seg_z1, cull,
                                                disc_xy, disc_r, disc_z0, disc_z1)  # fmt: skip
     fx, fy = fwd[0], fwd[1]
     rx, ry = fy, -fx
     levels = rows.shape[0]
-    cap = 4096
+    cap = 8192
     out_x = np.empty(cap)
     out_z = np.empty(cap)
     out_l = np.empty(cap, dtype=np.int64)
@@ -324,6 +394,8 @@ def lines(
     left = np.empty(3)
     right = np.empty(3)
     resp = np.empty(3)
+    blo = np.empty(_MAX_BLOCKERS)
+    bhi = np.empty(_MAX_BLOCKERS)
     u_lo = margin_px
     u_hi = width - margin_px
     # ---- façade breaks, side by side
@@ -338,6 +410,19 @@ def lines(
         by = seg_b[i, 1] - cam[1]
         if -ax * (by - ay) + ay * (bx - ax) <= 0.0:
             continue  # seen from inside its solid: a back face
+        # the breaks' columns, with the side's ends around them: a break closer in the image to
+        # its neighbours than half the filter's width is blurred into them (a façade seen edge-on)
+        cols = np.empty(hi_b - lo_b + 2)
+        for q in range(hi_b - lo_b + 2):
+            if q == 0:
+                qx, qy = ax, ay
+            elif q == hi_b - lo_b + 1:
+                qx, qy = bx, by
+            else:
+                qx = brk_xy[lo_b + q - 1, 0] - cam[0]
+                qy = brk_xy[lo_b + q - 1, 1] - cam[1]
+            qz = qx * fx + qy * fy
+            cols[q] = cx + focal * (qx * rx + qy * ry) / qz if qz > NEAR_M else np.nan
         for k in range(lo_b, hi_b):
             px = brk_xy[k, 0] - cam[0]
             py = brk_xy[k, 1] - cam[1]
@@ -348,24 +433,22 @@ def lines(
             u = cx + focal * x / z
             if u < u_lo or u >= u_hi:
                 continue
+            q = k - lo_b + 1
+            gap = min(abs(cols[q] - cols[q - 1]), abs(cols[q + 1] - cols[q]))  # NaN (an end behind): no limit
+            crowd = min(1.0, gap / narrow_px) if gap == gap else 1.0
+            nb = _blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
             for lv in range(levels):
+                bottom, top = _window(z, rows[lv], half, focal, cy, cam_h)
                 for c in range(3):
                     resp[c] = 0.0
-                mid_lo = 1e300
-                mid_hi = -1e300
                 for j in range(brk_first_run[k], brk_first_run[k + 1]):
-                    share, mid = _window(brun_z0[j], brun_z1[j], z, rows[lv], half, focal, cy, cam_h)
-                    if share <= 0.0:
+                    seen, _ = _seen(max(brun_z0[j], bottom), min(brun_z1[j], top), blo, bhi, nb)
+                    if seen <= 0.0:
                         continue
-                    mid_lo = min(mid_lo, mid)
-                    mid_hi = max(mid_hi, mid)
+                    share = crowd * seen / (top - bottom)
                     for c in range(3):
                         resp[c] += share * (brun_right[j, c] - brun_left[j, c])
-                if abs(resp[0]) < min_response and abs(resp[1]) < min_response and abs(resp[2]) < min_response:
-                    continue
-                slope = (0.5 * (mid_lo + mid_hi) - cam_h) / z
-                e, _, _ = _sight(u, slope, NEAR_M, z - _EPS_M, True, focal, cx, cam_h, geom, kind, first, members)
-                if e >= 0 or n >= cap:
+                if max(abs(resp[0]), abs(resp[1]), abs(resp[2])) < min_response or n >= cap:
                     continue
                 out_x[n] = x
                 out_z[n] = z
@@ -377,23 +460,22 @@ def lines(
     for o in range(obj_first.shape[0]):
         f0 = obj_first[o]
         cnt = obj_count[o]
-        zlo = obj_z0[o]
-        zhi = obj_z1[o]
         # the object's extent in the image: narrow objects respond weakly
         u_min = 1e300
         u_max = -1e300
+        cut = False
         for q in range(cnt):
             s = f0 + q
             px = seg_a[s, 0] - cam[0]
             py = seg_a[s, 1] - cam[1]
             z = px * fx + py * fy
             if z < NEAR_M:
-                u_min = -1e300
+                cut = True
                 break
             uu = cx + focal * (px * rx + py * ry) / z
             u_min = min(u_min, uu)
             u_max = max(u_max, uu)
-        narrow = 1.0 if u_min == -1e300 else min(1.0, (u_max - u_min) / narrow_px)
+        narrow = 1.0 if cut else min(1.0, (u_max - u_min) / narrow_px)
         for q in range(cnt):
             s = f0 + q
             prev = f0 + (q - 1 + cnt) % cnt
@@ -404,7 +486,7 @@ def lines(
             front = -ax * (by - ay) + ay * (bx - ax) > 0.0
             pax = seg_a[prev, 0] - cam[0]
             pay = seg_a[prev, 1] - cam[1]
-            front_prev = -pax * (ay - pay) + pay * (ax - pax) > 0.0  # prev side ends at this corner
+            front_prev = -pax * (ay - pay) + pay * (ax - pax) > 0.0  # the previous side ends at this corner
             if not front and not front_prev:
                 continue
             z = ax * fx + ay * fy
@@ -414,15 +496,14 @@ def lines(
             u = cx + focal * x / z
             if u < u_lo or u >= u_hi:
                 continue
+            nb = _blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
+            weight = 1.0 if front and front_prev else narrow
             for lv in range(levels):
-                share, mid = _window(zlo, zhi, z, rows[lv], half, focal, cy, cam_h)
-                if share <= 0.0:
+                bottom, top = _window(z, rows[lv], half, focal, cy, cam_h)
+                seen, mid = _seen(max(obj_z0[o], bottom), min(obj_z1[o], top), blo, bhi, nb)
+                if seen <= 0.0:
                     continue
                 slope = (mid - cam_h) / z
-                e, _, _ = _sight(u, slope, NEAR_M, z - _EPS_M, True, focal, cx, cam_h, geom, kind, first, members)
-                if e >= 0:
-                    continue
-                v = cy - focal * slope
                 if front_prev:  # the side ending here: its colour at its end
                     _side_colour(prev, seg_length[prev], mid, n_static, seg_profile, seg_rgb, side_rgb, prof_first, int_s1,
                                  int_first_run, run_z1, run_rgb, left)  # fmt: skip
@@ -431,15 +512,13 @@ def lines(
                                  run_z1, run_rgb, right)  # fmt: skip
                 if not (front and front_prev):  # a silhouette: what lies behind on the open side
                     eb, zb, lamb = _sight(u, slope, z + _EPS_M, max_range, False, focal, cx, cam_h, geom, kind, first, members)
-                    _colour_at(eb, zb, lamb, slope, v, geom, kind, ref, n_static, seg_profile, seg_length, seg_rgb, side_rgb,
-                               disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background, cam_h,
-                               right if front_prev else left)  # fmt: skip
-                weight = share if front and front_prev else share * narrow
-                big = 0.0
+                    _colour_at(eb, zb, lamb, slope, cy - focal * slope, geom, kind, ref, n_static, seg_profile, seg_length,
+                               seg_rgb, side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background,
+                               cam_h, right if front_prev else left)  # fmt: skip
+                share = weight * seen / (top - bottom)
                 for c in range(3):
-                    resp[c] = weight * (right[c] - left[c])
-                    big = max(big, abs(resp[c]))
-                if big < min_response or n >= cap:
+                    resp[c] = share * (right[c] - left[c])
+                if max(abs(resp[0]), abs(resp[1]), abs(resp[2])) < min_response or n >= cap:
                     continue
                 out_x[n] = x
                 out_z[n] = z
@@ -472,31 +551,25 @@ def lines(
             u = cx + focal * x / z
             if u < u_lo or u >= u_hi:
                 continue
+            nb = _blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
             for lv in range(levels):
-                share, mid = _window(disc_z0[i], disc_z1[i], z, rows[lv], half, focal, cy, cam_h)
-                if share <= 0.0:
+                bottom, top = _window(z, rows[lv], half, focal, cy, cam_h)
+                seen, mid = _seen(max(disc_z0[i], bottom), min(disc_z1[i], top), blo, bhi, nb)
+                if seen <= 0.0:
                     continue
                 slope = (mid - cam_h) / z
-                e, _, _ = _sight(u, slope, NEAR_M, z - _EPS_M, True, focal, cx, cam_h, geom, kind, first, members)
-                if e >= 0:
-                    continue
-                v = cy - focal * slope
                 eb, zb, lamb = _sight(u, slope, z + _EPS_M, max_range, False, focal, cx, cam_h, geom, kind, first, members)
-                if side < 0:
-                    _colour_at(eb, zb, lamb, slope, v, geom, kind, ref, n_static, seg_profile, seg_length, seg_rgb, side_rgb,
-                               disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background, cam_h, left)  # fmt: skip
-                    for c in range(3):
-                        right[c] = disc_rgb[i, c]
-                else:
-                    _colour_at(eb, zb, lamb, slope, v, geom, kind, ref, n_static, seg_profile, seg_length, seg_rgb, side_rgb,
-                               disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background, cam_h, right)  # fmt: skip
-                    for c in range(3):
-                        left[c] = disc_rgb[i, c]
-                big = 0.0
+                behind = left if side < 0 else right
+                _colour_at(eb, zb, lamb, slope, cy - focal * slope, geom, kind, ref, n_static, seg_profile, seg_length, seg_rgb,
+                           side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background, cam_h,
+                           behind)  # fmt: skip
+                body = right if side < 0 else left
                 for c in range(3):
-                    resp[c] = share * narrow * (right[c] - left[c])
-                    big = max(big, abs(resp[c]))
-                if big < min_response or n >= cap:
+                    body[c] = disc_rgb[i, c]
+                share = narrow * seen / (top - bottom)
+                for c in range(3):
+                    resp[c] = share * (right[c] - left[c])
+                if max(abs(resp[0]), abs(resp[1]), abs(resp[2])) < min_response or n >= cap:
                     continue
                 out_x[n] = x
                 out_z[n] = z
@@ -525,17 +598,39 @@ def _side_colour(
     _facade(p, along, z, prof_first, int_s1, int_first_run, run_z1, run_rgb, out)
 
 
-def suppress(u: Array, types: IntArray, strength: Array, within_px: float) -> NDArray[np.bool_]:
-    """Which edges to keep: of two of one type closer than ``within_px``, the weaker is dropped
-    (the image filter cannot tell them apart either)."""
-    keep = np.ones(u.shape[0], dtype=np.bool_)
-    if u.shape[0] < 2:
-        return keep
-    order = np.lexsort((u, types))
-    su, st, ss = u[order], types[order], strength[order]
-    close = (np.diff(st) == 0) & (np.diff(su) < within_px)
-    for i in np.flatnonzero(close):  # few: neighbouring lines of one type
-        a, b = order[i], order[i + 1]
-        if keep[a] and keep[b]:
-            keep[b if ss[i] >= ss[i + 1] else a] = False
-    return keep
+@numba.njit(cache=True)
+def camera_edges(
+    x: Array, z: Array, types: IntArray, strength: NDArray[np.float32], lateral: float, focal: float, cx: float,
+    width: int, margin_px: float, noise: Array, within_px: float,
+) -> tuple[Array, IntArray, NDArray[np.float32]]:  # fmt: skip
+    """One camera's edge list from the lines' edges: each edge's column in the camera ``lateral``
+    metres left of the middle one (``u = cx + f (X + lateral) / Z``) plus its ``noise`` (px),
+    those at least ``margin_px`` inside the image, sorted by ``(type, u)``; of two of one type
+    closer than ``within_px`` the weaker is dropped (the image filter cannot tell them apart either)."""
+    n = x.shape[0]
+    u = np.empty(n)
+    key = np.empty(n)
+    keep = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        u[i] = cx + focal * (x[i] + lateral) / z[i] + noise[i]
+        keep[i] = margin_px <= u[i] < width - margin_px
+        key[i] = types[i] * 1e6 + u[i]
+    order = np.argsort(key)
+    out_u = np.empty(n)
+    out_t = np.empty(n, dtype=np.int64)
+    out_s = np.empty(n, dtype=np.float32)
+    m = 0
+    for q in range(n):
+        i = order[q]
+        if not keep[i]:
+            continue
+        if m > 0 and out_t[m - 1] == types[i] and u[i] - out_u[m - 1] < within_px:
+            if strength[i] > out_s[m - 1]:  # the stronger of the two stays
+                out_u[m - 1] = u[i]
+                out_s[m - 1] = strength[i]
+            continue
+        out_u[m] = u[i]
+        out_t[m] = types[i]
+        out_s[m] = strength[i]
+        m += 1
+    return out_u[:m].copy(), out_t[:m].copy(), out_s[:m].copy()

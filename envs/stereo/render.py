@@ -33,12 +33,14 @@ from envs.stereo.scene import StaticScene
 #: crossings kept per column (the nearest, when more cross it)
 MAX_HITS = 32
 NEAR_M = 0.05  # the near clipping plane
-_TALL_M = 1e6  # heights are clipped to this (walls and columns may reach infinitely high)
+TALL_M = 1e6  # heights are clipped to this (walls and columns may reach infinitely high)
 SKY_TOP_RGB = (92, 132, 196)
 SKY_HORIZON_RGB = (176, 200, 226)
 GROUND_RGB = (112, 110, 104)
 
 Array = NDArray[np.float64]
+#: the moving bodies as the renderer takes them: box sides (a, b, z0, z1, rgb), then discs (xy, r, z0, z1, rgb)
+Moving = tuple[Array, Array, Array, Array, Array, Array, Array, Array, Array, Array]
 
 
 @numba.njit(cache=True, inline="always")
@@ -199,8 +201,8 @@ def _fill(
             h = order[i]
             z = hits_z[k, h]
             ref = hits_ref[k, h]
-            v_top = cy - focal * (min(ref_z1[ref], _TALL_M) - cam_h) / z  # (a wall of infinite height)
-            v_bot = cy - focal * (max(ref_z0[ref], -_TALL_M) - cam_h) / z
+            v_top = cy - focal * (min(ref_z1[ref], TALL_M) - cam_h) / z  # (a wall of infinite height)
+            v_bot = cy - focal * (max(ref_z0[ref], -TALL_M) - cam_h) / z
             r0 = max(0, int(math.ceil(v_top - 0.5)))
             r1 = min(height - 1, int(math.ceil(v_bot - 0.5)) - 1)
             if r1 < r0:
@@ -286,7 +288,7 @@ class ColumnRenderer:
         self,
         cam_xy: Array,
         forward: Array,
-        moving: tuple[Array, Array, Array, Array, Array, Array, Array, Array, Array, Array],
+        moving: Moving,
         gain: float = 1.0,
         noise: NDArray[np.float32] | None = None,
     ) -> NDArray[np.uint8]:
