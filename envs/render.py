@@ -103,10 +103,17 @@ def _layout(config: WorldConfig) -> tuple[float, Bounds, int, int, float, float]
     return frame.scale, bounds, frame.width, frame.height, frame.left, frame.top
 
 
+def _panel_heights(config: WorldConfig, width: int) -> list[int]:
+    """Per sensor of ``config`` (in its order), the height of the panel it shows under the top
+    view in a frame ``width`` wide (a camera's images: :meth:`SensorConfig.panel_height_px`), 0 for none."""
+    return [sensor.panel_height_px(width) for sensor in config.sensors.values()]
+
+
 def frame_shape(config: WorldConfig) -> tuple[int, int, int]:
-    """``(H, W, 3)`` of every ``rgb_array`` frame rendered for ``config`` (the window's frame with ``view_m``)."""
+    """``(H, W, 3)`` of every ``rgb_array`` frame rendered for ``config``: the top view (the window's
+    with ``view_m``) and under it the sensors' panels (a stereo camera's images)."""
     _, _, width, height, _, _ = _layout(config)
-    return (height, width, 3)
+    return (height + sum(_panel_heights(config, width)), width, 3)
 
 
 def _font(size_px: int) -> pygame.font.Font:
@@ -330,14 +337,17 @@ class Renderer:
         self.config = config
         self.render_mode = render_mode
         self.fps = fps
-        self.scale, bounds, self.width, self.height, left, top = _layout(config)
+        self.scale, bounds, self.width, self.view_height, left, top = _layout(config)
+        #: the sensors' panels under the top view: (sensor name, height px), in config order
+        self.panels = [(name, h) for name, h in zip(config.sensors, _panel_heights(config, self.width)) if h > 0]
+        self.height = self.view_height + sum(h for _, h in self.panels)
         xmin, ymin, xmax, ymax = self.bounds_m = bounds
         self.is_field = config.floor == "field"
         self.floor = FIELD_FLOOR if self.is_field else ROOM_FLOOR
         self.surface = pygame.Surface((self.width, self.height), 0, 32)
         self.view_m = config.view_m
         self._view_px = (left, top)  # where the window's top left corner lies in the frame
-        self._background_size = (self.width, self.height)
+        self._background_size = (self.width, self.view_height)
         origin = (left, top)  # the frame's pixel position of (xmin, ymax); in follow mode the background's
         if self.view_m is not None:
             self._background_size = background_size_px(bounds, self.scale)
@@ -399,8 +409,8 @@ class Renderer:
         else:
             self.look_at(state.robot_pose[:2])
             dx, dy = self._offset_px
-            shown = pygame.Rect(dx, dy, self.width, self.height).clip(self._background.get_rect())
-            self.surface.fill(BACKGROUND)
+            shown = pygame.Rect(dx, dy, self.width, self.view_height).clip(self._background.get_rect())
+            self.surface.fill(BACKGROUND, pygame.Rect(0, 0, self.width, self.view_height))
             self.surface.blit(self._background, (shown.x - dx, shown.y - dy), shown)
         canvas = self.canvas()
         pose = state.robot_pose
@@ -422,6 +432,7 @@ class Renderer:
         for draw in overlays:
             draw(canvas)
         self._draw_caption(env, canvas.captions)
+        self._draw_panels(env, state)
 
         if self.render_mode == "human":
             self._show()
@@ -465,6 +476,15 @@ class Renderer:
             dy = 6 if r < bg.get_height() / 2 else -6 - label.get_height()
             bg.blit(label, (c + dx, r + dy))
         return bg
+
+    def _draw_panels(self, env: LocalizationEnv, state: WorldState) -> None:
+        """Each sensor's panel under the top view (a camera's images with what it detected)."""
+        y = self.view_height
+        for name, height in self.panels:
+            image = env.sensors[name].panel(state, self.width, height)
+            pixels = np.ascontiguousarray(np.swapaxes(np.asarray(image, dtype=np.uint8), 0, 1))
+            self.surface.blit(pygame.surfarray.make_surface(pixels), (0, y))
+            y += height
 
     def _draw_landmarks(
         self, canvas: Canvas, xy: NDArray[np.float64], radius_m: NDArray[np.float64], visible: NDArray[np.int64]

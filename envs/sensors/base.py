@@ -52,6 +52,11 @@ class SensorConfig:
     def check_world(self, world: WorldConfig, name: str) -> None:
         """Raise :class:`ConfigError` if this sensor cannot work in ``world`` (override as needed)."""
 
+    def panel_height_px(self, frame_width_px: int) -> int:
+        """The height of the panel the sensor shows under the top view of a frame ``frame_width_px``
+        wide (its :meth:`Sensor.panel`; a camera's images), 0 for none (the default)."""
+        return 0
+
 
 class Sensor(Protocol):
     """What the env calls on a sensor.
@@ -64,7 +69,9 @@ class Sensor(Protocol):
     every physics step (odometry records it). ``metadata`` is what a localizer or a
     recording needs to interpret the readings (plain numbers and arrays, no env objects).
     ``draw`` adds the sensor to a rendered frame; ``draw_layer`` says whether it goes
-    under the bodies (``"under"``) or over them (``"over"``).
+    under the bodies (``"under"``) or over them (``"over"``). ``panel`` is an image shown under
+    the top view (a camera's view), for a sensor whose config asks for room
+    (:meth:`SensorConfig.panel_height_px`).
     """
 
     name: str
@@ -86,6 +93,8 @@ class Sensor(Protocol):
 
     def draw(self, canvas: Any, state: WorldState, reading: NDArray[Any], info: Mapping[str, Any]) -> None: ...
 
+    def panel(self, state: WorldState, width_px: int, height_px: int) -> NDArray[np.uint8]: ...
+
 
 class SensorBase:
     """Defaults for the optional parts of :class:`Sensor` (no command hook, no metadata, drawn over the bodies)."""
@@ -105,6 +114,11 @@ class SensorBase:
 
     def draw(self, canvas: Any, state: WorldState, reading: NDArray[Any], info: Mapping[str, Any]) -> None:
         pass
+
+    def panel(self, state: WorldState, width_px: int, height_px: int) -> NDArray[np.uint8]:
+        """The ``(height_px, width_px, 3)`` panel under the top view (for a config whose
+        :meth:`SensorConfig.panel_height_px` is not 0)."""
+        raise NotImplementedError(f"sensor {self.name!r} has no panel")
 
 
 #: builds a sensor from its name, its config, the world config and the world's first state

@@ -3,7 +3,7 @@
 Three level, forward-looking cameras in a row, ``baseline_m`` (the paper's 19 cm) from one to
 the next, the middle one ``forward_m`` ahead of the robot's centre at ``height_m``. Each frame
 the sensor reports the vertical edges seen by all three cameras, each as a detection slot
-``(valid, type, inverse range 1/m, bearing rad)``:
+``(valid, type, inverse range 1/m, bearing rad)``, flattened (``obs["stereo"].reshape(-1, 4)``):
 
 1. **edges**: at 5 detection rows in the upper part of the image, the paper's tall filter
    (101 x 7 at 640 x 480, scaled to the resolution) on each colour channel; an edge's *type*
@@ -51,7 +51,7 @@ from envs.state import WorldState
 from envs.stereo.geometric import camera_edges, lines
 from envs.stereo.render import ColumnRenderer, Moving
 from envs.stereo.scene import Rig, static_scene
-from localizers.schema import check
+from localizers.schema import ConfigError, check
 from localizers.stereo_vision import (
     CHANNEL_COLOURS,
     EDGE_TYPES,
@@ -61,6 +61,7 @@ from localizers.stereo_vision import (
     TrinocularRig,
     check_rows,
     disparity_window,
+    draw_detections,
     edge_types,
     edge_types_parts,
     filter_size,
@@ -119,6 +120,7 @@ class StereoCameraConfig(SensorConfig):
     gain_rho: float = 0.98
     gain_range: tuple[float, float] = (0.8, 1.2)
     render_range_m: float = 200.0  # nothing farther is drawn or seen
+    show_images: bool = True  # rendered frames show the three images with their edges under the top view
 
     def __post_init__(self) -> None:
         where = "stereo_camera"
@@ -147,7 +149,10 @@ class StereoCameraConfig(SensorConfig):
             f"nothing nearer than {overlap:.3g} m, beyond min_range_m {self.min_range_m}",
         )
         rows, _ = filter_size(self.width_px, self.height_px)
-        check_rows(self.rows, self.height_px, rows, f"{where}.detection_rows_px")
+        try:
+            check_rows(self.rows, self.height_px, rows, f"{where}.detection_rows_px")
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
         check(len(self.rows) == LEVELS, f"{where}.detection_rows_px must be {LEVELS} rows, got {self.rows}")
         check(1 <= self.slots <= 1024, f"{where}.slots must be in 1..1024, got {self.slots}")
         for name in ("edge_noise_px", "pixel_noise_std", "gain_std"):
@@ -156,6 +161,12 @@ class StereoCameraConfig(SensorConfig):
         check(0 <= self.gain_rho < 1, f"{where}.gain_rho must be in [0, 1), got {self.gain_rho}")
         lo, hi = self.gain_range
         check(0 < lo <= 1 <= hi < math.inf, f"{where}.gain_range must hold 1 and be positive, got {self.gain_range}")
+
+    def panel_height_px(self, frame_width_px: int) -> int:
+        """With ``show_images``, the three images side by side scaled to the frame's width (an even height)."""
+        if not self.show_images:
+            return 0
+        return 2 * max(1, round(frame_width_px * self.height_px / (3 * self.width_px) / 2))
 
     @property
     def principal(self) -> tuple[float, float]:
@@ -226,8 +237,8 @@ class StereoCamera(SensorBase):
     # ------------------------------------------------------------------ interface
     def space(self) -> spaces.Box | spaces.Dict:
         c = self.config
-        low = np.tile(np.array([0.0, 0.0, 0.0, -math.pi], dtype=np.float32), (c.slots, 1))
-        high = np.tile(np.array([1.0, EDGE_TYPES - 1, 1.0 / c.min_range_m, math.pi], dtype=np.float32), (c.slots, 1))
+        low = np.tile(np.array([0.0, 0.0, 0.0, -math.pi], dtype=np.float32), c.slots)
+        high = np.tile(np.array([1.0, EDGE_TYPES - 1, 1.0 / c.min_range_m, math.pi], dtype=np.float32), c.slots)
         slots = spaces.Box(low, high, dtype=np.float32)
         if not c.images:
             return slots
@@ -332,7 +343,7 @@ class StereoCamera(SensorBase):
             obj_first, obj_count, obj_z0, obj_z1,
             sc.seg_first_brk, sc.brk_xy, sc.brk_first_run, sc.brun_z0, sc.brun_z1, sc.brun_left, sc.brun_right,
             app.disc_xy, app.disc_r, app.disc_z0, app.disc_z1, app.disc_rgb,
-            sc.prof_first, sc.int_s1, sc.int_first_run, sc.run_z1, sc.run_rgb, self.renderer.background,
+            sc.prof_first, sc.int_s1, sc.int_first_run, sc.run_z0, sc.run_z1, sc.run_rgb, self.renderer.background,
         )  # fmt: skip
         strength = np.abs(response) * self._gain  # (N, 3)
         line, channel = np.nonzero(strength >= c.threshold)
@@ -340,7 +351,7 @@ class StereoCamera(SensorBase):
         power = strength[line, channel].astype(np.float32)
         xs, zs = x[line], z[line]
         noise = rng.standard_normal((3, line.size)) * c.edge_noise_px if c.edge_noise_px > 0 else np.zeros((3, line.size))
-        within = float(self.detector.filter_cols // 2)
+        within = self.detector.filter_cols // 2 + 1.5  # two steps of one sign this close make one peak of the filter
         # the left camera sits baseline_m left of the middle one: a point X right of the middle camera is X + b right of it
         lists = [
             EdgeList(
@@ -365,6 +376,7 @@ class StereoCamera(SensorBase):
         matches = match_checked(*edges, *self._window, c.match_tolerance_px)
         slots, dropped = self._slots(matches)
         self.last_slots = slots
+        slots = slots.reshape(-1)  # flat, as stable-baselines3's policies take a vector
         info = {f"{self.key}_detections": int(min(matches.type.size, c.slots)), f"{self.key}_dropped": dropped}
         if not c.images:
             return slots, info
@@ -390,21 +402,38 @@ class StereoCamera(SensorBase):
         return slots, count - n
 
     # ------------------------------------------------------------------ drawing
-    def views(self, state: WorldState) -> NDArray[np.uint8]:
+    def views(self, state: WorldState, width_px: int | None = None, height_px: int | None = None) -> NDArray[np.uint8]:
         """The three cameras' last images side by side (rendered now in the fast mode), each with
-        its edges marked by type (:func:`localizers.stereo_vision.draw_detections`)."""
-        from localizers.stereo_vision import draw_detections
+        its edges marked by type (:func:`localizers.stereo_vision.draw_detections`: a marker in
+        its channel's colour on its row, hollow for a rising edge, filled for a falling one);
+        scaled to ``(height_px, width_px)`` when given (markers drawn after scaling)."""
+        import cv2
 
+        c = self.config
         images = self.last_images
         if images is None or self._state_of_images is not state:
             images = self.render(state.robot_pose, state, self._gain)
+        width = 3 * c.width_px if width_px is None else int(width_px)
+        height = c.height_px if height_px is None else int(height_px)
+        edges = self.last_edges or (None, None, None)
+        bounds = np.linspace(0, width, 4).round().astype(int)
+        sy = height / c.height_px
+        rows = np.clip(np.round(self._rows * sy).astype(np.int64), 0, height - 1)
         marked = []
-        for image, edges in zip(images, self.last_edges or (None, None, None)):
-            if edges is None:
-                marked.append(image)
-            else:
-                marked.append(draw_detections(image, edges.u, edges.type, self._rows))
+        for j, (image, found) in enumerate(zip(images, edges)):
+            w = int(bounds[j + 1] - bounds[j])
+            small = image
+            if (w, height) != (c.width_px, c.height_px):
+                small = np.asarray(cv2.resize(image, (w, height), interpolation=cv2.INTER_AREA), dtype=np.uint8)
+            if found is not None:
+                sx = w / c.width_px
+                small = draw_detections(small, found.u * sx, found.type, rows, radius_px=2 if sx < 0.6 else 4)
+            marked.append(small)
         return np.concatenate(marked, axis=1)
+
+    def panel(self, state: WorldState, width_px: int, height_px: int) -> NDArray[np.uint8]:
+        """:meth:`views` at the rendered frame's strip size."""
+        return self.views(state, width_px, height_px)
 
     def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None:
         """A ray from the robot to each detection, in its channel's colour."""

@@ -204,72 +204,37 @@ def _crossing(geom: Array, kind: int, e: int, t: float) -> tuple[float, float]:
     return (b - math.sqrt(d)) / q, 0.0
 
 
-@numba.njit(cache=True)
-def _sight(
-    u: float, slope: float, depth_lo: float, depth_hi: float, stop_at_first: bool,
-    focal: float, cx: float, cam_h: float, geom: Array, kind: IntArray, first: IntArray, members: IntArray,
-) -> tuple[int, float, float]:  # fmt: skip
-    """The nearest thing the line of sight through column ``u``, rising ``slope`` metres per
-    metre of depth from the camera's height, meets between depths ``depth_lo`` and ``depth_hi``
-    (its height interval holding the line's height there): ``(entry, depth, lambda)``, entry -1
-    if none. With ``stop_at_first`` any such crossing is returned (an occlusion test)."""
-    t = (u - cx) / focal
-    b = int(u) // _BIN_PX
-    if b < 0 or b >= first.shape[0] - 1:
-        return -1, 0.0, 0.0
-    best = -1
-    best_z = depth_hi
-    best_lam = 0.0
-    for m in range(first[b], first[b + 1]):
-        e = members[m]
-        if geom[e, 6] >= best_z:
-            break  # sorted by nearest depth: nothing nearer follows
-        z, lam = _crossing(geom, kind[e], e, t)
-        if z <= depth_lo or z >= best_z:
-            continue
-        height = cam_h + slope * z
-        if height < geom[e, 4] or height >= geom[e, 5]:
-            continue
-        best = e
-        best_z = z
-        best_lam = lam
-        if stop_at_first:
-            break
-    return best, best_z, best_lam
-
-
-@numba.njit(cache=True)
-def _colour_at(
-    e: int, depth: float, lam: float, slope: float, v: float, geom: Array, kind: IntArray, ref: IntArray,
-    n_static: int, seg_profile: IntArray, seg_length: Array, seg_rgb: Array, side_rgb: Array, disc_rgb: Array,
-    prof_first: IntArray, int_s1: Array, int_first_run: IntArray, run_z1: Array, run_rgb: Array,
-    background: Array, cam_h: float, out: Array,
-) -> None:  # fmt: skip
-    """The colour of entry ``e`` where a line of sight meets it (``depth``, ``lam``), or the
-    background row ``v`` where ``e`` is -1."""
-    if e < 0:
-        row = min(max(int(v), 0), background.shape[0] - 1)
-        for c in range(3):
-            out[c] = background[row, c]
-        return
-    i = ref[e]
-    if kind[e] == DISC:
-        for c in range(3):
-            out[c] = disc_rgb[i, c]
-        return
-    if i >= n_static:
-        for c in range(3):
-            out[c] = side_rgb[i - n_static, c]
-        return
-    p = seg_profile[i]
-    if p < 0:
-        for c in range(3):
-            out[c] = seg_rgb[i, c]
-        return
-    _facade(p, lam * seg_length[i], cam_h + slope * depth, prof_first, int_s1, int_first_run, run_z1, run_rgb, out)
-
-
 _MAX_BLOCKERS = 16
+
+
+@numba.njit(cache=True)
+def _cover(lo: Array, hi: Array, n: int, a: float, c: float) -> int:
+    """Add ``[a, c)`` to the ``n`` disjoint intervals ``[lo, hi)`` sorted upward, merging what it
+    touches; returns the new count (an interval beyond the arrays' room is dropped)."""
+    i = 0
+    while i < n and hi[i] < a:
+        i += 1
+    j = i
+    while j < n and lo[j] <= c:
+        a = min(a, lo[j])
+        c = max(c, hi[j])
+        j += 1
+    if j == i:  # no overlap: shift right and insert
+        if n == lo.shape[0]:
+            return n
+        for q in range(n, i, -1):
+            lo[q] = lo[q - 1]
+            hi[q] = hi[q - 1]
+        lo[i] = a
+        hi[i] = c
+        return n + 1
+    lo[i] = a  # intervals i..j-1 merge into one
+    hi[i] = c
+    shift = j - i - 1
+    for q in range(i + 1, n - shift):
+        lo[q] = lo[q + shift]
+        hi[q] = hi[q + shift]
+    return n - shift
 
 
 @numba.njit(cache=True)
@@ -299,35 +264,129 @@ def _blockers(
         scale = depth / d
         h0 = max(geom[e, 4], -TALL_M)
         h1 = min(geom[e, 5], TALL_M)
-        a = cam_h + (h0 - cam_h) * scale
-        c = cam_h + (h1 - cam_h) * scale
-        # insert [a, c) keeping the list sorted and disjoint (merging what it touches)
-        i = 0
-        while i < n and hi[i] < a:
-            i += 1
-        j = i
-        while j < n and lo[j] <= c:
-            a = min(a, lo[j])
-            c = max(c, hi[j])
-            j += 1
-        if j == i:  # no overlap: shift right and insert
-            if n == _MAX_BLOCKERS:
-                continue  # (sixteen separate gaps in one column: ignore the rest)
-            for q in range(n, i, -1):
-                lo[q] = lo[q - 1]
-                hi[q] = hi[q - 1]
-            lo[i] = a
-            hi[i] = c
-            n += 1
-        else:  # intervals i..j-1 merge into one
-            lo[i] = a
-            hi[i] = c
-            shift = j - i - 1
-            for q in range(i + 1, n - shift):
-                lo[q] = lo[q + shift]
-                hi[q] = hi[q + shift]
-            n -= shift
+        n = _cover(lo, hi, n, cam_h + (h0 - cam_h) * scale, cam_h + (h1 - cam_h) * scale)
     return n
+
+
+_MAX_PIECES = 64
+
+
+@numba.njit(cache=True)
+def _behind(
+    u: float, depth: float, max_range: float, cam_h: float, focal: float, cx: float, geom: Array, kind: IntArray,
+    ref: IntArray, first: IntArray, members: IntArray, n_static: int, seg_profile: IntArray, seg_length: Array,
+    seg_rgb: Array, side_rgb: Array, disc_rgb: Array, prof_first: IntArray, int_s1: Array, int_first_run: IntArray,
+    run_z0: Array, run_z1: Array, run_rgb: Array, p_lo: Array, p_hi: Array, p_rgb: Array,
+) -> int:  # fmt: skip
+    """What column ``u`` shows beyond ``depth`` (behind a silhouette), as pieces of height at
+    ``depth`` (the lines of sight through them) with their colours: ``[p_lo, p_hi)``, ``p_rgb``
+    ``(P, 3)``, near things first covering far ones; returns the count. Heights no piece covers
+    show the sky or the ground."""
+    t = (u - cx) / focal
+    b = int(u) // _BIN_PX
+    if b < 0 or b >= first.shape[0] - 1:
+        return 0
+    hit_d = np.empty(32)
+    hit_e = np.empty(32, dtype=np.int64)
+    hit_l = np.empty(32)
+    nh = 0
+    for m in range(first[b], first[b + 1]):
+        e = members[m]
+        d, lam = _crossing(geom, kind[e], e, t)
+        if d <= depth + _EPS_M or d > max_range or nh == 32:
+            continue
+        j = nh  # insertion by depth
+        while j > 0 and hit_d[j - 1] > d:
+            hit_d[j] = hit_d[j - 1]
+            hit_e[j] = hit_e[j - 1]
+            hit_l[j] = hit_l[j - 1]
+            j -= 1
+        hit_d[j] = d
+        hit_e[j] = e
+        hit_l[j] = lam
+        nh += 1
+    cov_lo = np.empty(_MAX_BLOCKERS)
+    cov_hi = np.empty(_MAX_BLOCKERS)
+    ncov = 0
+    n = 0
+    colour = np.empty(3)
+    for h in range(nh):
+        e = hit_e[h]
+        scale = depth / hit_d[h]
+        a = cam_h + (max(geom[e, 4], -TALL_M) - cam_h) * scale
+        c = cam_h + (min(geom[e, 5], TALL_M) - cam_h) * scale
+        i = ref[e]
+        p = seg_profile[i] if kind[e] == SEGMENT and i < n_static else -1
+        if p < 0:
+            if kind[e] == DISC:
+                for k in range(3):
+                    colour[k] = disc_rgb[i, k]
+            elif i >= n_static:
+                for k in range(3):
+                    colour[k] = side_rgb[i - n_static, k]
+            else:
+                for k in range(3):
+                    colour[k] = seg_rgb[i, k]
+        # the parts of [a, c) not yet covered, each a piece (a façade's runs split it)
+        at = a
+        for q in range(ncov + 1):
+            gap_hi = c if q == ncov else min(c, cov_lo[q])
+            if gap_hi > at:
+                if p < 0:
+                    if n < _MAX_PIECES:
+                        p_lo[n] = at
+                        p_hi[n] = gap_hi
+                        for k in range(3):
+                            p_rgb[n, k] = colour[k]
+                        n += 1
+                else:
+                    g = prof_first[p]
+                    s_along = hit_l[h] * seg_length[i]
+                    while g < prof_first[p + 1] - 1 and s_along >= int_s1[g]:
+                        g += 1
+                    for r in range(int_first_run[g], int_first_run[g + 1]):
+                        r0 = max(at, cam_h + (run_z0[r] - cam_h) * scale)
+                        r1 = min(gap_hi, cam_h + (run_z1[r] - cam_h) * scale)
+                        if r1 > r0 and n < _MAX_PIECES:
+                            p_lo[n] = r0
+                            p_hi[n] = r1
+                            for k in range(3):
+                                p_rgb[n, k] = run_rgb[r, k]
+                            n += 1
+            if q < ncov:
+                at = max(at, cov_hi[q])
+            if at >= c:
+                break
+        ncov = _cover(cov_lo, cov_hi, ncov, a, c)
+    return n
+
+
+@numba.njit(cache=True)
+def _mean_behind(
+    lo: float, hi: float, depth: float, p_lo: Array, p_hi: Array, p_rgb: Array, n: int, background: Array,
+    focal: float, cy: float, cam_h: float, out: Array,
+) -> None:  # fmt: skip
+    """The mean colour of the pieces over the heights ``[lo, hi)`` at ``depth``, the sky or the
+    ground (the background row at their middle height) where none is."""
+    for k in range(3):
+        out[k] = 0.0
+    if hi <= lo:
+        return
+    left = hi - lo
+    for i in range(n):
+        w = min(hi, p_hi[i]) - max(lo, p_lo[i])
+        if w <= 0.0:
+            continue
+        left -= w
+        for k in range(3):
+            out[k] += w * p_rgb[i, k]
+    if left > 1e-12:
+        row = int(cy - focal * (0.5 * (lo + hi) - cam_h) / depth)
+        row = min(max(row, 0), background.shape[0] - 1)
+        for k in range(3):
+            out[k] += left * background[row, k]
+    for k in range(3):
+        out[k] /= hi - lo
 
 
 @numba.njit(cache=True)
@@ -366,7 +425,7 @@ def lines(
     seg_first_brk: IntArray, brk_xy: Array, brk_first_run: IntArray, brun_z0: Array, brun_z1: Array,
     brun_left: Array, brun_right: Array,
     disc_xy: Array, disc_r: Array, disc_z0: Array, disc_z1: Array, disc_rgb: Array,
-    prof_first: IntArray, int_s1: Array, int_first_run: IntArray, run_z1: Array, run_rgb: Array,
+    prof_first: IntArray, int_s1: Array, int_first_run: IntArray, run_z0: Array, run_z1: Array, run_rgb: Array,
     background: Array,
 ) -> tuple[Array, Array, IntArray, Array]:  # fmt: skip
     """Every vertical colour line the middle camera sees, with its response at each detection row.
@@ -396,6 +455,9 @@ def lines(
     resp = np.empty(3)
     blo = np.empty(_MAX_BLOCKERS)
     bhi = np.empty(_MAX_BLOCKERS)
+    p_lo = np.empty(_MAX_PIECES)
+    p_hi = np.empty(_MAX_PIECES)
+    p_rgb = np.empty((_MAX_PIECES, 3))
     u_lo = margin_px
     u_hi = width - margin_px
     # ---- façade breaks, side by side
@@ -497,24 +559,28 @@ def lines(
             if u < u_lo or u >= u_hi:
                 continue
             nb = _blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
-            weight = 1.0 if front and front_prev else narrow
+            corner = front and front_prev
+            weight = 1.0 if corner else narrow
+            pieces = 0
+            if not corner:  # a silhouette: what lies behind on the open side
+                pieces = _behind(u, z, max_range, cam_h, focal, cx, geom, kind, ref, first, members, n_static, seg_profile,
+                                 seg_length, seg_rgb, side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z0, run_z1,
+                                 run_rgb, p_lo, p_hi, p_rgb)  # fmt: skip
             for lv in range(levels):
                 bottom, top = _window(z, rows[lv], half, focal, cy, cam_h)
-                seen, mid = _seen(max(obj_z0[o], bottom), min(obj_z1[o], top), blo, bhi, nb)
+                span_lo, span_hi = max(obj_z0[o], bottom), min(obj_z1[o], top)
+                seen, mid = _seen(span_lo, span_hi, blo, bhi, nb)
                 if seen <= 0.0:
                     continue
-                slope = (mid - cam_h) / z
                 if front_prev:  # the side ending here: its colour at its end
                     _side_colour(prev, seg_length[prev], mid, n_static, seg_profile, seg_rgb, side_rgb, prof_first, int_s1,
                                  int_first_run, run_z1, run_rgb, left)  # fmt: skip
                 if front:
                     _side_colour(s, 0.0, mid, n_static, seg_profile, seg_rgb, side_rgb, prof_first, int_s1, int_first_run,
                                  run_z1, run_rgb, right)  # fmt: skip
-                if not (front and front_prev):  # a silhouette: what lies behind on the open side
-                    eb, zb, lamb = _sight(u, slope, z + _EPS_M, max_range, False, focal, cx, cam_h, geom, kind, first, members)
-                    _colour_at(eb, zb, lamb, slope, cy - focal * slope, geom, kind, ref, n_static, seg_profile, seg_length,
-                               seg_rgb, side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background,
-                               cam_h, right if front_prev else left)  # fmt: skip
+                if not corner:
+                    _mean_behind(span_lo, span_hi, z, p_lo, p_hi, p_rgb, pieces, background, focal, cy, cam_h,
+                                 right if front_prev else left)  # fmt: skip
                 share = weight * seen / (top - bottom)
                 for c in range(3):
                     resp[c] = share * (right[c] - left[c])
@@ -552,17 +618,17 @@ def lines(
             if u < u_lo or u >= u_hi:
                 continue
             nb = _blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
+            pieces = _behind(u, z, max_range, cam_h, focal, cx, geom, kind, ref, first, members, n_static, seg_profile,
+                             seg_length, seg_rgb, side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z0, run_z1,
+                             run_rgb, p_lo, p_hi, p_rgb)  # fmt: skip
             for lv in range(levels):
                 bottom, top = _window(z, rows[lv], half, focal, cy, cam_h)
-                seen, mid = _seen(max(disc_z0[i], bottom), min(disc_z1[i], top), blo, bhi, nb)
+                span_lo, span_hi = max(disc_z0[i], bottom), min(disc_z1[i], top)
+                seen, _ = _seen(span_lo, span_hi, blo, bhi, nb)
                 if seen <= 0.0:
                     continue
-                slope = (mid - cam_h) / z
-                eb, zb, lamb = _sight(u, slope, z + _EPS_M, max_range, False, focal, cx, cam_h, geom, kind, first, members)
-                behind = left if side < 0 else right
-                _colour_at(eb, zb, lamb, slope, cy - focal * slope, geom, kind, ref, n_static, seg_profile, seg_length, seg_rgb,
-                           side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z1, run_rgb, background, cam_h,
-                           behind)  # fmt: skip
+                _mean_behind(span_lo, span_hi, z, p_lo, p_hi, p_rgb, pieces, background, focal, cy, cam_h,
+                             left if side < 0 else right)  # fmt: skip
                 body = right if side < 0 else left
                 for c in range(3):
                     body[c] = disc_rgb[i, c]
@@ -606,7 +672,8 @@ def camera_edges(
     """One camera's edge list from the lines' edges: each edge's column in the camera ``lateral``
     metres left of the middle one (``u = cx + f (X + lateral) / Z``) plus its ``noise`` (px),
     those at least ``margin_px`` inside the image, sorted by ``(type, u)``; of two of one type
-    closer than ``within_px`` the weaker is dropped (the image filter cannot tell them apart either)."""
+    closer than ``within_px`` (at the pixel boundaries they fall on) the weaker is dropped: the
+    image filter makes one peak of two steps of one sign that close."""
     n = x.shape[0]
     u = np.empty(n)
     key = np.empty(n)
@@ -624,7 +691,8 @@ def camera_edges(
         i = order[q]
         if not keep[i]:
             continue
-        if m > 0 and out_t[m - 1] == types[i] and u[i] - out_u[m - 1] < within_px:
+        # (compared at the pixel boundaries a sharp image puts them on: round(u))
+        if m > 0 and out_t[m - 1] == types[i] and round(u[i]) - round(out_u[m - 1]) < within_px:
             if strength[i] > out_s[m - 1]:  # the stronger of the two stays
                 out_u[m - 1] = u[i]
                 out_s[m - 1] = strength[i]
