@@ -176,6 +176,40 @@ class ScanMeasurement:
     max_range_m: float
 
 
+@dataclass(frozen=True)
+class EdgeMeasurement:
+    """Typed vertical edges seen by a stereo camera in one frame (paper D's landmarks).
+
+    Attributes:
+        types: ``(n,)`` edge types in ``0..29`` (:func:`localizers.stereo_vision.edge_type`).
+        inverse_range_m: ``(n,)`` 1 / range from the robot centre, 1/m, finite and > 0.
+        bearings_rad: ``(n,)`` bearings in the robot frame, counter-clockwise from the heading.
+    """
+
+    types: NDArray[np.int64]
+    inverse_range_m: NDArray[np.float64]
+    bearings_rad: NDArray[np.float64]
+
+    def validated(self, source: str = "edge measurement") -> EdgeMeasurement:
+        """Return a copy with checked dtypes, or raise :class:`MeasurementError` naming the bad value."""
+        t = np.asarray(self.types)
+        inv = np.asarray(self.inverse_range_m, dtype=np.float64)
+        b = np.asarray(self.bearings_rad, dtype=np.float64)
+        if t.ndim != 1 or inv.shape != t.shape or b.shape != t.shape:
+            raise MeasurementError(f"{source}: types, inverse_range_m and bearings_rad must be 1-D of one length, got "
+                                   f"{t.shape}, {inv.shape}, {b.shape}")  # fmt: skip
+        if t.size and (t.dtype.kind not in "iu" or t.min() < 0 or t.max() > 29):
+            raise MeasurementError(f"{source}: edge types must be integers in 0..29, got {t.tolist()!r}")
+        bad = ~(np.isfinite(inv) & (inv > 0.0))
+        if bad.any():
+            raise MeasurementError(
+                f"{source}: inverse ranges must be finite and > 0 (a range in (0, inf)), got {float(inv[bad][0])!r}"
+            )
+        if not np.isfinite(b).all():
+            raise MeasurementError(f"{source}: bearings must be finite, got {float(b[~np.isfinite(b)][0])!r}")
+        return EdgeMeasurement(t.astype(np.int64), inv, b)
+
+
 @dataclass(frozen=True, eq=False)
 class PoseEstimate:
     """A localizer's answer.

@@ -6,7 +6,8 @@ sensor's metadata: beam angles, maximum range, ...) into a measurement dataclass
 :mod:`localizers.base`. The localizer wrapper, the recordings of ``agents.replay`` and
 ``crowdloc eval`` go through :func:`decode`, so they handle any registered kind without a
 branch on observation keys. Built in: ``bearings`` (a bearing camera's slots), ``scan``
-(a LIDAR's ranges) and ``ceiling_image`` (an upward camera's image). This module imports nothing from ``envs``: metadata are plain values.
+(a LIDAR's ranges), ``ceiling_image`` (an upward camera's image) and ``stereo_edges`` (a
+stereo camera's typed vertical edges). This module imports nothing from ``envs``: metadata are plain values.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.base import BearingMeasurement, LandmarkMap, ScanMeasurement
+from localizers.base import BearingMeasurement, EdgeMeasurement, LandmarkMap, ScanMeasurement
 from localizers.schema import ConfigError
 
 Decoder = Callable[[NDArray[np.float32], Mapping[str, Any]], Any]
@@ -132,10 +133,22 @@ def ceiling_image_measurement(image: NDArray[Any], metadata: Mapping[str, Any]) 
     return ceiling_image(image, metadata)
 
 
+def edge_measurement(slots: NDArray[np.float32], metadata: Mapping[str, Any] | None = None) -> EdgeMeasurement:
+    """A stereo camera's flat slots ``(valid, type, inverse range, bearing)`` as an
+    :class:`EdgeMeasurement` of its valid ones (checked: a NaN or non-positive inverse range
+    is a :class:`MeasurementError` naming it)."""
+    rows = np.asarray(slots, dtype=np.float64).reshape(-1, 4)
+    rows = rows[rows[:, 0] > 0.5]
+    return EdgeMeasurement(np.rint(rows[:, 1]).astype(np.int64), rows[:, 2], rows[:, 3]).validated("stereo_edges slots")
+
+
 BEARINGS = register_measurement(
     MeasurementKind("bearings", "bearing_camera", bearing_measurement, "identified landmark bearings")
 )
 SCAN = register_measurement(MeasurementKind("scan", "lidar", scan_measurement, "a 2-D range scan"))
 CEILING_IMAGE = register_measurement(
     MeasurementKind("ceiling_image", "ceiling_camera", ceiling_image_measurement, "an upward camera's RGB image of the ceiling")
+)
+STEREO_EDGES = register_measurement(
+    MeasurementKind("stereo_edges", "stereo_camera", edge_measurement, "typed vertical edges of a stereo camera")
 )
