@@ -17,6 +17,9 @@ the estimate need the wrapped observation and say so when it is missing.
 - :class:`~agents.navigation.CorridorFollower` (``"corridor_follower"``): the ceiling-target
   paper's navigation, from target to target of a ceiling along a corridor, centred by the
   side sonars, stopping under each target to correct the pose (:mod:`agents.navigation`).
+- :class:`~agents.route_following.RouteFollower` (``"route_follower"``): pure pursuit along
+  the world's route (a ``route`` feature of the map), stopping for obstacles its LIDAR or
+  sonar sees ahead (:mod:`agents.route_following`).
 
 The base class and the helpers the policies share are in :mod:`agents.policy_base`. A policy
 names the sensor type it reads (``needs_sensor``) and the map feature type it plans on
@@ -38,6 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from agents.navigation import CorridorFollower
 from agents.policy_base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
+from agents.route_following import RouteFollower, range_sensor_kwargs, route_points
 from envs.sensors import BearingCameraConfig
 from localizers.base import LandmarkMap
 from localizers.bounds import bearing_information
@@ -53,6 +57,7 @@ __all__ = [
     "Observation",
     "PatrolPath",
     "RandomWalk",
+    "RouteFollower",
     "SpinInPlace",
     "StopAndGo",
     "make_policy",
@@ -436,6 +441,20 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
             kwargs.setdefault("sonar_cone_rad", sonar.cone_rad)
         lmap = base.landmark_map
         return CorridorFollower(space, ceiling_targets(base.config, lmap.features), lmap.bounds_m, seed, **kwargs)
+    if name == "route_follower":
+        config = base.config
+        kwargs.setdefault("dt_s", config.dt_s)
+        kwargs.setdefault("max_speed_mps", config.robot.max_speed_mps)
+        kwargs.setdefault("max_turn_rate_rps", config.robot.max_turn_rate_rps)
+        kwargs.setdefault("robot_radius_m", config.robot.radius_m)
+        sonar = config.sensor_of_type("sonar")
+        if sonar is not None:
+            kwargs.setdefault("sonar_cone_rad", sonar.cone_rad)
+        for key, value in range_sensor_kwargs(base.sensor_metadata).items():
+            kwargs.setdefault(key, value)
+        lmap = base.landmark_map
+        route = route_points(config, lmap.features, kwargs.pop("route", None))
+        return RouteFollower(space, route, lmap.bounds_m, seed, **kwargs)
     return FIXED_POLICIES[name](space, seed=seed, **kwargs)
 
 
@@ -464,4 +483,5 @@ FIXED_POLICIES: dict[str, Any] = {
     "landmark_seeking": LandmarkSeeking,
     "greedy_info_gain": GreedyInformationGain,
     "corridor_follower": CorridorFollower,
+    "route_follower": RouteFollower,
 }

@@ -21,6 +21,7 @@ ENV_WORLDS = {
     "crowdloc/RoboCupCrowded-v0": "robocup_crowded",
     "crowdloc/CrowdedRoom-v0": "crowded_room",
     "crowdloc/CeilingCorridor-v0": "ceiling_corridor",
+    "crowdloc/StereoCampus-v0": "stereo_campus",
 }
 
 

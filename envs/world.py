@@ -251,11 +251,12 @@ class World:
         taken = [(float(pose[0]), float(pose[1]), rc.radius_m)]
         for crowd in self.crowds.values():
             placed = crowd.reset(rng, taken)
-            for row, (x, y) in zip(crowd.rows, placed):
+            headings = crowd.start_headings()
+            for k, (row, (x, y)) in enumerate(zip(crowd.rows, placed)):
                 body = self.bodies[row - 1]
                 body.position = (float(x), float(y))
                 body.velocity = (0.0, 0.0)
-                body.angle = 0.0
+                body.angle = 0.0 if headings is None else float(headings[k])
                 body.angular_velocity = 0.0
         for body in self.space.bodies:
             self.space.reindex_shapes_for_body(body)
@@ -417,6 +418,7 @@ class World:
         cmd[0, 0:2] = robot_velocity_xy
         cmd[0, 2] = robot_omega
         state = self.snapshot()
+        turned: list[int] = []  # rows a crowd turned to a heading: no turn rate this step
         for crowd in self.crowds.values():
             if not crowd.rows.size:
                 continue
@@ -434,9 +436,21 @@ class World:
                 body.position = (float(xy[0]), float(xy[1]))
                 cmd[row, 0:2] = 0.0
                 self.space.reindex_shapes_for_body(body)
+            for index, heading in wants.headings:
+                row = int(crowd.rows[index])
+                body = self.bodies[row - 1]
+                body.angle = float(heading)
+                turned.append(row)
+                if any(i == index for i, _ in wants.teleports):  # moved and turned: on at its speed, no force
+                    speed = math.hypot(*self.velocities[row])
+                    cmd[row, 0:2] = (speed * math.cos(heading), speed * math.sin(heading))
+                    cmd[row, 3:5] = 0.0
+                self.space.reindex_shapes_for_body(body)
         if self._has_cars:
             cars = self.car_rows
             cmd[cars, 2] = turn_to_travel(self.angles[cars], self.velocities[cars], dt, self._car_turn_rate)
+        if turned:
+            cmd[turned, 2] = 0.0
         pbatch.set_space_bodies(self.space, _FIELDS_COMMAND, self._command_buffer)
         self.contacts = []  # a new list: one handed out for the last step is never changed
         self.space.step(dt)

@@ -1,8 +1,9 @@
 """Crowds as plug-ins: one module per behaviour, registered by type name.
 
 Built in: ``soccer`` (:mod:`.soccer`, owns the ball), ``queues`` (:mod:`.queues`),
-``walkers`` (:mod:`.walkers`) and ``corridor`` (:mod:`.corridor`: walkers both ways along a
-corridor and groups standing by its walls). See :mod:`.base` for the interface and
+``walkers`` (:mod:`.walkers`), ``corridor`` (:mod:`.corridor`: walkers both ways along a
+corridor and groups standing by its walls) and ``campus`` (:mod:`.campus`: pedestrians on a
+walkway network, groups by the doors, cars on the road's lanes, parked cars). See :mod:`.base` for the interface and
 ``docs/architecture.md`` for adding one.
 """
 
@@ -20,6 +21,7 @@ from envs.crowds.base import (
     crowd_types,
     register_crowd,
 )
+from envs.crowds.campus import CampusConfig, CampusCrowd, LaneConfig, WalkwayConfig
 from envs.crowds.corridor import CorridorConfig, CorridorCrowd
 from envs.crowds.queues import QueueCrowd, QueuesConfig
 from envs.crowds.soccer import SoccerConfig, SoccerCrowd
@@ -28,12 +30,15 @@ from envs.crowds.walkers import WalkerCrowd, WalkersConfig
 __all__ = [
     "CROWDS",
     "BodySpec",
+    "CampusConfig",
+    "CampusCrowd",
     "Commands",
     "CorridorConfig",
     "CorridorCrowd",
     "Crowd",
     "CrowdConfig",
     "CrowdType",
+    "LaneConfig",
     "QueueCrowd",
     "QueuesConfig",
     "SoccerConfig",
@@ -41,6 +46,7 @@ __all__ = [
     "Taken",
     "WalkerCrowd",
     "WalkersConfig",
+    "WalkwayConfig",
     "build_crowd",
     "crowd_types",
     "register_crowd",

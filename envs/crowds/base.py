@@ -11,7 +11,7 @@ are (:class:`BodySpec`), where they start, and every step what they want to do
 that into pymunk bodies and forces; bodies follow the robot in crowd order. ``crowd_size``
 sets the count of the world's first crowd (its density). Built in: ``soccer``
 (:mod:`.soccer`), ``queues`` (:mod:`.queues`), ``walkers`` (:mod:`.walkers`), ``corridor``
-(:mod:`.corridor`).
+(:mod:`.corridor`), ``campus`` (:mod:`.campus`).
 """
 
 from __future__ import annotations
@@ -139,11 +139,15 @@ class Commands(NamedTuple):
         member_velocity: ``(M, 2)`` desired velocities of its members (in body order).
         ball_velocity: ``(2,)`` the ball's velocity to set, or None (no ball, or leave it).
         teleports: ``(body index within the crowd, (x, y))`` to move before the step (a ball put back in play).
+        headings: ``(body index within the crowd, heading rad)`` to turn to before the step, its
+            turn rate 0 this step; one also teleported keeps its speed, along its new heading,
+            with no driving force this step (a car re-entering the campus drives on).
     """
 
     member_velocity: NDArray[np.float64]
     ball_velocity: NDArray[np.float64] | None = None
     teleports: tuple[tuple[int, NDArray[np.float64]], ...] = ()
+    headings: tuple[tuple[int, float], ...] = ()
 
 
 class Crowd:
@@ -210,6 +214,11 @@ class Crowd:
         """``(bodies, 2)`` start positions; append the members placed to ``taken`` (x, y, r)."""
         self.held[:] = False
         return np.zeros((len(self.bodies()), 2))
+
+    def start_headings(self) -> NDArray[np.float64] | None:
+        """``(bodies,)`` the headings of the bodies the last :meth:`reset` placed (cars along their
+        lane, parked cars as parked), or None: every body starts facing +x (heading 0)."""
+        return None
 
     def commands(self, state: WorldState, others: Rows, rng: np.random.Generator) -> Commands:
         """What the crowd wants this step; ``others``: the rows of every member of every crowd."""

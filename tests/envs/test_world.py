@@ -21,7 +21,8 @@ def test_world_exports_its_static_geometry(world_name: str) -> None:
     world = World(config)
     xmin, ymin, xmax, ymax = config.arena_m
     furniture = sum(len(piece.segments()) for piece in config.furniture)
-    assert world.seg_a.shape == world.seg_b.shape == (4 + len(config.walls) + furniture, 2)
+    scenery = sum(len(feature.segments()) for feature in config.features.values())  # buildings, poles, trees
+    assert world.seg_a.shape == world.seg_b.shape == (4 + len(config.walls) + furniture + scenery, 2)
     corners = {tuple(p) for p in world.seg_a[:4]}
     assert corners == {(xmin, ymin), (xmax, ymin), (xmax, ymax), (xmin, ymax)}
     assert world.landmark_xy.shape == (len(config.landmarks), 2)
