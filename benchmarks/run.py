@@ -9,7 +9,7 @@ import platform
 import sys
 from pathlib import Path
 
-from benchmarks import bench_ceiling, bench_envs, bench_lidar, bench_localizers, bench_train
+from benchmarks import bench_ceiling, bench_envs, bench_lidar, bench_localizers, bench_stereo, bench_train
 from benchmarks.common import Result
 
 SUITES = {
@@ -17,6 +17,7 @@ SUITES = {
     "localizers": bench_localizers.run_all,
     "lidar": bench_lidar.run_all,
     "ceiling": bench_ceiling.run_all,
+    "stereo": bench_stereo.run_all,
     "training": bench_train.run_all,
 }
 

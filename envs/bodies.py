@@ -362,8 +362,10 @@ def _cut_boxes(
     z_lo: NDArray[np.float64],
     z_hi: NDArray[np.float64],
     keep: NDArray[np.bool_],
+    whole: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
-    """The sides ``(4K, 2)`` ends a, ends b and ``(4K,)`` rows of the boxes that span ``height``.
+    """The sides ``(4K, 2)`` ends a, ends b and ``(4K,)`` rows of the boxes that span ``height``
+    (with ``whole``: of every box kept, a wheel as a box of its diameter).
 
     Box ``p`` sits ``offset[p]`` (forward, left) from its body's centre in the body's frame,
     with half sizes ``half[p]`` (along, across); a wheel (``wheel_r > 0``) is as long as its
@@ -375,11 +377,11 @@ def _cut_boxes(
     rows = np.empty(4 * n, dtype=np.int64)
     k = 0
     for p in range(n):
-        if not (keep[p] and z_lo[p] <= height < z_hi[p]):
+        if not (keep[p] and (whole or z_lo[p] <= height < z_hi[p])):
             continue
         hl = half[p, 0]
         if wheel_r[p] > 0.0:  # a wheel standing on the floor: its centre at the height of its radius
-            hl = _half_chord(wheel_r[p], wheel_r[p], height)
+            hl = wheel_r[p] if whole else _half_chord(wheel_r[p], wheel_r[p], height)
             if hl <= 0.0:
                 continue
         hw = half[p, 1]
@@ -491,8 +493,8 @@ class Figures:
     """
 
     __slots__ = (
-        "_angles", "_boxes", "_occluders", "_positions", "_sections", "_slope", "_upright_cuts", "_xy", "box_rgb", "layout",
-        "part_rgb",
+        "_angles", "_appearance", "_boxes", "_occluders", "_positions", "_sections", "_slope", "_upright_cuts", "_xy",
+        "box_rgb", "layout", "part_rgb",
     )  # fmt: skip
 
     def __init__(
@@ -511,6 +513,7 @@ class Figures:
         #: ``(P, 3)`` every disc part's colour and ``(Q, 3)`` every box part's, 0-255 (what a camera sees)
         self.part_rgb = np.zeros((layout.row.size, 3)) if part_rgb is None else part_rgb
         self.box_rgb = np.zeros((0, 3)) if box_rgb is None else box_rgb
+        self._appearance: Appearance | None = None
         self._xy = xy
         self._slope = slope
         self._positions = positions  # the bodies' positions (an upright layout's parts stand at their centres; boxes)
@@ -550,35 +553,30 @@ class Figures:
         return found
 
     def appearance(self) -> Appearance:
-        """Every part as a camera sees it: the discs upright at their centre half-way up (a
-        leg's lean is a few centimetres there), the boxes whole (a wheel as a box of its
-        diameter), each with its height interval and colour. Legs start at the floor."""
+        """Every part as a camera sees it (made once per step, on first use): the discs upright
+        at their centre half-way up (a leg's lean is a few centimetres there), the boxes whole
+        (a wheel as a box of its diameter), each with its height interval and colour. Legs
+        start at the floor."""
+        if self._appearance is not None:
+            return self._appearance
         m = self.layout
         z0 = np.maximum(m.z_lo, 0.0)
-        mid = 0.5 * (z0 + m.z_hi)
-        centres = self.xy + self.slope * (mid - m.z_ref)[:, None] if m.row.size else np.zeros((0, 2))
-        radius = m.radius
+        centres = self.xy + self.slope * (0.5 * (z0 + m.z_hi) - m.z_ref)[:, None] if m.row.size else np.zeros((0, 2))
         q = self._boxes
         if q is None:
             none = np.zeros((0, 2))
-            return Appearance(centres, radius, z0, m.z_hi, self.part_rgb, m.row, none, none, np.zeros(0), np.zeros(0),
-                              np.zeros((0, 3)), np.zeros(0, dtype=np.int64))  # fmt: skip
-        assert self._positions is not None and self._angles is not None
-        half = q.half.copy()
-        wheel = q.wheel_r > 0
-        half[wheel, 0] = q.wheel_r[wheel]
-        c, s = np.cos(self._angles[q.row]), np.sin(self._angles[q.row])
-        cx = self._positions[q.row, 0] + q.offset[:, 0] * c - q.offset[:, 1] * s
-        cy = self._positions[q.row, 1] + q.offset[:, 0] * s + q.offset[:, 1] * c
-        # corners counter-clockwise: front right, front left, rear left, rear right
-        fx, fy = np.array([1.0, 1.0, -1.0, -1.0]), np.array([-1.0, 1.0, 1.0, -1.0])
-        lx, ly = half[:, 0:1] * fx, half[:, 1:2] * fy  # (Q, 4) in the box's frame
-        corners = np.stack([cx[:, None] + lx * c[:, None] - ly * s[:, None], cy[:, None] + lx * s[:, None] + ly * c[:, None]], -1)
-        a = corners.reshape(-1, 2)
-        b = np.roll(corners, -1, axis=1).reshape(-1, 2)
-        rep = np.repeat
-        return Appearance(centres, radius, z0, m.z_hi, self.part_rgb, m.row, a, b, rep(q.z_lo, 4), rep(q.z_hi, 4),
-                          rep(self.box_rgb, 4, axis=0), rep(np.arange(q.row.size), 4))  # fmt: skip
+            out = Appearance(centres, m.radius, z0, m.z_hi, self.part_rgb, m.row, none, none, np.zeros(0), np.zeros(0),
+                             np.zeros((0, 3)), np.zeros(0, dtype=np.int64))  # fmt: skip
+        else:
+            assert self._positions is not None and self._angles is not None
+            a, b, _ = _cut_boxes(
+                0.0, self._positions, self._angles, q.row, q.offset, q.half, q.wheel_r, q.z_lo, q.z_hi, q.every, True
+            )
+            rep = np.repeat
+            out = Appearance(centres, m.radius, z0, m.z_hi, self.part_rgb, m.row, a, b, rep(q.z_lo, 4), rep(q.z_hi, 4),
+                             rep(self.box_rgb, 4, axis=0), rep(np.arange(q.row.size), 4))  # fmt: skip
+        self._appearance = out
+        return out
 
     def _cut(self, height_m: float, occluders_only: bool) -> Section:
         discs = self._cut_discs(height_m, occluders_only)

@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envs.stereo.render import NEAR_M, TALL_M
+from envs.stereo.scene import facade_interval
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -50,10 +51,7 @@ SEGMENT, DISC = 0, 1
 def _facade(p: int, s: float, z: float, prof_first: IntArray, int_s1: Array, int_first_run: IntArray, run_z1: Array,
             run_rgb: Array, out: Array) -> None:  # fmt: skip
     """The colour of façade profile ``p`` at ``(s, z)`` into ``out`` (3,)."""
-    g = prof_first[p]
-    g_end = prof_first[p + 1]
-    while g < g_end - 1 and s >= int_s1[g]:
-        g += 1
+    g = facade_interval(p, s, prof_first, int_s1)
     j = int_first_run[g]
     last = int_first_run[g + 1] - 1
     while j < last and z >= run_z1[j]:
@@ -272,27 +270,72 @@ _MAX_PIECES = 64
 
 
 @numba.njit(cache=True)
-def _behind(
+def _column(
     u: float, depth: float, max_range: float, cam_h: float, focal: float, cx: float, geom: Array, kind: IntArray,
     ref: IntArray, first: IntArray, members: IntArray, n_static: int, seg_profile: IntArray, seg_length: Array,
     seg_rgb: Array, side_rgb: Array, disc_rgb: Array, prof_first: IntArray, int_s1: Array, int_first_run: IntArray,
-    run_z0: Array, run_z1: Array, run_rgb: Array, p_lo: Array, p_hi: Array, p_rgb: Array,
-) -> int:  # fmt: skip
-    """What column ``u`` shows beyond ``depth`` (behind a silhouette), as pieces of height at
-    ``depth`` (the lines of sight through them) with their colours: ``[p_lo, p_hi)``, ``p_rgb``
-    ``(P, 3)``, near things first covering far ones; returns the count. Heights no piece covers
-    show the sky or the ground."""
+    run_z0: Array, run_z1: Array, run_rgb: Array, lo: Array, hi: Array, p_lo: Array, p_hi: Array, p_rgb: Array,
+    scratch: Array, scratch_e: IntArray, span_lo: float, span_hi: float,
+) -> tuple[int, int]:  # fmt: skip
+    """Column ``u`` on both sides of ``depth`` in one pass: the heights at ``depth`` hidden by
+    nearer things (as :func:`_blockers`: ``[lo, hi)``), and what the column shows beyond
+    ``depth`` (behind a silhouette) as pieces of height at ``depth`` (the lines of sight through
+    them) with their colours, ``[p_lo, p_hi)`` and ``p_rgb`` ``(P, 3)``, near things first
+    covering far ones (heights no piece covers show the sky or the ground), only within
+    ``[span_lo, span_hi)`` (the silhouette's heights: nothing else is asked of the background).
+    Returns both counts. ``scratch`` ``(5, 32)`` and ``scratch_e`` ``(32,)``: working room."""
     t = (u - cx) / focal
     b = int(u) // _BIN_PX
     if b < 0 or b >= first.shape[0] - 1:
-        return 0
-    hit_d = np.empty(32)
-    hit_e = np.empty(32, dtype=np.int64)
-    hit_l = np.empty(32)
+        return 0, 0
+    hit_d = scratch[0]
+    hit_l = scratch[1]
+    cov_lo = scratch[2, :_MAX_BLOCKERS]
+    cov_hi = scratch[3, :_MAX_BLOCKERS]
+    colour = scratch[4, :3]
+    hit_e = scratch_e
     nh = 0
-    for m in range(first[b], first[b + 1]):
+    nb = 0
+    ncov = 0
+    n = 0
+    near = depth - _EPS_M
+    m = first[b]
+    end = first[b + 1]
+    # The members come sorted by their nearest depth, so a crossing held in the buffer is the
+    # nearest to come once the next member starts farther away: the background is built near
+    # to far as the scan goes, and the scan stops once the span is covered (nothing farther
+    # shows; every nearer thing, the blockers included, has been seen by then).
+    while True:
+        next_near = geom[members[m], 6] if m < end else math.inf
+        while nh > 0 and hit_d[0] <= next_near:
+            e = hit_e[0]
+            scale = depth / hit_d[0]
+            lam = hit_l[0]
+            nh -= 1
+            for q in range(nh):  # pop the front
+                hit_d[q] = hit_d[q + 1]
+                hit_e[q] = hit_e[q + 1]
+                hit_l[q] = hit_l[q + 1]
+            a = max(span_lo, cam_h + (max(geom[e, 4], -TALL_M) - cam_h) * scale)
+            c = min(span_hi, cam_h + (min(geom[e, 5], TALL_M) - cam_h) * scale)
+            if c <= a:
+                continue
+            n = _pieces(e, a, c, scale, lam, cam_h, kind, ref, n_static, seg_profile, seg_length, seg_rgb, side_rgb, disc_rgb,
+                        prof_first, int_s1, int_first_run, run_z0, run_z1, run_rgb, cov_lo, cov_hi, ncov, p_lo, p_hi, p_rgb,
+                        n, colour)  # fmt: skip
+            ncov = _cover(cov_lo, cov_hi, ncov, a, c)
+            if ncov == 1 and cov_lo[0] <= span_lo and cov_hi[0] >= span_hi:
+                return nb, n  # the span is covered: farther things do not show
+        if m >= end:
+            break
         e = members[m]
+        m += 1
         d, lam = _crossing(geom, kind[e], e, t)
+        if NEAR_M < d < near:  # in front: hides part of the heights at depth
+            scale = depth / d
+            nb = _cover(lo, hi, nb, cam_h + (max(geom[e, 4], -TALL_M) - cam_h) * scale,
+                        cam_h + (min(geom[e, 5], TALL_M) - cam_h) * scale)  # fmt: skip
+            continue
         if d <= depth + _EPS_M or d > max_range or nh == 32:
             continue
         j = nh  # insertion by depth
@@ -305,59 +348,57 @@ def _behind(
         hit_e[j] = e
         hit_l[j] = lam
         nh += 1
-    cov_lo = np.empty(_MAX_BLOCKERS)
-    cov_hi = np.empty(_MAX_BLOCKERS)
-    ncov = 0
-    n = 0
-    colour = np.empty(3)
-    for h in range(nh):
-        e = hit_e[h]
-        scale = depth / hit_d[h]
-        a = cam_h + (max(geom[e, 4], -TALL_M) - cam_h) * scale
-        c = cam_h + (min(geom[e, 5], TALL_M) - cam_h) * scale
-        i = ref[e]
-        p = seg_profile[i] if kind[e] == SEGMENT and i < n_static else -1
-        if p < 0:
-            if kind[e] == DISC:
-                for k in range(3):
-                    colour[k] = disc_rgb[i, k]
-            elif i >= n_static:
-                for k in range(3):
-                    colour[k] = side_rgb[i - n_static, k]
+    return nb, n
+
+
+@numba.njit(cache=True)
+def _pieces(
+    e: int, a: float, c: float, scale: float, lam: float, cam_h: float, kind: IntArray, ref: IntArray, n_static: int,
+    seg_profile: IntArray, seg_length: Array, seg_rgb: Array, side_rgb: Array, disc_rgb: Array, prof_first: IntArray,
+    int_s1: Array, int_first_run: IntArray, run_z0: Array, run_z1: Array, run_rgb: Array, cov_lo: Array, cov_hi: Array,
+    ncov: int, p_lo: Array, p_hi: Array, p_rgb: Array, n: int, colour: Array,
+) -> int:  # fmt: skip
+    """Add the parts of ``[a, c)`` (heights at the silhouette's depth) that entry ``e`` shows and
+    nothing nearer covers (``[cov_lo, cov_hi)``) to the pieces, split by a façade's runs (its
+    crossing at ``lam`` along it, ``scale`` = the silhouette's depth over the crossing's); returns the count."""
+    i = ref[e]
+    p = seg_profile[i] if kind[e] == SEGMENT and i < n_static else -1
+    if p < 0:
+        if kind[e] == DISC:
+            for k in range(3):
+                colour[k] = disc_rgb[i, k]
+        elif i >= n_static:
+            for k in range(3):
+                colour[k] = side_rgb[i - n_static, k]
+        else:
+            for k in range(3):
+                colour[k] = seg_rgb[i, k]
+    at = a
+    for q in range(ncov + 1):
+        gap_hi = c if q == ncov else min(c, cov_lo[q])
+        if gap_hi > at:
+            if p < 0:
+                if n < _MAX_PIECES:
+                    p_lo[n] = at
+                    p_hi[n] = gap_hi
+                    for k in range(3):
+                        p_rgb[n, k] = colour[k]
+                    n += 1
             else:
-                for k in range(3):
-                    colour[k] = seg_rgb[i, k]
-        # the parts of [a, c) not yet covered, each a piece (a façade's runs split it)
-        at = a
-        for q in range(ncov + 1):
-            gap_hi = c if q == ncov else min(c, cov_lo[q])
-            if gap_hi > at:
-                if p < 0:
-                    if n < _MAX_PIECES:
-                        p_lo[n] = at
-                        p_hi[n] = gap_hi
+                g = facade_interval(p, lam * seg_length[i], prof_first, int_s1)
+                for r in range(int_first_run[g], int_first_run[g + 1]):
+                    r0 = max(at, cam_h + (run_z0[r] - cam_h) * scale)
+                    r1 = min(gap_hi, cam_h + (run_z1[r] - cam_h) * scale)
+                    if r1 > r0 and n < _MAX_PIECES:
+                        p_lo[n] = r0
+                        p_hi[n] = r1
                         for k in range(3):
-                            p_rgb[n, k] = colour[k]
+                            p_rgb[n, k] = run_rgb[r, k]
                         n += 1
-                else:
-                    g = prof_first[p]
-                    s_along = hit_l[h] * seg_length[i]
-                    while g < prof_first[p + 1] - 1 and s_along >= int_s1[g]:
-                        g += 1
-                    for r in range(int_first_run[g], int_first_run[g + 1]):
-                        r0 = max(at, cam_h + (run_z0[r] - cam_h) * scale)
-                        r1 = min(gap_hi, cam_h + (run_z1[r] - cam_h) * scale)
-                        if r1 > r0 and n < _MAX_PIECES:
-                            p_lo[n] = r0
-                            p_hi[n] = r1
-                            for k in range(3):
-                                p_rgb[n, k] = run_rgb[r, k]
-                            n += 1
-            if q < ncov:
-                at = max(at, cov_hi[q])
-            if at >= c:
-                break
-        ncov = _cover(cov_lo, cov_hi, ncov, a, c)
+        if q < ncov:
+            at = max(at, cov_hi[q])
+        if at >= c:
+            break
     return n
 
 
@@ -410,6 +451,29 @@ def _seen(z0: float, z1: float, lo: Array, hi: Array, n: int) -> tuple[float, fl
 
 
 @numba.njit(cache=True, inline="always")
+def seg_profile_of(s: int, n_static: int, seg_profile: IntArray) -> int:
+    """Segment ``s``'s façade profile, -1 for a flat one (a moving box's side is flat)."""
+    return seg_profile[s] if s < n_static else -1
+
+
+@numba.njit(cache=True, inline="always")
+def _flat_rgb(s: int, n_static: int, seg_rgb: Array, side_rgb: Array, c: int) -> float:
+    """Channel ``c`` of flat segment ``s``'s colour (a static one's or a moving box side's)."""
+    return seg_rgb[s, c] if s < n_static else side_rgb[s - n_static, c]
+
+
+@numba.njit(cache=True)
+def _best_share(z0: float, z1: float, depth: float, rows: IntArray, half: int, focal: float, cy: float, cam_h: float) -> float:
+    """The largest share of a detection row's filter window that the heights ``[z0, z1)`` at
+    ``depth`` cover (unoccluded): an upper bound of the response per unit of colour step."""
+    best = 0.0
+    for lv in range(rows.shape[0]):
+        bottom, top = _window(depth, rows[lv], half, focal, cy, cam_h)
+        best = max(best, (min(z1, top) - max(z0, bottom)) / (top - bottom))
+    return best
+
+
+@numba.njit(cache=True, inline="always")
 def _window(depth: float, row: int, half: int, focal: float, cy: float, cam_h: float) -> tuple[float, float]:
     """The heights at ``depth`` the filter window (rows ``row - half`` to ``row + half``) spans: ``(bottom, top)``."""
     return cam_h + (cy - (row + half + 1)) * depth / focal, cam_h + (cy - (row - half)) * depth / focal
@@ -458,6 +522,9 @@ def lines(
     p_lo = np.empty(_MAX_PIECES)
     p_hi = np.empty(_MAX_PIECES)
     p_rgb = np.empty((_MAX_PIECES, 3))
+    scratch = np.empty((5, 32))
+    scratch_e = np.empty(32, dtype=np.int64)
+    cols = np.empty(256)
     u_lo = margin_px
     u_hi = width - margin_px
     # ---- façade breaks, side by side
@@ -474,7 +541,8 @@ def lines(
             continue  # seen from inside its solid: a back face
         # the breaks' columns, with the side's ends around them: a break closer in the image to
         # its neighbours than half the filter's width is blurred into them (a façade seen edge-on)
-        cols = np.empty(hi_b - lo_b + 2)
+        if hi_b - lo_b + 2 > cols.shape[0]:
+            cols = np.empty(hi_b - lo_b + 2)
         for q in range(hi_b - lo_b + 2):
             if q == 0:
                 qx, qy = ax, ay
@@ -498,6 +566,20 @@ def lines(
             q = k - lo_b + 1
             gap = min(abs(cols[q] - cols[q - 1]), abs(cols[q + 1] - cols[q]))  # NaN (an end behind): no limit
             crowd = min(1.0, gap / narrow_px) if gap == gap else 1.0
+            # the response it would have in clear view bounds what it can have: below the least, skip it
+            bound = 0.0
+            for lv in range(levels):
+                bottom, top = _window(z, rows[lv], half, focal, cy, cam_h)
+                acc = 0.0
+                for j in range(brk_first_run[k], brk_first_run[k + 1]):
+                    cover = min(brun_z1[j], top) - max(brun_z0[j], bottom)
+                    if cover > 0.0:
+                        step = max(abs(brun_right[j, 0] - brun_left[j, 0]), abs(brun_right[j, 1] - brun_left[j, 1]),
+                                   abs(brun_right[j, 2] - brun_left[j, 2]))  # fmt: skip
+                        acc += cover / (top - bottom) * step
+                bound = max(bound, crowd * acc)
+            if bound < min_response:
+                continue
             nb = _blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
             for lv in range(levels):
                 bottom, top = _window(z, rows[lv], half, focal, cy, cam_h)
@@ -558,14 +640,26 @@ def lines(
             u = cx + focal * x / z
             if u < u_lo or u >= u_hi:
                 continue
-            nb = _blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
             corner = front and front_prev
+            if corner and seg_profile_of(prev, n_static, seg_profile) < 0 and seg_profile_of(s, n_static, seg_profile) < 0:
+                # two flat sides: one colour (a pole's, a crown's, a car's box: no shading), no edge
+                same = True
+                for c in range(3):
+                    same = same and _flat_rgb(prev, n_static, seg_rgb, side_rgb, c) == _flat_rgb(
+                        s, n_static, seg_rgb, side_rgb, c
+                    )
+                if same:
+                    continue
             weight = 1.0 if corner else narrow
+            if weight * 255.0 * _best_share(obj_z0[o], obj_z1[o], z, rows, half, focal, cy, cam_h) < min_response:
+                continue  # too little of it in any window for even a black-white step to count
             pieces = 0
-            if not corner:  # a silhouette: what lies behind on the open side
-                pieces = _behind(u, z, max_range, cam_h, focal, cx, geom, kind, ref, first, members, n_static, seg_profile,
-                                 seg_length, seg_rgb, side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z0, run_z1,
-                                 run_rgb, p_lo, p_hi, p_rgb)  # fmt: skip
+            if corner:
+                nb = _blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
+            else:  # a silhouette: also what lies behind on the open side
+                nb, pieces = _column(u, z, max_range, cam_h, focal, cx, geom, kind, ref, first, members, n_static, seg_profile,
+                                     seg_length, seg_rgb, side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z0, run_z1,
+                                     run_rgb, blo, bhi, p_lo, p_hi, p_rgb, scratch, scratch_e, obj_z0[o], obj_z1[o])  # fmt: skip
             for lv in range(levels):
                 bottom, top = _window(z, rows[lv], half, focal, cy, cam_h)
                 span_lo, span_hi = max(obj_z0[o], bottom), min(obj_z1[o], top)
@@ -601,9 +695,13 @@ def lines(
         r = disc_r[i]
         if zc - r < NEAR_M or zc > max_range:
             continue
+        u_c = cx + focal * xc / zc
+        reach = focal * r / (zc - r)  # more than the silhouette's half width in the image
+        if u_c + reach < u_lo or u_c - reach >= u_hi:
+            continue  # out of view
+        if narrow_px * min_response > 255.0 * 2.0 * reach:
+            continue  # too narrow for even a black-white step to count
         d2 = xc * xc + zc * zc
-        if d2 <= r * r:
-            continue
         dist = math.sqrt(d2)
         tangent = math.sqrt(d2 - r * r)
         narrow = min(1.0, 2.0 * focal * r / zc / narrow_px)
@@ -617,10 +715,11 @@ def lines(
             u = cx + focal * x / z
             if u < u_lo or u >= u_hi:
                 continue
-            nb = _blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
-            pieces = _behind(u, z, max_range, cam_h, focal, cx, geom, kind, ref, first, members, n_static, seg_profile,
-                             seg_length, seg_rgb, side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z0, run_z1,
-                             run_rgb, p_lo, p_hi, p_rgb)  # fmt: skip
+            if narrow * 255.0 * _best_share(disc_z0[i], disc_z1[i], z, rows, half, focal, cy, cam_h) < min_response:
+                continue  # too little of it in any window for even a black-white step to count
+            nb, pieces = _column(u, z, max_range, cam_h, focal, cx, geom, kind, ref, first, members, n_static, seg_profile,
+                                 seg_length, seg_rgb, side_rgb, disc_rgb, prof_first, int_s1, int_first_run, run_z0, run_z1,
+                                 run_rgb, blo, bhi, p_lo, p_hi, p_rgb, scratch, scratch_e, disc_z0[i], disc_z1[i])  # fmt: skip
             for lv in range(levels):
                 bottom, top = _window(z, rows[lv], half, focal, cy, cam_h)
                 span_lo, span_hi = max(disc_z0[i], bottom), min(disc_z1[i], top)

@@ -28,7 +28,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from envs.stereo.scene import StaticScene
+from envs.stereo.scene import StaticScene, facade_interval
 
 #: crossings kept per column (the nearest, when more cross it)
 MAX_HITS = 32
@@ -211,11 +211,7 @@ def _fill(
             run = -1
             run_end = -1
             if p >= 0:  # a façade: the interval of this column's point along the side
-                s = hits_s[k, h]
-                g = prof_first[p]
-                g_end = prof_first[p + 1]
-                while g < g_end - 1 and s >= int_s1[g]:
-                    g += 1
+                g = facade_interval(p, hits_s[k, h], prof_first, int_s1)
                 run = int_first_run[g + 1] - 1  # walking down from the top run
                 run_end = int_first_run[g]
             else:

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, NamedTuple
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -118,6 +119,22 @@ class StaticScene(NamedTuple):
     brun_z1: Array
     brun_left: Array
     brun_right: Array
+
+
+@numba.njit(cache=True)
+def facade_interval(p: int, s: float, prof_first: IntArray, int_s1: Array) -> int:
+    """The interval of façade profile ``p`` that holds ``s`` metres along its side (clamped to
+    the first and last): the first ``g`` in ``prof_first[p]:prof_first[p + 1]`` with
+    ``s < int_s1[g]`` (a binary search)."""
+    lo = prof_first[p]
+    hi = prof_first[p + 1] - 1  # the last interval takes everything beyond
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if s >= int_s1[mid]:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 def static_scene(world: WorldConfig) -> StaticScene:
