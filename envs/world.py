@@ -270,8 +270,9 @@ class World:
         (:attr:`WorldConfig.field_m`) and its ``boundary_margin_m`` (:attr:`WorldConfig.arena_m`,
         the field itself where the margin is 0: the soccer robot may stand on the touch line),
         and clear every interior wall's and floor-standing furniture segment's thickness, its
-        centre outside every box (under a table is open floor); a disc placed over a wall would
-        be pushed out on either side, or trapped in it.
+        centre outside every box (under a table is open floor) and every solid standing on the
+        floor (a building, a pole, a trunk); a disc placed over a wall would be pushed out on
+        either side, or trapped in it.
         """
         config = self.config
         r = config.robot.radius_m
@@ -288,6 +289,13 @@ class World:
             corners = piece.footprint()
             if piece.kind == "box" and _inside_convex(corners, x, y):  # under a table is open floor
                 return f"the robot's centre ({x:g}, {y:g}) would be inside furniture {piece.name!r} (corners {np.round(corners, 3).tolist()})"
+        for name, feature in config.features.items():
+            for solid in feature.solids():
+                if solid.bottom_m <= 0.0 and _inside_convex(solid.corners, x, y):  # (a tree's crown is overhead)
+                    return (
+                        f"the robot's centre ({x:g}, {y:g}) would be inside {solid.kind or 'solid'} {solid.name!r} of feature "
+                        f"{name!r} (corners {np.round(solid.corners, 3).tolist()})"
+                    )
         interior = np.flatnonzero(self._colliding[self._boundary_count :]) + self._boundary_count
         a, b = self.seg_a[interior], self.seg_b[interior]
         if a.shape[0]:

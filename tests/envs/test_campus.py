@@ -366,3 +366,15 @@ def test_a_lidar_sees_a_parked_cars_wheel_low_and_its_body_higher() -> None:
     body_side = 95.0 - 0.9 - 91.0
     assert readings[0] == pytest.approx(wheel_face, abs=2e-3)
     assert readings[1] == pytest.approx(body_side, abs=2e-3)
+
+
+def test_the_robot_cannot_be_placed_inside_a_building_or_a_pole() -> None:
+    env = LocalizationEnv("stereo_campus", crowd_size=0)
+    buildings = env.config.features["buildings"].solids()
+    inside = buildings[0].corners.mean(axis=0)
+    with pytest.raises(ValueError, match=f"inside building {buildings[0].name!r}"):
+        env.reset(seed=0, options={"robot_pose": [float(inside[0]), float(inside[1]), 0.0]})
+    pole = env.config.features["poles"].items[0]
+    with pytest.raises(ValueError, match="would overlap wall|inside pole"):
+        env.reset(seed=0, options={"robot_pose": [pole.x_m, pole.y_m, 0.0]})
+    env.reset(seed=0, options={"robot_pose": list(env.config.robot.start_pose)})  # the route's start is free

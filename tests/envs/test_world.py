@@ -39,6 +39,8 @@ def test_walls_stop_the_robot_at_full_throttle(env_id: str, heading: float) -> N
     config = env.unwrapped.config
     xmin, ymin, xmax, ymax = config.arena_m
     start = [0.5 * (xmin + xmax), 0.5 * (ymin + ymax), heading]
+    if env.unwrapped.world.robot_placement_problem(start[0], start[1]):  # the campus's centre is inside a building
+        start[:2] = config.robot.start_pose[:2]
     env.reset(seed=0, options={"robot_pose": start})
     r = config.robot.radius_m
     kinds: list[str] = []
