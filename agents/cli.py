@@ -215,6 +215,24 @@ def _add_fit(sub: argparse._SubParsersAction[argparse.ArgumentParser], argv: Seq
             importlib.import_module(module).add_arguments(one)
 
 
+def _add_map(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    mapping = sub.add_parser(
+        "map",
+        help="drive a world's route once and write the scene map far_landmark_pf localizes with (run 1)",
+        description="The far-landmark paper's first drive: route_follower drives the world's route on the LIDAR "
+        "reference's estimate (mcl_lidar as ROS amcl runs it) and a scene is recorded every --period-s: the pose (the "
+        "reference's estimate, or the truth with --pose truth) and the stereo camera's edges relative to it. Without "
+        "--out the map becomes the world's default (what gym.make(..., localizer='far_landmark_pf') uses).",
+    )
+    mapping.add_argument("world", help="a shipped world name (stereo_campus) or a world YAML path")
+    mapping.add_argument("--out", type=Path, default=None, help="the map file (.npz; default: the world's cached default)")
+    mapping.add_argument("--seed", type=seed_int, default=0, help="the drive's env seed (default 0)")
+    mapping.add_argument("--crowd-size", type=int, default=None, help="the crowd during the drive (default: the world's)")
+    mapping.add_argument("--pose", choices=("reference", "truth"), default="reference", help="where the scenes' poses come from")
+    mapping.add_argument("--period-s", type=float, default=1.0, help="a scene every this many seconds (default 1)")
+    mapping.add_argument("--overwrite", action="store_true", help="replace an existing map file")
+
+
 def _version() -> str:
     import importlib.metadata
 
@@ -239,6 +257,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     _add_tune(sub, argv)
     _add_reproduce(sub, argv)
     _add_fit(sub, argv)
+    _add_map(sub)
     for command in sub.choices.values():  # errors found after parsing print the command's own usage
         command.set_defaults(command_parser=command)
     return parser
@@ -336,6 +355,24 @@ def _run_fit(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     return 0
 
 
+def _run_map(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from agents.scene_maps import MappingDrive, build_scene_map, default_map_path
+    from agents.util import refuse_to_overwrite
+    from envs.localization_env import LocalizationEnv
+
+    drive = MappingDrive(seed=args.seed, crowd_size=args.crowd_size, pose=args.pose, period_s=args.period_s)
+    out = args.out
+    if out is None:
+        out = default_map_path(LocalizationEnv(args.world))
+    elif out.suffix != ".npz":
+        parser.error(f"--out {out}: a scene map is an .npz file")
+    refuse_to_overwrite(out, args.overwrite)
+    scenes = build_scene_map(args.world, drive, progress=True)
+    scenes.save(out)
+    print(f"wrote {out} ({scenes.scene_count} scenes, {scenes.landmark_count} landmarks)")
+    return 0
+
+
 def _run_worlds(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     import envs
 
@@ -355,6 +392,7 @@ _RUNNERS: dict[str, Callable[[argparse.Namespace, argparse.ArgumentParser], int]
     "reproduce": _run_reproduce,
     "worlds": _run_worlds,
     "fit": _run_fit,
+    "map": _run_map,
 }
 
 

@@ -33,6 +33,11 @@ class LocalizerSpec:
             uncertainty (a filter's covariance, a particle or candidate set's sample covariance,
             however heuristic), so that ``crowdloc eval`` scores its consistency (NEES); false for
             one that reports none (NaN) or a placeholder: its tables say "no covariance".
+        prepare: for a localizer that needs data made from its world (a map from a drive), a
+            function ``"module:name"`` that the env wrapper calls as ``prepare(env, sensor,
+            params)`` before building it, and that returns the parameters to build it with
+            (``far_landmark_pf``: the world's default scene map, made on first use). Named, not
+            imported: ``localizers`` does not import the code that drives a world.
     """
 
     module: str
@@ -42,6 +47,7 @@ class LocalizerSpec:
     needs_prior: bool
     summary: str
     covariance: bool = True
+    prepare: str = ""
 
 
 LOCALIZERS: dict[str, LocalizerSpec] = {
@@ -117,6 +123,15 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         False,
         "ceiling colour targets through the paper's HSV pipeline, dead reckoning between them (paper C's method)",
     ),
+    "far_landmark_pf": LocalizerSpec(
+        "localizers.far_landmark_pf",
+        "FarLandmarkPF",
+        "FarLandmarkParams",
+        "stereo_edges",
+        True,
+        "500-particle filter on stereo edges, the farthest matching one per 30 deg sector, a map of scenes (paper D's method)",
+        prepare="agents.scene_maps:prepare_far_landmark_pf",
+    ),
 }
 
 
@@ -171,6 +186,16 @@ def load_params(name: str, overrides: Mapping[str, Any] | None = None) -> Any:
         data = merge_nested(data, overrides)
         where = f"{path} with localizer_params {dict(overrides)!r}"
     return from_mapping(_attr(s.module, s.params_cls), data, where=where)
+
+
+def prepared_params(name: str, env: Any, sensor: str, params: Mapping[str, Any] | None) -> Mapping[str, Any] | None:
+    """``params`` after the localizer's preparation hook (:attr:`LocalizerSpec.prepare`), if it has one."""
+    hook = spec(name).prepare
+    if not hook:
+        return params
+    module, _, function = hook.partition(":")
+    prepared: Mapping[str, Any] = _attr(module, function)(env, sensor, params)
+    return prepared
 
 
 def make_localizer(name: str, landmarks: LandmarkMap, *, dt_s: float, params: Mapping[str, Any] | Any | None = None) -> Localizer:

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from localizers.base import LandmarkMap, Localizer, OdometryDelta, Overlay, PoseEstimate
 from localizers.geometry import circular_std
 from localizers.measurements import bearing_measurement, find_sensor, measurement_kind, readable_kinds, sensor_map
-from localizers.registry import make_localizer, spec
+from localizers.registry import make_localizer, prepared_params, spec
 from localizers.schema import ConfigError
 
 __all__ = ["LocalizationObservation", "bearing_measurement", "decode_estimate", "encode_estimate", "hypothesis_spread"]
@@ -154,6 +154,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
             self.localizer_name = localizer
             self._sensor = find_sensor(self.measurement, sensors, f"localizer {localizer!r}", sensor)
             self.landmark_map = sensor_map(self.landmark_map, sensors[self._sensor])
+            localizer_params = prepared_params(localizer, base, self._sensor, localizer_params)
             self.localizer: Localizer = make_localizer(localizer, self.landmark_map, dt_s=dt_s, params=localizer_params)
             default_prior = "start" if entry.needs_prior else "none"
         else:

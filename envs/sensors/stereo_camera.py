@@ -263,6 +263,7 @@ class StereoCamera(SensorBase):
             "forward_m": c.forward_m,
             "height_m": c.height_m,
             "rows_px": list(c.rows),
+            "threshold": c.threshold,
             "slots": c.slots,
             "min_range_m": c.min_range_m,
             "max_range_m": c.max_range_m,

@@ -21,6 +21,7 @@ from localizers.base import (
     require_reset,
 )
 from localizers.registry import BUILTIN_LOCALIZERS, LOCALIZERS, load_params, make_localizer
+from localizers.scene_map import SceneMap, geometry_fingerprint
 from localizers.schema import ConfigError
 
 NAMES = sorted(BUILTIN_LOCALIZERS)  # not the toy plug-ins other test modules register
@@ -37,15 +38,34 @@ MAP = LandmarkMap(
 START = PoseEstimate(3.0, 4.0, 0.5, np.diag([0.01, 0.01, 0.001]))
 
 
+_SCENE_MAP: dict[str, str] = {}  # far_landmark_pf's map of MAP (the fixture below writes it)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _scene_map(tmp_path_factory: pytest.TempPathFactory) -> None:
+    scenes = SceneMap(np.array([[3.0, 4.0, 0.5]]), np.array([0, 2]), np.array([1, 4]), np.array([[4.0, 1.0], [5.0, -2.0]]), "box",
+                      geometry_fingerprint(MAP))  # fmt: skip
+    _SCENE_MAP["path"] = str(scenes.save(tmp_path_factory.mktemp("scenes") / "box.npz"))
+
+
+def _params(name: str) -> dict[str, object] | None:
+    """What a localizer needs beyond the map to be built here: fewer particles, a scene map."""
+    if "bearing" in name:
+        return {"n_particles": 50}
+    if LOCALIZERS[name].measurement == "stereo_edges":
+        return {"scene_map": _SCENE_MAP["path"]}
+    return None
+
+
 def _ready(name: str) -> Localizer:
-    loc = make_localizer(name, MAP, dt_s=0.1, params={"n_particles": 50} if "bearing" in name else None)
+    loc = make_localizer(name, MAP, dt_s=0.1, params=_params(name))
     loc.reset(np.random.default_rng(0), START)
     return loc
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_predict_and_update_before_reset_raise_naming_the_class(name: str) -> None:
-    loc = make_localizer(name, MAP, dt_s=0.1)
+    loc = make_localizer(name, MAP, dt_s=0.1, params=_params(name))
     text = rf"{LOCALIZERS[name].cls}: call reset\(\) before predict\(\) or update\(\)"
     with pytest.raises(RuntimeError, match=text):
         loc.predict(OdometryDelta(0.0, 0.0, 0.0))
@@ -97,7 +117,7 @@ def test_absurd_odometry_raises_naming_the_bound_and_leaves_the_estimate(name: s
 @pytest.mark.parametrize("name", NAMES)
 def test_a_configured_step_bound_is_used(name: str) -> None:
     tight = LandmarkMap(MAP.positions_xy_m, MAP.names, MAP.bounds_m, MAP.walls_m, MAP.features, max_step_m=0.5)
-    loc = make_localizer(name, tight, dt_s=0.1, params={"n_particles": 50} if "bearing" in name else None)
+    loc = make_localizer(name, tight, dt_s=0.1, params=_params(name))
     loc.reset(np.random.default_rng(0), START)
     loc.predict(OdometryDelta(0.3, 0.4, 0.0))  # exactly on the bound: accepted
     with pytest.raises(MeasurementError, match=re.escape(f"{name}: odometry increment [0.3, 0.5, 0.0] translates")):

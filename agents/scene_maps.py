@@ -1,0 +1,203 @@
+"""Scene maps for ``far_landmark_pf``: the far-landmark paper's first drive (run 1), and the default map.
+
+The paper drives its route once to make the map: at a fixed period a *scene* records the
+robot's pose and the landmarks its stereo camera sees (edge type, position relative to the
+robot). Here :func:`build_scene_map` drives a world's route with ``route_follower`` on the
+LIDAR reference's estimate (``mcl_lidar`` in ROS amcl's likelihood-field configuration,
+:data:`AMCL_LIKE`, on the world's 360 deg LIDAR: the paper's amcl on a flattened VLP-16) and
+records every ``period_s``: the pose is that reference's estimate (``pose="reference"``, the
+default, as on a real robot) or the truth (``pose="truth"``); the landmarks are the camera's
+detections of that step.
+
+:func:`default_scene_map` is the world's default map: made once (seed 0, the world's crowd as
+configured) and cached under ``$CROWDLOC_CACHE/scene_maps`` (default ``~/.cache/crowdloc``),
+keyed by the world's geometry and camera, so ``gym.make(id, localizer="far_landmark_pf")``
+works without a map file (:func:`prepare_far_landmark_pf`, the localizer's preparation hook).
+``crowdloc map WORLD`` makes one explicitly.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from tqdm import tqdm
+
+from envs.config import WorldConfig
+from envs.localization_env import LocalizationEnv
+from localizers.measurements import edge_measurement, sensor_map
+from localizers.range_table import cache_dir
+from localizers.scene_map import SceneMap, geometry_fingerprint
+from localizers.schema import ConfigError, check
+
+_log = logging.getLogger(__name__)
+
+#: the LIDAR reference: mcl_lidar as ROS amcl runs it (likelihood field, amcl's 1.0 sampling,
+#: no recovery or lost test: injection drawn over a campus almost never lands near the robot, and
+#: a lost test that fires when people pass would stop a robot that drives on the estimate)
+AMCL_LIKE: dict[str, Any] = {
+    "model": "likelihood_field",
+    "table_resolution_m": 0.1,
+    "beam_stride": 8,
+    "sampling": 1.0,
+    "recovery": False,
+    "lost_ratio": 0.0,
+}
+#: what of the stereo camera's metadata a map's edges depend on (a map made with another is refused)
+CAMERA_KEYS = (
+    "width_px",
+    "height_px",
+    "focal_px",
+    "cx_px",
+    "cy_px",
+    "baseline_m",
+    "forward_m",
+    "height_m",
+    "rows_px",
+    "threshold",
+)
+
+
+@dataclass(frozen=True)
+class MappingDrive:
+    """How run 1 is driven and recorded.
+
+    Attributes:
+        seed: the env's seed (the crowd's).
+        crowd_size: the crowd (None: the world's).
+        pose: the scenes' poses: ``"reference"`` (the LIDAR reference's estimate) or ``"truth"``.
+        period_s: a scene every this many seconds (1 s: about one per metre at the robot's 1 m/s).
+        max_steps: stop after this many steps (None: the world's episode length).
+    """
+
+    seed: int = 0
+    crowd_size: int | None = None
+    pose: Literal["reference", "truth"] = "reference"
+    period_s: float = 1.0
+    max_steps: int | None = None
+
+    def __post_init__(self) -> None:
+        check(self.pose in ("reference", "truth"), f"mapping drive: pose must be 'reference' or 'truth', got {self.pose!r}")
+        check(math.isfinite(self.period_s) and self.period_s > 0, f"mapping drive: period_s must be > 0, got {self.period_s!r}")
+
+
+def _camera(env: LocalizationEnv) -> tuple[str, dict[str, Any]]:
+    found = [name for name, meta in env.sensor_metadata.items() if meta["type"] == "stereo_camera"]
+    if len(found) != 1:
+        raise ConfigError(f"a scene map needs one stereo camera; world {env.config.name!r} has {len(found)}")
+    return found[0], env.sensor_metadata[found[0]]
+
+
+def camera_signature(metadata: Mapping[str, Any]) -> dict[str, Any]:
+    """The settings of a stereo camera's metadata that its edges depend on (:data:`CAMERA_KEYS`)."""
+    return {key: metadata[key] for key in CAMERA_KEYS}
+
+
+def world_fingerprint(env: LocalizationEnv) -> str:
+    """The geometry fingerprint of the map the localizer gets (cut at the camera's height, as the wrapper cuts it)."""
+    _, meta = _camera(env)
+    return geometry_fingerprint(sensor_map(env.landmark_map, meta))
+
+
+def build_scene_map(
+    world: str | WorldConfig, drive: MappingDrive = MappingDrive(), env_kwargs: Mapping[str, Any] | None = None,
+    progress: bool = False,
+) -> SceneMap:  # fmt: skip
+    """Drive ``world``'s route once and record its scenes (module docstring).
+
+    Raises:
+        ConfigError: a world without a route, a stereo camera or (for the reference) a LIDAR.
+    """
+    from agents.policies import make_policy
+    from localizers.wrappers import LocalizationObservation
+
+    kwargs = dict(env_kwargs or {})
+    if drive.crowd_size is not None:
+        kwargs["crowd_size"] = drive.crowd_size
+    base = LocalizationEnv(world, **kwargs)
+    if not base.config.features_of_type("route"):
+        raise ConfigError(f"a scene map is made by driving a route: world {base.config.name!r} has none")
+    lidars = [name for name, meta in base.sensor_metadata.items() if meta["type"] == "lidar"]
+    if len(lidars) != 1:
+        raise ConfigError(
+            f"the mapping drive follows the LIDAR reference's estimate: world {base.config.name!r} has {len(lidars)} LIDARs"
+        )
+    camera, meta = _camera(base)
+    key = str(meta["key"])
+    env = LocalizationObservation(base, "mcl_lidar", AMCL_LIKE, prior="start", sensor=lidars[0])
+    policy = make_policy("route_follower", env, seed=drive.seed)
+    obs, info = env.reset(seed=drive.seed)
+    every = max(1, round(drive.period_s / base.config.dt_s))
+    limit = drive.max_steps or base.config.max_episode_steps
+    poses: list[np.ndarray] = []
+    types: list[np.ndarray] = []
+    rel: list[np.ndarray] = []
+    bar = tqdm(total=limit, desc=f"mapping {base.config.name}", unit="step", disable=not progress, leave=False)
+    for step in range(limit):
+        if step % every == 0:
+            est = info["estimate"]
+            pose = np.asarray(info["true_pose"], dtype=np.float64) if drive.pose == "truth" else est.as_array()
+            if np.all(np.isfinite(pose)) and (drive.pose == "truth" or est.valid):
+                seen = edge_measurement(obs[key])
+                r = 1.0 / seen.inverse_range_m
+                poses.append(pose)
+                types.append(seen.types)
+                rel.append(np.stack([r * np.cos(seen.bearings_rad), r * np.sin(seen.bearings_rad)], axis=1))
+        action, _ = policy.predict(obs)
+        obs, _, terminated, truncated, info = env.step(action)
+        bar.update()
+        if terminated or truncated:
+            break
+    bar.close()
+    env.close()
+    counts = [t.size for t in types]
+    return SceneMap(
+        np.asarray(poses, dtype=np.float64).reshape(-1, 3),
+        np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+        np.concatenate(types) if types else np.zeros(0, dtype=np.int64),
+        np.concatenate(rel) if rel else np.zeros((0, 2)),
+        world=base.config.name,
+        fingerprint=geometry_fingerprint(sensor_map(base.landmark_map, meta)),
+        camera=json.loads(json.dumps(camera_signature(meta))),
+        source={
+            **asdict(drive),
+            "camera": camera,
+            "steps": step + 1,
+            "reference": "mcl_lidar" if drive.pose == "reference" else None,
+        },
+    )
+
+
+def default_map_path(env: LocalizationEnv) -> Path:
+    """Where the world's default scene map is cached: named by the world, its geometry and camera."""
+    _, meta = _camera(env)
+    camera = hashlib.sha256(json.dumps(camera_signature(meta), sort_keys=True).encode()).hexdigest()[:8]
+    return cache_dir() / "scene_maps" / f"{env.config.name}-{world_fingerprint(env)}-{camera}.npz"
+
+
+def default_scene_map(env: LocalizationEnv) -> Path:
+    """The world's default scene map (seed 0, its configured crowd), made and cached on first use."""
+    path = default_map_path(env)
+    if not path.is_file():
+        _log.warning("making the default scene map of %s (the route driven once; cached in %s)", env.config.name, path)
+        build_scene_map(env.config, MappingDrive(), progress=True).save(path)
+    return path
+
+
+def prepare_far_landmark_pf(env: LocalizationEnv, sensor: str, params: Mapping[str, Any] | None) -> dict[str, Any]:
+    """``far_landmark_pf``'s preparation (its registry entry names it): without a ``scene_map``
+    in ``params``, the world's default (:func:`default_scene_map`); the map's camera must be this one's."""
+    out = dict(params or {})
+    if not out.get("scene_map"):
+        out["scene_map"] = str(default_scene_map(env))
+    scenes = SceneMap.load(out["scene_map"])
+    scenes.check_world(sensor_map(env.landmark_map, env.sensor_metadata[sensor]), env.config.name,
+                       camera_signature(env.sensor_metadata[sensor]))  # fmt: skip
+    return out

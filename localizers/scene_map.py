@@ -1,0 +1,171 @@
+"""The far-landmark paper's map (paper D, sec. 2.2): *scenes* recorded on a first drive.
+
+A mapping drive records, at a fixed period, a scene: the robot's pose ``(x, y, theta)`` and
+the landmarks it observed, each as its edge type and its position ``(x, y)`` relative to that
+pose (x forward, y left, metres). At localization time the scenes recorded near the current
+estimate give the landmarks to match (:meth:`SceneMap.landmarks_near`).
+
+A map knows what it was made for: the world's name and a fingerprint of its static geometry
+(:func:`geometry_fingerprint` of the localizers' map, walls and bounds) and of the camera
+whose edges it holds (``camera``: plain values of its metadata). A map whose world does not
+match is refused, naming the mismatch (:meth:`SceneMap.check_world`). Files are ``.npz``
+(:meth:`SceneMap.save`, :meth:`SceneMap.load`). This module imports nothing from ``envs``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from localizers.base import LandmarkMap
+from localizers.schema import ConfigError
+
+Array = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+FORMAT = "crowdloc-scene-map-v1"
+
+
+def geometry_fingerprint(landmarks: LandmarkMap) -> str:
+    """sha256 (hex, 16 characters) of the map's bounds and walls (with their heights): what a scene
+    map's landmarks were measured against."""
+    h = hashlib.sha256(FORMAT.encode())
+    h.update(np.asarray(landmarks.bounds_m, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(np.asarray(landmarks.walls_m, dtype=np.float64)).tobytes())
+    if landmarks.wall_heights_m is not None:
+        h.update(np.ascontiguousarray(np.asarray(landmarks.wall_heights_m, dtype=np.float64)).tobytes())
+    return h.hexdigest()[:16]
+
+
+@dataclass(frozen=True, eq=False)
+class SceneMap:
+    """Scenes of a mapping drive (module docstring).
+
+    Attributes:
+        poses: ``(S, 3)`` each scene's recorded pose.
+        first: ``(S + 1,)`` scene ``s``'s landmarks are ``first[s]:first[s + 1]``.
+        types: ``(L,)`` edge types; ``relative_xy``: ``(L, 2)`` positions relative to the scene's pose.
+        world: the world's name; ``fingerprint``: :func:`geometry_fingerprint` of its map.
+        camera: the camera's settings the edges depend on (plain values).
+        source: how the poses were known (``"reference"``: a LIDAR localizer's estimate, as on
+            a real robot; ``"truth"``), and what else describes the drive (plain values).
+    """
+
+    poses: Array
+    first: IntArray
+    types: IntArray
+    relative_xy: Array
+    world: str
+    fingerprint: str
+    camera: Mapping[str, Any] = field(default_factory=dict)
+    source: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        poses = np.asarray(self.poses, dtype=np.float64).reshape(-1, 3)
+        first = np.asarray(self.first, dtype=np.int64).reshape(-1)
+        types = np.asarray(self.types, dtype=np.int64).reshape(-1)
+        rel = np.asarray(self.relative_xy, dtype=np.float64).reshape(-1, 2)
+        if first.shape != (poses.shape[0] + 1,) or first[0] != 0 or np.any(np.diff(first) < 0) or first[-1] != types.size:
+            raise ValueError(f"SceneMap: first must run from 0 to the landmark count {types.size} over {poses.shape[0]} scenes")
+        if rel.shape[0] != types.size:
+            raise ValueError(f"SceneMap: {types.size} types but {rel.shape[0]} positions")
+        if not (np.isfinite(poses).all() and np.isfinite(rel).all()):
+            raise ValueError("SceneMap: poses and positions must be finite")
+        if types.size and (types.min() < 0 or types.max() > 29):
+            raise ValueError(f"SceneMap: edge types must be in 0..29, got {types.min()}..{types.max()}")
+        for name, value in (("poses", poses), ("first", first), ("types", types), ("relative_xy", rel)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    @property
+    def scene_count(self) -> int:
+        return int(self.poses.shape[0])
+
+    @property
+    def landmark_count(self) -> int:
+        return int(self.types.size)
+
+    def world_xy(self, scene: int) -> Array:
+        """``(K, 2)`` scene ``scene``'s landmarks in the world frame (its pose composed with them)."""
+        x, y, th = self.poses[scene]
+        rel = self.relative_xy[self.first[scene] : self.first[scene + 1]]
+        c, s = math.cos(th), math.sin(th)
+        return np.stack([x + c * rel[:, 0] - s * rel[:, 1], y + s * rel[:, 0] + c * rel[:, 1]], axis=1)
+
+    def nearest_scenes(self, pose: ArrayLike, count: int, radius_m: float) -> IntArray:
+        """Up to ``count`` scenes recorded within ``radius_m`` of ``pose`` (x, y), nearest first."""
+        p = np.asarray(pose, dtype=np.float64)
+        d = np.hypot(self.poses[:, 0] - p[0], self.poses[:, 1] - p[1])
+        near = np.flatnonzero(d <= radius_m)
+        return near[np.argsort(d[near], kind="stable")[:count]]
+
+    def landmarks_near(self, pose: ArrayLike, count: int, radius_m: float) -> tuple[IntArray, Array, IntArray]:
+        """The landmarks of :meth:`nearest_scenes`, in the world frame, sorted by type:
+        ``(types (M,), xy (M, 2), type_start (31,))`` (type ``t``'s are ``type_start[t]:type_start[t + 1]``)."""
+        scenes = self.nearest_scenes(pose, count, radius_m)
+        if scenes.size == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(31, dtype=np.int64)
+        types = np.concatenate([self.types[self.first[s] : self.first[s + 1]] for s in scenes])
+        xy = np.concatenate([self.world_xy(int(s)) for s in scenes])
+        order = np.argsort(types, kind="stable")
+        types, xy = types[order], np.ascontiguousarray(xy[order])
+        return types, xy, np.searchsorted(types, np.arange(31)).astype(np.int64)
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: str | Path) -> Path:
+        """Write the map to ``path`` (``.npz``); returns the path."""
+        out = Path(path)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        meta = {"format": FORMAT, "world": self.world, "fingerprint": self.fingerprint, "camera": dict(self.camera),
+                "source": dict(self.source)}  # fmt: skip
+        with out.open("wb") as f:
+            np.savez_compressed(f, poses=self.poses, first=self.first, types=self.types, relative_xy=self.relative_xy,
+                                meta=np.array(json.dumps(meta, sort_keys=True)))  # fmt: skip
+        return out
+
+    @staticmethod
+    def load(path: str | Path) -> SceneMap:
+        """Read a map written by :meth:`save`.
+
+        Raises:
+            ConfigError: naming the file when it is missing or not a scene map.
+        """
+        src = Path(path)
+        if not src.is_file():
+            raise ConfigError(f"scene map {str(src)!r} does not exist (make one with `crowdloc map WORLD`)")
+        try:
+            with np.load(src, allow_pickle=False) as data:
+                meta = json.loads(str(data["meta"]))
+                arrays = {k: data[k] for k in ("poses", "first", "types", "relative_xy")}
+        except (OSError, ValueError, KeyError) as exc:
+            raise ConfigError(f"{str(src)!r} is not a scene map: {exc}") from None
+        if meta.get("format") != FORMAT:
+            raise ConfigError(f"{str(src)!r} is not a scene map of format {FORMAT!r} (found {meta.get('format')!r})")
+        return SceneMap(
+            **arrays, world=meta["world"], fingerprint=meta["fingerprint"], camera=meta["camera"], source=meta["source"]
+        )
+
+    def check_world(self, landmarks: LandmarkMap, world: str | None = None, camera: Mapping[str, Any] | None = None) -> None:
+        """Raise :class:`ConfigError` unless the map was made in this world (and with this camera),
+        naming what differs."""
+        if world is not None and world != self.world:
+            raise ConfigError(f"the scene map was made in world {self.world!r}, not {world!r}")
+        mine = geometry_fingerprint(landmarks)
+        if mine != self.fingerprint:
+            raise ConfigError(
+                f"the scene map of world {self.world!r} was made against another geometry (fingerprint {self.fingerprint}, "
+                f"this map's {mine}): the world's walls, buildings or bounds changed; make the map again"
+            )
+        if camera is not None:
+            camera = json.loads(json.dumps(dict(camera), sort_keys=True))  # the values as the file holds them
+            differ = {k: (self.camera.get(k), v) for k, v in camera.items() if self.camera.get(k) != v}
+            if differ:
+                pairs = ", ".join(f"{k}: map {a!r}, camera {b!r}" for k, (a, b) in sorted(differ.items()))
+                raise ConfigError(f"the scene map's edges come from another camera ({pairs}); make the map again")

@@ -1,0 +1,253 @@
+"""``far_landmark_pf`` and its map of scenes: far emphasis, association, the likelihood, the map's
+file and world, bad input, and tracking the campus route."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import envs  # noqa: F401  (registers crowdloc/*)
+from agents.policies import make_policy
+from agents.scene_maps import MappingDrive, build_scene_map, default_map_path
+from localizers.base import EdgeMeasurement, LandmarkMap, MeasurementError, PoseEstimate
+from localizers.far_landmark_pf import (
+    FarLandmarkParams,
+    FarLandmarkPF,
+    detection_log_likelihood,
+    order_detections,
+    particle_log_weights,
+)
+from localizers.scene_map import SceneMap, geometry_fingerprint
+from localizers.schema import ConfigError
+
+CAMPUS = "crowdloc/StereoCampus-v0"
+SQUARE = LandmarkMap(np.zeros((0, 2)), (), (0.0, 0.0, 50.0, 50.0), np.array([[0.0, 0.0, 50.0, 0.0]]), {})
+
+
+def toy_map(landmarks: list[tuple[int, float, float]]) -> SceneMap:
+    """One scene at the origin facing +x holding ``(type, x, y)`` landmarks."""
+    types = np.array([t for t, _, _ in landmarks], dtype=np.int64)
+    xy = np.array([(x, y) for _, x, y in landmarks], dtype=np.float64).reshape(-1, 2)
+    return SceneMap(np.zeros((1, 3)), np.array([0, len(landmarks)]), types, xy, "toy", geometry_fingerprint(SQUARE))
+
+
+def grouped(types: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    order = np.argsort(types, kind="stable")
+    return np.ascontiguousarray(xy[order]), np.searchsorted(types[order], np.arange(31)).astype(np.int64)
+
+
+# ------------------------------------------------------------------ the likelihood and the association
+
+
+def test_the_inverse_range_and_bearing_likelihood_matches_hand_values() -> None:
+    lm_xy, starts = grouped(np.array([4]), np.array([[10.0, 0.0]]))
+    # from (0, 0) facing +x the landmark is at r* = 10 (1/r* = 0.1), theta* = 0
+    ll = detection_log_likelihood(0.0, 0.0, 0.0, 4, 0.1 + 0.01, 0.02, lm_xy, starts, 1 / 0.005, 1 / 0.01)
+    assert ll == pytest.approx(-0.5 * ((0.01 / 0.005) ** 2 + (0.02 / 0.01) ** 2))
+    # facing +y the landmark is 90 deg to the right: theta* = -pi/2
+    ll = detection_log_likelihood(0.0, 0.0, math.pi / 2, 4, 0.1, -math.pi / 2, lm_xy, starts, 1.0, 1.0)
+    assert ll == pytest.approx(0.0, abs=1e-12)
+    # no landmark of that type: no likelihood
+    assert detection_log_likelihood(0.0, 0.0, 0.0, 5, 0.1, 0.0, lm_xy, starts, 1.0, 1.0) == -math.inf
+
+
+def test_association_takes_the_same_type_landmark_of_largest_likelihood() -> None:
+    types = np.array([7, 7, 8])
+    xy = np.array([[10.0, 0.0], [10.0, 1.0], [10.0, 0.1]])  # a type-8 landmark nearer the detection does not count
+    lm_xy, starts = grouped(types, xy)
+    bearing = math.atan2(0.9, 10.0)  # closest to the second type-7 landmark
+    ll = detection_log_likelihood(0.0, 0.0, 0.0, 7, 1 / math.hypot(10.0, 0.9), bearing, lm_xy, starts, 1 / 0.005, 1 / 0.01)
+    expected = -0.5 * (
+        ((1 / math.hypot(10, 0.9) - 1 / math.hypot(10, 1)) / 0.005) ** 2 + ((bearing - math.atan2(1, 10)) / 0.01) ** 2
+    )
+    assert ll == pytest.approx(expected)
+
+
+def test_a_detection_beyond_the_gate_is_a_mismatch_and_weighs_nothing() -> None:
+    lm_xy, starts = grouped(np.array([2]), np.array([[10.0, 0.0]]))
+    particles = np.zeros((3, 1))
+    chosen = np.full(1, -1, dtype=np.int64)
+    args = (np.array([0, 1]), np.array([0, 1], dtype=np.int64), True, lm_xy, starts, 1 / 0.005, 1 / 0.01, -0.5 * 9.0, 7.0, chosen)
+    near = particle_log_weights(particles, np.array([2]), np.array([0.1]), np.array([0.02]), *args)  # 2 sd: matches
+    assert near[0] == pytest.approx(7.0 - 0.5 * 4.0) and chosen[0] == 0
+    far = particle_log_weights(particles, np.array([2]), np.array([0.1]), np.array([0.05]), *args)  # 5 sd: rejected
+    assert far[0] == 0.0 and chosen[0] == -1
+
+
+# ------------------------------------------------------------------ far emphasis
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.tuples(st.floats(0.5, 80.0), st.floats(-math.pi + 1e-6, math.pi - 1e-6), st.booleans()), min_size=1, max_size=25)
+)
+def test_far_emphasis_uses_per_sector_the_farthest_matching_detection(
+    detections: list[tuple[float, float, bool]],
+) -> None:
+    # each detection is of its own type; those flagged match (a map landmark of that type where it is seen)
+    n = len(detections)
+    ranges = np.array([r for r, _, _ in detections])
+    bearings = np.array([b for _, b, _ in detections])
+    matches = np.array([m for _, _, m in detections])
+    types = np.arange(n) % 30
+    lm = [(t, r * math.cos(b), r * math.sin(b)) for t, (r, b, m) in zip(types, detections) if m]
+    lm_types = np.array([t for t, _, _ in lm], dtype=np.int64)
+    lm_xy, starts = grouped(lm_types, np.array([(x, y) for _, x, y in lm]).reshape(-1, 2))
+    if n > 30:
+        return
+    sector = math.radians(30.0)
+    order, groups = order_detections(1.0 / ranges, bearings, sector, 3.0, "farthest")
+    chosen = np.full(groups.size - 1, -1, dtype=np.int64)
+    particle_log_weights(np.zeros((3, 1)), types, 1.0 / ranges, bearings, order, groups, True, lm_xy, starts, 1 / 0.005,
+                         1 / 0.01, -4.5, 0.0, chosen)  # fmt: skip
+    used = set(chosen[chosen >= 0].tolist())
+    # expected: per sector, among the detections at 3 m or more that match, the farthest
+    expected = set()
+    for s in set(np.floor((bearings + math.pi) / sector).astype(int)):
+        cand = [i for i in range(n) if math.floor((bearings[i] + math.pi) / sector) == s and ranges[i] >= 3.0 and matches[i]]
+        if cand:
+            expected.add(max(cand, key=lambda i: ranges[i]))
+    assert used == expected
+
+
+def test_order_detections_drops_near_ones_and_orders_sectors() -> None:
+    inv = 1.0 / np.array([2.0, 10.0, 30.0, 5.0, 40.0])
+    bearings = np.array([0.1, 0.1, 0.2, -0.9, -0.9])
+    order, starts = order_detections(inv, bearings, math.radians(30.0), 3.0, "farthest")
+    groups = [order[starts[g] : starts[g + 1]].tolist() for g in range(starts.size - 1)]
+    assert groups == [[4, 3], [2, 1]]  # the 2 m one is gone; within a sector farthest first
+    order, starts = order_detections(inv, bearings, math.radians(30.0), 3.0, "nearest")
+    assert [order[starts[g] : starts[g + 1]].tolist() for g in range(starts.size - 1)] == [[3, 4], [1, 2]]
+    order, starts = order_detections(inv, bearings, math.radians(30.0), 3.0, "all")
+    assert sorted(order.tolist()) == [1, 2, 3, 4] and starts.tolist() == [0, 4]
+
+
+# ------------------------------------------------------------------ the map
+
+
+def test_a_scene_map_round_trips_through_its_file(tmp_path: Path) -> None:
+    scenes = SceneMap(np.array([[1.0, 2.0, 0.5], [3.0, 2.0, 0.0]]), np.array([0, 2, 3]), np.array([4, 9, 4]),
+                      np.array([[5.0, 1.0], [8.0, -2.0], [4.0, 0.0]]), "toy", "abc", {"focal_px": 554.26}, {"pose": "truth"})  # fmt: skip
+    back = SceneMap.load(scenes.save(tmp_path / "m.npz"))
+    for name in ("poses", "first", "types", "relative_xy"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(scenes, name))
+    assert (back.world, back.fingerprint, dict(back.camera), dict(back.source)) == (
+        "toy",
+        "abc",
+        {"focal_px": 554.26},
+        {"pose": "truth"},
+    )
+    # a scene's landmarks in the world frame: its pose composed with them
+    np.testing.assert_allclose(
+        back.world_xy(0)[0], [1.0 + 5 * math.cos(0.5) - math.sin(0.5), 2.0 + 5 * math.sin(0.5) + math.cos(0.5)]
+    )
+
+
+def test_a_map_of_another_world_or_camera_is_refused_naming_the_mismatch(tmp_path: Path) -> None:
+    scenes = toy_map([(1, 10.0, 0.0)])
+    other = LandmarkMap(np.zeros((0, 2)), (), (0.0, 0.0, 60.0, 50.0), SQUARE.walls_m, {})
+    with pytest.raises(ConfigError, match="another geometry"):
+        scenes.check_world(other)
+    with pytest.raises(ConfigError, match="made in world 'toy', not 'campus'"):
+        scenes.check_world(SQUARE, "campus")
+    with pytest.raises(ConfigError, match="focal_px: map None, camera 600"):
+        scenes.check_world(SQUARE, "toy", {"focal_px": 600})
+    with pytest.raises(ConfigError, match="does not exist"):
+        SceneMap.load(tmp_path / "missing.npz")
+    (tmp_path / "junk.npz").write_bytes(b"not a map")
+    with pytest.raises(ConfigError, match="is not a scene map"):
+        SceneMap.load(tmp_path / "junk.npz")
+
+
+def test_the_localizer_refuses_a_map_of_another_world(tmp_path: Path) -> None:
+    path = toy_map([(1, 10.0, 0.0)]).save(tmp_path / "toy.npz")
+    with pytest.raises(ConfigError, match="made in world 'toy', not 'stereo_campus'"):
+        gym.make(CAMPUS, localizer="far_landmark_pf", localizer_params={"scene_map": str(path)})
+
+
+# ------------------------------------------------------------------ bad input
+
+
+@pytest.mark.parametrize(("inverse_range", "words"), [(math.nan, "got nan"), (0.0, "got 0.0"), (-0.2, "got -0.2")])
+def test_detections_with_a_bad_range_are_refused_naming_the_value(inverse_range: float, words: str) -> None:
+    pf = FarLandmarkPF(SQUARE, FarLandmarkParams(), dt_s=0.1, scenes=toy_map([(1, 10.0, 0.0)]))
+    pf.reset(np.random.default_rng(0), PoseEstimate(0.0, 0.0, 0.0))
+    with pytest.raises(MeasurementError, match=words):
+        pf.update(EdgeMeasurement(np.array([1]), np.array([inverse_range]), np.array([0.0])))
+
+
+def test_without_a_start_pose_or_a_map_it_says_what_it_needs() -> None:
+    pf = FarLandmarkPF(SQUARE, FarLandmarkParams(), dt_s=0.1, scenes=toy_map([]))
+    with pytest.raises(ValueError, match="needs a valid initial pose"):
+        pf.reset(np.random.default_rng(0), None)
+    with pytest.raises(ConfigError, match="needs a scene map"):
+        FarLandmarkPF(SQUARE, FarLandmarkParams(), dt_s=0.1)
+
+
+@pytest.mark.parametrize(("key", "value"), [("sigma_inv_r", 0.0), ("match_gate", -1.0), ("selection", "middle"), ("scenes", 0)])
+def test_bad_parameters_are_refused_naming_them(key: str, value: object) -> None:
+    with pytest.raises(ConfigError, match=key):
+        FarLandmarkParams(**{key: value})  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------ on the campus
+
+
+@pytest.fixture(scope="module")
+def campus_map(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Run 1 without people, the poses from the LIDAR reference."""
+    return build_scene_map("stereo_campus", MappingDrive(seed=0, crowd_size=0)).save(
+        tmp_path_factory.mktemp("maps") / "campus.npz"
+    )
+
+
+def drive(scene_map: Path, seed: int, steps: int = 2000, **params: object) -> tuple[np.ndarray, np.ndarray, bool]:
+    env = gym.make(CAMPUS, crowd_size=0, localizer="far_landmark_pf", localizer_params={"scene_map": str(scene_map), **params})
+    obs, info = env.reset(seed=seed)
+    policy = make_policy("route_follower", env, seed=0)
+    est, truth = [], []
+    done = False
+    for _ in range(steps):
+        action, _ = policy.predict(obs)
+        obs, _, terminated, truncated, info = env.step(action)
+        e = info["estimate"]
+        est.append(e.as_array() if e.valid else np.full(3, np.nan))
+        truth.append(info["true_pose"])
+        if terminated or truncated:
+            done = terminated
+            break
+    env.close()
+    return np.array(est), np.array(truth), done
+
+
+def test_it_tracks_the_crowd_free_route_from_a_known_start(campus_map: Path) -> None:
+    est, truth, done = drive(campus_map, seed=1)
+    assert done  # it drove the route on its own estimate and stopped at the goal
+    err = np.hypot(est[:, 0] - truth[:, 0], est[:, 1] - truth[:, 1])
+    assert np.isfinite(err).all()
+    assert np.median(err) < 0.25 and err.max() < 0.7, (np.median(err), err.max())
+
+
+def test_same_seed_same_estimates(campus_map: Path) -> None:
+    a, _, _ = drive(campus_map, seed=2, steps=150)
+    b, _, _ = drive(campus_map, seed=2, steps=150)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_gym_make_builds_and_caches_the_default_map() -> None:
+    env = gym.make(CAMPUS, crowd_size=0, localizer="far_landmark_pf")
+    path = default_map_path(env.unwrapped)
+    assert path.is_file()  # made on first use, in the session's cache (tests/localizers/conftest.py)
+    made = path.stat().st_mtime_ns
+    env.close()
+    again = gym.make(CAMPUS, crowd_size=5, localizer="far_landmark_pf")  # another crowd, the same world: the same map
+    assert default_map_path(again.unwrapped) == path and path.stat().st_mtime_ns == made
+    obs, _ = again.reset(seed=0)
+    assert obs["estimate_valid"][0] == 1.0
+    again.close()
