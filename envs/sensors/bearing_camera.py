@@ -208,36 +208,13 @@ class BearingCamera(SensorBase):
         self._targets_xy = np.vstack([state.landmark_xy, self.distractor_xy])
         self._targets_radius_m = np.concatenate([state.landmark_radius_m, self.distractor_radius_m])
         self._targets_max_range_m = np.concatenate([self.max_range_m, self.distractor_max_range_m])
+        self._narrow = config.fov_rad < 2 * math.pi  # a forward camera: the field of view limits it too
 
     def space(self) -> spaces.Box:
         return spaces.Box(-1.0, 1.0, shape=(3 * self.count,), dtype=np.float32)
 
     def metadata(self) -> dict[str, Any]:
         return {"landmark_count": self.count, "noise_std_rad": self.config.noise_std_rad, "fov_rad": self.config.fov_rad}
-
-    def _in_view(
-        self, state: WorldState, xy: NDArray[np.float64], radius_m: NDArray[np.float64], max_range_m: NDArray[np.float64]
-    ) -> NDArray[np.bool_]:
-        """``(n,)`` points with a clear line of sight, within range and inside the field of view.
-
-        A sight line is blocked by the walls and by the bodies' sections at the camera's
-        height (a person's torso, a robot's body, a car; not a ball below the lens).
-        """
-        occluders = state.occluders(self.config.height_m)
-        seg_a, seg_b = occluders.walls(self._seg_a, self._seg_b)  # with the sides of a car's body
-        clear = sight_lines_clear(
-            state.positions[0],
-            xy,
-            radius_m,
-            max_range_m,
-            seg_a,
-            seg_b,
-            occluders.centres,
-            occluders.radii,
-        )
-        if self.config.fov_rad < 2 * math.pi:
-            clear &= in_field_of_view(state.positions[0], state.angles[0], xy, self.config.fov_rad)
-        return clear
 
     def true_visibility(self, state: WorldState) -> NDArray[np.bool_]:
         """``(L,)`` landmarks in the field of view whose line of sight is clear and within range (no dropout)."""
@@ -248,8 +225,22 @@ class BearingCamera(SensorBase):
         return self._views(state)[self.count :]
 
     def _views(self, state: WorldState) -> NDArray[np.bool_]:
-        """``(L + D,)`` :meth:`_in_view` of the landmarks, then of the distractors, in one test."""
-        return self._in_view(state, self._targets_xy, self._targets_radius_m, self._targets_max_range_m)
+        """``(L + D,)`` the landmarks, then the distractors, with a clear line of sight, within
+        range and inside the field of view, in one test.
+
+        A sight line is blocked by the walls and by the bodies' sections at the camera's
+        height (a person's torso, a robot's body, a car; not a ball below the lens).
+        """
+        occluders = state.occluders(self.config.height_m)
+        seg_a, seg_b = occluders.walls(self._seg_a, self._seg_b)  # with the sides of a car's body
+        origin = state.positions[0]
+        xy = self._targets_xy
+        clear = sight_lines_clear(
+            origin, xy, self._targets_radius_m, self._targets_max_range_m, seg_a, seg_b, occluders.centres, occluders.radii
+        )
+        if self._narrow:
+            clear &= in_field_of_view(origin, state.angles[0], xy, self.config.fov_rad)
+        return clear
 
     def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
         cfg = self.config
@@ -346,7 +337,11 @@ def _bearing_slots(
     """
     n = draws.shape[1]
     obs = np.zeros((n, 3), dtype=np.float32)
-    nearest = _nearest_in_view(origin, targets_xy[n:], distractor_slot, in_view[n:], n)
+    distractors = distractor_slot.shape[0] > 0
+    if distractors:
+        nearest = _nearest_in_view(origin, targets_xy[n:], distractor_slot, in_view[n:], n)
+    else:  # no distractors: nothing to look for
+        nearest = distractor_slot
     flags = np.zeros((2, n), dtype=np.bool_)  # one array to hand back: false detections, distractors
     for j in range(n):
         if draws[1, j] < false_rate:
@@ -356,7 +351,7 @@ def _bearing_slots(
             continue
         elif in_view[j]:
             bearing = math.atan2(targets_xy[j, 1] - origin[1], targets_xy[j, 0] - origin[0]) - heading + noise[j]
-        elif nearest[j] >= 0:
+        elif distractors and nearest[j] >= 0:
             d = n + nearest[j]
             flags[1, j] = True
             bearing = math.atan2(targets_xy[d, 1] - origin[1], targets_xy[d, 0] - origin[0]) - heading + noise[j]
