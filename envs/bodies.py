@@ -486,57 +486,81 @@ def consecutive(rows: NDArray[np.int64]) -> slice | NDArray[np.int64]:
     return rows
 
 
+class Dress(NamedTuple):
+    """What every step's :class:`Figures` share between two resets (made by :class:`FigureModel`).
+
+    Attributes:
+        layout: the disc parts; ``boxes``: the box parts (None: no cars).
+        part_rgb: ``(P, 3)`` every disc part's colour and ``box_rgb`` ``(Q, 3)`` every box
+            part's, 0-255 (what a camera sees).
+        upright_cuts: for an upright layout (no legs), its cuts by (height, occluders only),
+            filled on first use and shared by every step's figures; None where parts lean.
+        no_slope: ``(P, 2)`` zeros (read-only), an upright layout's slopes.
+    """
+
+    layout: Layout
+    boxes: BoxLayout | None
+    part_rgb: NDArray[np.float64]
+    box_rgb: NDArray[np.float64]
+    upright_cuts: dict[tuple[float, bool], _UprightCut] | None
+    no_slope: NDArray[np.float64]
+
+
 class Figures:
     """The parts of every body at one step, and their cached sections by height (read-only).
 
-    Made by :meth:`FigureModel.pose`; a snapshot of the world holds one.
+    Made by :meth:`FigureModel.pose`; a snapshot of the world holds one. Everything that stays
+    the same between resets is in the shared :class:`Dress`, so that making one costs a few
+    attribute stores: the world makes one every step, whose sensors read one section of it
+    or none (for an upright layout, a section is a view of the positions: :meth:`_cut`).
     """
 
-    __slots__ = (
-        "_angles", "_appearance", "_boxes", "_occluders", "_positions", "_sections", "_slope", "_upright_cuts", "_xy",
-        "box_rgb", "layout", "part_rgb",
-    )  # fmt: skip
+    __slots__ = ("_angles", "_appearance", "_dress", "_occluders", "_positions", "_sections", "_slope", "_xy")
 
     def __init__(
         self,
-        layout: Layout,
-        xy: NDArray[np.float64] | None,
-        slope: NDArray[np.float64] | None,
-        upright_cuts: dict[tuple[float, bool], _UprightCut] | None = None,
-        positions: NDArray[np.float64] | None = None,
-        boxes: BoxLayout | None = None,
+        dress: Dress,
+        positions: NDArray[np.float64] | None,
         angles: NDArray[np.float64] | None = None,
-        part_rgb: NDArray[np.float64] | None = None,
-        box_rgb: NDArray[np.float64] | None = None,
+        xy: NDArray[np.float64] | None = None,
+        slope: NDArray[np.float64] | None = None,
     ) -> None:
-        self.layout = layout
-        #: ``(P, 3)`` every disc part's colour and ``(Q, 3)`` every box part's, 0-255 (what a camera sees)
-        self.part_rgb = np.zeros((layout.row.size, 3)) if part_rgb is None else part_rgb
-        self.box_rgb = np.zeros((0, 3)) if box_rgb is None else box_rgb
+        self._dress = dress
         self._appearance: Appearance | None = None
-        self._xy = xy
-        self._slope = slope
         self._positions = positions  # the bodies' positions (an upright layout's parts stand at their centres; boxes)
-        self._upright_cuts = upright_cuts  # shared by every step's figures of an upright layout
-        self._boxes = boxes  # None: no box parts
         self._angles = angles  # the bodies' headings (the boxes turn with them)
+        self._xy = xy  # None: the parts stand at their bodies' centres (taken from the positions on first use)
+        self._slope = slope  # None: no part leans
         self._sections: dict[float, Section] = {}
         self._occluders: dict[float, Section] = {}
+
+    @property
+    def layout(self) -> Layout:
+        """The disc parts' static facts."""
+        return self._dress.layout
+
+    @property
+    def part_rgb(self) -> NDArray[np.float64]:
+        """``(P, 3)`` every disc part's colour, 0-255 (what a camera sees)."""
+        return self._dress.part_rgb
+
+    @property
+    def box_rgb(self) -> NDArray[np.float64]:
+        """``(Q, 3)`` every box part's colour, 0-255."""
+        return self._dress.box_rgb
 
     @property
     def xy(self) -> NDArray[np.float64]:
         """``(P, 2)`` every disc part's reference point."""
         if self._xy is None:
             assert self._positions is not None
-            self._xy = self._positions[self.layout.row]
+            self._xy = self._positions[self._dress.layout.row]
         return self._xy
 
     @property
     def slope(self) -> NDArray[np.float64]:
         """``(P, 2)`` every disc part's shift of its centre per metre up."""
-        if self._slope is None:
-            self._slope = np.zeros((self.layout.row.size, 2))
-        return self._slope
+        return self._dress.no_slope if self._slope is None else self._slope
 
     def section(self, height_m: float) -> Section:
         """The discs and box sides cut at ``height_m`` (cached per height), in part order: body rows ascending."""
@@ -559,13 +583,12 @@ class Figures:
         start at the floor."""
         if self._appearance is not None:
             return self._appearance
-        m = self.layout
+        m, q, part_rgb = self._dress.layout, self._dress.boxes, self._dress.part_rgb
         z0 = np.maximum(m.z_lo, 0.0)
         centres = self.xy + self.slope * (0.5 * (z0 + m.z_hi) - m.z_ref)[:, None] if m.row.size else np.zeros((0, 2))
-        q = self._boxes
         if q is None:
             none = np.zeros((0, 2))
-            out = Appearance(centres, m.radius, z0, m.z_hi, self.part_rgb, m.row, none, none, np.zeros(0), np.zeros(0),
+            out = Appearance(centres, m.radius, z0, m.z_hi, part_rgb, m.row, none, none, np.zeros(0), np.zeros(0),
                              np.zeros((0, 3)), np.zeros(0, dtype=np.int64))  # fmt: skip
         else:
             assert self._positions is not None and self._angles is not None
@@ -573,14 +596,24 @@ class Figures:
                 0.0, self._positions, self._angles, q.row, q.offset, q.half, q.wheel_r, q.z_lo, q.z_hi, q.every, True
             )
             rep = np.repeat
-            out = Appearance(centres, m.radius, z0, m.z_hi, self.part_rgb, m.row, a, b, rep(q.z_lo, 4), rep(q.z_hi, 4),
-                             rep(self.box_rgb, 4, axis=0), rep(np.arange(q.row.size), 4))  # fmt: skip
+            out = Appearance(centres, m.radius, z0, m.z_hi, part_rgb, m.row, a, b, rep(q.z_lo, 4), rep(q.z_hi, 4),
+                             rep(self._dress.box_rgb, 4, axis=0), rep(np.arange(q.row.size), 4))  # fmt: skip
         self._appearance = out
         return out
 
     def _cut(self, height_m: float, occluders_only: bool) -> Section:
-        discs = self._cut_discs(height_m, occluders_only)
-        q = self._boxes
+        m, q, upright = self._dress.layout, self._dress.boxes, self._dress.upright_cuts
+        if upright is None:  # leaning parts (legs): cut at this step's pose
+            keep = m.occludes if occluders_only else m.every
+            index, centres, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind, keep)
+            discs = Section(centres, radii, m.row[index], m.occludes[index])  # fresh arrays: read, never write
+        else:  # upright: the same parts at every step, only their bodies' positions move
+            cut = upright.get((height_m, occluders_only))
+            if cut is None:
+                cut = upright[(height_m, occluders_only)] = self._upright_cut(height_m, occluders_only)
+            rows, radii, occludes, take = cut
+            assert self._positions is not None
+            discs = Section(self._positions[take], radii, rows, occludes)  # a slice: a view of the positions, no copy
         if q is None:
             return discs
         assert self._positions is not None and self._angles is not None
@@ -588,21 +621,15 @@ class Figures:
         a, b, rows = _cut_boxes(height_m, self._positions, self._angles, q.row, q.offset, q.half, q.wheel_r, q.z_lo, q.z_hi, keep)
         return discs._replace(seg_a=a, seg_b=b, seg_rows=rows)
 
-    def _cut_discs(self, height_m: float, occluders_only: bool) -> Section:
-        m = self.layout
+    def _upright_cut(self, height_m: float, occluders_only: bool) -> _UprightCut:
+        """An upright layout's cut at ``height_m`` (made once per height between resets): which
+        parts it cuts and their radii there."""
+        m = self._dress.layout
         keep = m.occludes if occluders_only else m.every
-        if self._upright_cuts is None:
-            index, centres, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind, keep)
-            return Section(centres, radii, m.row[index], m.occludes[index])  # fresh arrays: read, never write
-        cut = self._upright_cuts.get((height_m, occluders_only))
-        if cut is None:  # once per height between resets: which parts, and their radii there
-            index, _, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind, keep)
-            rows = m.row[index]
-            rows.setflags(write=False)
-            cut = self._upright_cuts[(height_m, occluders_only)] = (rows, radii, m.occludes[index], consecutive(rows))
-        rows, radii, occludes, take = cut
-        assert self._positions is not None
-        return Section(self._positions[take], radii, rows, occludes)  # a slice: a view of the positions, no copy
+        index, _, radii = _cut(height_m, self.xy, self.slope, m.z_ref, m.z_lo, m.z_hi, m.radius, m.kind, keep)
+        rows = m.row[index]
+        rows.setflags(write=False)
+        return rows, radii, m.occludes[index], consecutive(rows)
 
 
 #: what a body's shape is sized by: a person's ranges, a car's sizes, or nothing (column, ball)
@@ -631,7 +658,6 @@ class FigureModel:
         self._hip_m = np.zeros(self.body_count)
         self._cadence = np.zeros(self.body_count)
         self._max_step = np.zeros(self.body_count)
-        self._empty: Figures | None = None
         self.boxes = _box_layout(shapes)
         #: ``(Q, 3)`` the box parts' colours: a car's body paint (drawn per reset), its cabin's glass, its tyres
         self.box_rgb = np.zeros((0 if self.boxes is None else self.boxes.row.size, 3))
@@ -700,7 +726,8 @@ class FigureModel:
 
     def _paint(self, rng: np.random.Generator | None) -> None:
         """Clothes and hair for every person, paint for every car, from their palettes (each
-        palette's first colour without ``rng``)."""
+        palette's first colour without ``rng``); then the :class:`Dress` the figures share (the
+        layout is made before: :meth:`_build` is always followed by this)."""
         m = self.layout
         self.part_rgb, self.box_rgb = self.part_rgb.copy(), self.box_rgb.copy()  # figures handed out keep theirs
 
@@ -723,6 +750,11 @@ class FigureModel:
                 self.box_rgb[boxes[5]] = sizes.cabin_rgb
         self.part_rgb.setflags(write=False)
         self.box_rgb.setflags(write=False)
+        # every Figures made from now on shares these (a new Dress: figures handed out keep theirs)
+        self._dress = Dress(m, self.boxes, self.part_rgb, self.box_rgb, self._upright_cuts, self._no_slope)
+        self._empty: Figures | None = None
+        if not m.row.size and self.boxes is None:
+            self._empty = Figures(self._dress._replace(upright_cuts=None), None, None, np.zeros((0, 2)), np.zeros((0, 2)))
 
     def reset(self, rng: np.random.Generator, velocities: NDArray[np.float64]) -> None:
         """New sizes for every person (drawn from ``rng`` only when there are people), standing still.
@@ -762,19 +794,16 @@ class FigureModel:
         """The :class:`Figures` of the bodies at ``positions`` ``(B, 2)`` in their current gait;
         ``angles`` ``(B,)``: their headings, which the box parts (cars) turn with (needed only
         when there are box parts)."""
-        m = self.layout
-        boxes = self.boxes
-        if boxes is not None and angles is None:
+        dress = self._dress
+        if dress.boxes is not None and angles is None:
             raise ValueError("FigureModel.pose: the bodies include cars, whose boxes turn with the heading: pass angles")
-        if not m.row.size and boxes is None:  # nothing but our robot: one empty figure, its sections cached for good
-            if self._empty is None or self._empty.layout is not m:
-                self._empty = Figures(m, np.zeros((0, 2)), np.zeros((0, 2)))
+        if self._empty is not None:  # nothing but our robot: one empty figure, its sections cached for good
             return self._empty
-        rgb = (self.part_rgb, self.box_rgb)
-        if self._upright_cuts is not None:  # no legs: each part stands at its body's centre
-            return Figures(m, None, self._no_slope, self._upright_cuts, positions, boxes, angles, *rgb)
+        if dress.upright_cuts is not None:  # no legs: each part stands at its body's centre, nothing to pose
+            return Figures(dress, positions, angles)
+        m = dress.layout
         xy, slope = _pose_parts(positions, m.row, m.kind, m.lateral, m.swing_sign, self.heading, self.swing_tan)
-        return Figures(m, xy, slope, None, positions, boxes, angles, *rgb)
+        return Figures(dress, positions, angles, xy, slope)
 
 
 def _box_layout(shapes: list[tuple[str, float, float, bool, Sizes]]) -> BoxLayout | None:

@@ -121,7 +121,7 @@ def sample_odometry(
         ``(3,)`` or ``(size or n, 3)`` noisy increments.
     """
     d = np.asarray(delta, dtype=np.float64)
-    rows = _rows(d)
+    rows = np.ascontiguousarray(d.reshape(-1, 3))  # (_rows without converting d again: the env calls this every step)
     if size is not None:
         if d.ndim != 1:
             raise ValueError(f"sample_odometry: size={size} needs a single (3,) increment, got shape {d.shape}")

@@ -208,36 +208,15 @@ class BearingCamera(SensorBase):
         self._targets_xy = np.vstack([state.landmark_xy, self.distractor_xy])
         self._targets_radius_m = np.concatenate([state.landmark_radius_m, self.distractor_radius_m])
         self._targets_max_range_m = np.concatenate([self.max_range_m, self.distractor_max_range_m])
+        self._narrow = config.fov_rad < 2 * math.pi  # a forward camera: the field of view limits it too
+        self._everywhere = np.ones(self._targets_xy.shape[0], dtype=np.bool_)  # an omnidirectional camera's field of view
+        self._everywhere.setflags(write=False)
 
     def space(self) -> spaces.Box:
         return spaces.Box(-1.0, 1.0, shape=(3 * self.count,), dtype=np.float32)
 
     def metadata(self) -> dict[str, Any]:
         return {"landmark_count": self.count, "noise_std_rad": self.config.noise_std_rad, "fov_rad": self.config.fov_rad}
-
-    def _in_view(
-        self, state: WorldState, xy: NDArray[np.float64], radius_m: NDArray[np.float64], max_range_m: NDArray[np.float64]
-    ) -> NDArray[np.bool_]:
-        """``(n,)`` points with a clear line of sight, within range and inside the field of view.
-
-        A sight line is blocked by the walls and by the bodies' sections at the camera's
-        height (a person's torso, a robot's body, a car; not a ball below the lens).
-        """
-        occluders = state.occluders(self.config.height_m)
-        seg_a, seg_b = occluders.walls(self._seg_a, self._seg_b)  # with the sides of a car's body
-        clear = sight_lines_clear(
-            state.positions[0],
-            xy,
-            radius_m,
-            max_range_m,
-            seg_a,
-            seg_b,
-            occluders.centres,
-            occluders.radii,
-        )
-        if self.config.fov_rad < 2 * math.pi:
-            clear &= in_field_of_view(state.positions[0], state.angles[0], xy, self.config.fov_rad)
-        return clear
 
     def true_visibility(self, state: WorldState) -> NDArray[np.bool_]:
         """``(L,)`` landmarks in the field of view whose line of sight is clear and within range (no dropout)."""
@@ -248,28 +227,54 @@ class BearingCamera(SensorBase):
         return self._views(state)[self.count :]
 
     def _views(self, state: WorldState) -> NDArray[np.bool_]:
-        """``(L + D,)`` :meth:`_in_view` of the landmarks, then of the distractors, in one test."""
-        return self._in_view(state, self._targets_xy, self._targets_radius_m, self._targets_max_range_m)
+        """``(L + D,)`` the landmarks, then the distractors, with a clear line of sight, within
+        range and inside the field of view, in one test (:meth:`observe` makes the same test
+        inside its kernel).
+
+        A sight line is blocked by the walls and by the bodies' sections at the camera's
+        height (a person's torso, a robot's body, a car; not a ball below the lens).
+        """
+        occluders = state.occluders(self.config.height_m)
+        seg_a, seg_b = occluders.walls(self._seg_a, self._seg_b)  # with the sides of a car's body
+        origin = state.positions[0]
+        xy = self._targets_xy
+        clear = sight_lines_clear(
+            origin, xy, self._targets_radius_m, self._targets_max_range_m, seg_a, seg_b, occluders.centres, occluders.radii
+        )
+        if self._narrow:
+            clear &= in_field_of_view(origin, state.angles[0], xy, self.config.fov_rad)
+        return clear
 
     def observe(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
         cfg = self.config
         draws = rng.random((3, self.count))  # dropout, false detection, false bearing
-        noise = rng.standard_normal((self.count,)) * cfg.noise_std_rad
-        views = self._views(state)
-        visible = views[: self.count]
-        obs, flags = _bearing_slots(
-            state.positions[0],
-            state.angles[0],
+        z = rng.standard_normal((self.count,))  # the bearing noise in units of noise_std_rad
+        # the sight-line test of _views and the slots in one kernel call: a call from Python
+        # costs about as much as the work of a frame
+        origin, heading = state.positions[0], state.angles[0]
+        occluders = state.occluders(cfg.height_m)
+        seg_a, seg_b = occluders.walls(self._seg_a, self._seg_b)  # with the sides of a car's body
+        in_fov = in_field_of_view(origin, heading, self._targets_xy, cfg.fov_rad) if self._narrow else self._everywhere
+        obs, marks = _camera_frame(
+            origin,
+            heading,
             self._targets_xy,
-            views,
+            self._targets_radius_m,
+            self._targets_max_range_m,
+            seg_a,
+            seg_b,
+            occluders.centres,
+            occluders.radii,
+            in_fov,
             self.distractor_slot,
             draws,
-            noise,
+            z,
+            cfg.noise_std_rad,
             cfg.dropout_probability,
             cfg.false_detection_probability,
         )
         # fixed shapes (one flag per landmark), so that vector envs can stack the infos
-        return obs.reshape(-1), {"visible_landmarks": visible, "false_detections": flags[0], "distractor_detections": flags[1]}
+        return obs, {"visible_landmarks": marks[0], "false_detections": marks[1], "distractor_detections": marks[2]}
 
     def draw(self, canvas: Any, state: WorldState, reading: NDArray[np.float32], info: Mapping[str, Any]) -> None:
         """Sight lines to the landmarks truly in view and to the distractors reported, the
@@ -325,44 +330,61 @@ def _nearest_in_view(
 
 
 @numba.njit(cache=True)
-def _bearing_slots(
+def _camera_frame(
     origin: NDArray[np.float64],
     heading: float,
     targets_xy: NDArray[np.float64],
-    in_view: NDArray[np.bool_],
+    targets_radius_m: NDArray[np.float64],
+    targets_max_range_m: NDArray[np.float64],
+    seg_a: NDArray[np.float64],
+    seg_b: NDArray[np.float64],
+    centres: NDArray[np.float64],
+    radii: NDArray[np.float64],
+    in_fov: NDArray[np.bool_],
     distractor_slot: NDArray[np.int64],
     draws: NDArray[np.float64],
-    noise: NDArray[np.float64],
+    z: NDArray[np.float64],
+    noise_std: float,
     dropout: float,
     false_rate: float,
 ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
-    """Fill the ``(L, 3)`` camera slots; also ``(2, L)`` which slots hold a random false
-    detection (row 0) and which a distractor (row 1).
+    """One frame: the flat ``(3 L,)`` observation and ``(3, L)`` marks per slot: the landmark
+    in view (before dropout), a random false detection, a distractor reported.
 
-    ``targets_xy`` and ``in_view`` hold the ``L`` landmarks, then the distractors. Per slot,
-    first match wins: a random false detection; nothing when the slot drops out (a missed
-    detection drops the slot, whichever object would have filled it); the landmark when
-    visible; the nearest distractor in view of that landmark; else the slot stays zero.
+    ``targets_xy`` (radii, ranges) holds the ``L`` landmarks, then the distractors; a target is
+    in view where its sight line is clear of the walls ``seg_a``-``seg_b`` and the discs
+    ``centres``, ``radii`` (:func:`~localizers.raycast.sight_lines_clear`) and ``in_fov`` holds.
+    Per slot, first match wins: a random false detection; nothing when the slot drops out (a
+    missed detection drops the slot, whichever object would have filled it); the landmark
+    when visible; the nearest distractor in view of that landmark; else the slot stays zero.
+    A bearing carries the noise ``z noise_std``.
     """
+    in_view = sight_lines_clear(origin, targets_xy, targets_radius_m, targets_max_range_m, seg_a, seg_b, centres, radii)
+    in_view &= in_fov
     n = draws.shape[1]
-    obs = np.zeros((n, 3), dtype=np.float32)
-    nearest = _nearest_in_view(origin, targets_xy[n:], distractor_slot, in_view[n:], n)
-    flags = np.zeros((2, n), dtype=np.bool_)  # one array to hand back: false detections, distractors
+    obs = np.zeros(3 * n, dtype=np.float32)
+    marks = np.zeros((3, n), dtype=np.bool_)  # one array to hand back: in view, false detections, distractors
+    marks[0] = in_view[:n]
+    distractors = distractor_slot.shape[0] > 0
+    if distractors:
+        nearest = _nearest_in_view(origin, targets_xy[n:], distractor_slot, in_view[n:], n)
+    else:  # no distractors: nothing to look for
+        nearest = distractor_slot
     for j in range(n):
         if draws[1, j] < false_rate:
-            flags[0, j] = True
+            marks[1, j] = True
             bearing = (draws[2, j] * 2.0 - 1.0) * math.pi
         elif draws[0, j] < dropout:
             continue
         elif in_view[j]:
-            bearing = math.atan2(targets_xy[j, 1] - origin[1], targets_xy[j, 0] - origin[0]) - heading + noise[j]
-        elif nearest[j] >= 0:
+            bearing = math.atan2(targets_xy[j, 1] - origin[1], targets_xy[j, 0] - origin[0]) - heading + z[j] * noise_std
+        elif distractors and nearest[j] >= 0:
             d = n + nearest[j]
-            flags[1, j] = True
-            bearing = math.atan2(targets_xy[d, 1] - origin[1], targets_xy[d, 0] - origin[0]) - heading + noise[j]
+            marks[2, j] = True
+            bearing = math.atan2(targets_xy[d, 1] - origin[1], targets_xy[d, 0] - origin[0]) - heading + z[j] * noise_std
         else:
             continue
-        obs[j, 0] = 1.0
-        obs[j, 1] = math.cos(bearing)
-        obs[j, 2] = math.sin(bearing)
-    return obs, flags
+        obs[3 * j] = 1.0
+        obs[3 * j + 1] = math.cos(bearing)
+        obs[3 * j + 2] = math.sin(bearing)
+    return obs, marks

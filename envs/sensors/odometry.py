@@ -130,7 +130,8 @@ class Odometry(SensorBase):
         rot = world.robot.max_turn_rate_rps * world.dt_s
         self._gains = config.wheel_gains
         self._half_track = 0.5 * config.wheelbase_ratio * config.wheelbase_m
-        if config.systematic:
+        self._systematic = config.systematic  # (a property of the config: read once, not every step)
+        if self._systematic:
             # the readings are linear in (s, dtheta): the largest is at a corner of the command box
             g_sum, g_diff = self._gains[0] + self._gains[1], abs(self._gains[0] - self._gains[1])
             trans, rot = (
@@ -151,7 +152,7 @@ class Odometry(SensorBase):
     def command(self, delta: NDArray[np.float64], rng: np.random.Generator) -> None:
         """Record the commanded increment ``(3,)`` of this step, as dead reckoning measures it
         (systematic errors, when set) and corrupted by the alpha model."""
-        if self.config.systematic:
+        if self._systematic:
             delta = self.measured(delta)
         self._delta = sample_odometry(rng, delta, self.alphas)
 
