@@ -9,6 +9,12 @@ known start pose, an update with the first frame, then ``predict`` and ``update`
 so every localizer runs on identical data and the results equal the online wrapper's for the
 same generator. Ground truth is used for the prior only when asked (``prior="start"``).
 :func:`feed` is that stepping loop on its own, for measurement streams built elsewhere.
+
+:func:`record_policy` records a closed loop instead: a policy acting on the observation as
+``gym.make`` gives it, with the estimate of the localizer the env runs online where its keywords
+name one (``localizer=...``); that estimate is kept beside the observations
+(:attr:`Recording.estimates`), and replaying the same localizer with :func:`online_rng`
+reproduces it.
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from envs.localization_env import LocalizationEnv
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
 from localizers.measurements import decode, find_sensor, measurement_kind, readable_kinds, sensor_map
 from localizers.registry import make_localizer, spec
+from localizers.wrappers import _SEED_SALT
 
 #: the covariance of the known start pose handed to localizers that need it (as the wrapper does)
 PRIOR_COVARIANCE = np.diag([1e-6, 1e-6, 1e-6])
@@ -56,6 +63,9 @@ class Recording:
         contacts: ``(T,)`` contacts of our robot that began in each step.
         commanded: ``(T - 1, 3)`` the motion commanded in steps 1..T-1 (what the odometry
             measures before noise; contacts move the body beyond it).
+        estimates: ``(T, 3)`` the estimate of the localizer the env ran online (``info["estimate"]``
+            of ``gym.make(..., localizer=...)``), NaN where it claimed none; ``(0, 3)`` when the
+            env ran none.
     """
 
     env_id: str
@@ -71,6 +81,7 @@ class Recording:
     distractor_detections: NDArray[np.bool_]
     contacts: NDArray[np.int64]
     commanded: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    estimates: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def steps(self) -> int:
@@ -189,6 +200,64 @@ def record(
         env_kwargs: ``gym.make`` overrides (``crowd_size``, ``camera={...}``, ...).
         reset_options: passed to ``env.reset`` (``robot_pose``).
     """
+
+    def start(env: gym.Env[Any, Any], base: LocalizationEnv) -> tuple[Callable[[Any], Any], Callable[[], bool]]:
+        drv: Driver = driver if hasattr(driver, "act") else driver(base)  # type: ignore[operator]  # a Driver or a factory of one
+        drv.reset(base)
+        return (lambda _obs: drv.act(base)), (lambda: bool(drv.done))
+
+    return _rollout(env_id, start, seed, max_steps, env_kwargs, reset_options)
+
+
+def record_policy(
+    env_id: str,
+    make_policy: Callable[[gym.Env[Any, Any]], Any],
+    seed: int,
+    *,
+    max_steps: int,
+    env_kwargs: Mapping[str, Any] | None = None,
+    reset_options: Mapping[str, Any] | None = None,
+) -> Recording:
+    """Roll ``env_id`` out once in a closed loop: a policy acting on the observation.
+
+    The policy sees the observation as ``gym.make(env_id, **env_kwargs)`` gives it: where the
+    keywords name a localizer (``localizer="mcl_lidar"``, ``localizer_params``, ``prior``), the
+    env runs it online and the observation holds its estimate, never the truth. Its estimates are
+    kept in :attr:`Recording.estimates`; the sensors' observations as :func:`record` keeps them.
+
+    Args:
+        env_id: a registered crowdloc id.
+        make_policy: ``env -> policy`` (built after ``gym.make``, before the reset), the policy
+            with ``predict(observation) -> (action, state)`` (:class:`agents.policy_base.FixedPolicy`).
+        seed: the env seed (the online localizer's generator is :func:`online_rng` of it).
+        max_steps: stop after this many steps (also stops when the episode ends).
+        env_kwargs, reset_options: as for :func:`record`.
+    """
+
+    def start(env: gym.Env[Any, Any], base: LocalizationEnv) -> tuple[Callable[[Any], Any], Callable[[], bool]]:
+        policy = make_policy(env)
+        return (lambda obs: np.asarray(policy.predict(obs)[0], dtype=np.float32)), (lambda: False)
+
+    return _rollout(env_id, start, seed, max_steps, env_kwargs, reset_options)
+
+
+def online_rng(seed: int) -> np.random.Generator:
+    """The generator the online wrapper (:class:`localizers.wrappers.LocalizationObservation`)
+    gives its localizer after ``env.reset(seed=seed)``: a replay drawing from it reproduces
+    :attr:`Recording.estimates`."""
+    return np.random.default_rng([seed, _SEED_SALT])
+
+
+def _rollout(
+    env_id: str,
+    start: Callable[[gym.Env[Any, Any], LocalizationEnv], tuple[Callable[[Any], Any], Callable[[], bool]]],
+    seed: int,
+    max_steps: int,
+    env_kwargs: Mapping[str, Any] | None,
+    reset_options: Mapping[str, Any] | None,
+) -> Recording:
+    """The rollout of :func:`record` and :func:`record_policy`: ``start(env, base)`` after the
+    reset gives ``act(observation) -> action`` and ``done() -> bool``."""
     env = gym.make(env_id, **dict(env_kwargs or {}))
     base = env.unwrapped
     assert isinstance(base, LocalizationEnv)
@@ -196,14 +265,14 @@ def record(
     if not readable_kinds(sensors):
         raise ValueError(f"record: {env_id} has no sensor that a localizer reads (sensors: {', '.join(sensors)})")
     obs, info = env.reset(seed=seed, options=dict(reset_options) if reset_options else None)
-    drv: Driver = driver if hasattr(driver, "act") else driver(base)  # type: ignore[operator]  # a Driver or a factory of one
-    drv.reset(base)
-    # the driver may have moved the ball or the crowd: observations are unchanged (the ball
+    act, done = start(env, base)
+    # a driver may have moved the ball or the crowd: observations are unchanged (the ball
     # does not occlude; parked members sit outside the field), the truth is re-read below
     no_landmarks = np.zeros(base.landmark_map.count, dtype=bool)
     keys = [str(meta["key"]) for meta in sensors.values()]
     observed: dict[str, list[NDArray[np.float32]]] = {key: [] for key in keys}
     truth: list[tuple[Any, ...]] = []
+    estimates: list[NDArray[np.float64]] = []
 
     def keep(o: Mapping[str, Any], i: Mapping[str, Any]) -> None:
         for key in keys:
@@ -212,13 +281,16 @@ def record(
         false = np.array(i.get("false_detections", no_landmarks), dtype=bool)
         fooled = np.array(i.get("distractor_detections", no_landmarks), dtype=bool)
         truth.append((np.asarray(i["true_pose"]).copy(), float(i["time_s"]), vis, false, len(i["contacts"]), fooled))
+        est = i.get("estimate")
+        if est is not None:
+            estimates.append(np.array([est.x_m, est.y_m, est.theta_rad]) if est.valid else np.full(3, np.nan))
 
     keep(obs, info)
     commanded = []
     for _ in range(max_steps):
-        if drv.done:
+        if done():
             break
-        action = drv.act(base)
+        action = act(obs)
         commanded.append(commanded_increment(action, base))
         obs, _, terminated, truncated, info = env.step(action)
         keep(obs, info)
@@ -238,6 +310,7 @@ def record(
         distractor_detections=np.stack([r[5] for r in truth]),
         contacts=np.array([r[4] for r in truth], dtype=np.int64),
         commanded=np.array(commanded, dtype=np.float64).reshape(-1, 3),
+        estimates=np.array(estimates, dtype=np.float64).reshape(-1, 3),
     )
     env.close()
     return rec

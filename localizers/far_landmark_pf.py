@@ -291,6 +291,7 @@ class FarLandmarkPF:
         rng = self._generator()
         meas = measurement.validated(self.name)
         p = self._params
+        self.used_xy = np.zeros((0, 2))  # nothing used until this frame's detections are weighed
         order, starts = order_detections(meas.inverse_range_m, meas.bearings_rad, p.sector_rad, p.min_range_m, p.selection)
         if order.size == 0:
             return

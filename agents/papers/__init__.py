@@ -20,4 +20,8 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
         "agents.papers.lidar_far_point",
         "LIDAR scan accumulation + far points (Fujii et al.): MCL with and without them vs sampling and hit (Figs 5, 7-11)",
     ),
+    "stereo-far-landmarks": (
+        "agents.papers.stereo_far_landmarks",
+        "far landmarks first, stereo edges + particle filter (paper D): Figs 8-10 against the LIDAR reference, and crowds",
+    ),
 }

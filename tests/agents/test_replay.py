@@ -246,3 +246,24 @@ def test_the_replay_keeps_each_estimates_covariance(recordings: dict[str, Record
     np.testing.assert_array_equal(out.valid, steps % 2 == 0)
     np.testing.assert_array_equal(out.covariances[out.valid], (steps[out.valid] + 1.0)[:, None, None] * np.eye(3))
     assert np.isnan(out.covariances[~out.valid]).all()  # no pose, no covariance
+
+
+def test_a_closed_loop_recording_keeps_the_online_estimate_and_its_replay_equals_it() -> None:
+    """record_policy: a policy acting on the observation with the env's own localizer's estimate; that estimate
+    is kept, and replaying the localizer with online_rng reproduces it bit for bit (on every stored sensor's leaves)."""
+    from agents.policies import make_policy
+    from agents.replay import online_rng, record_policy, replay_into, start_prior
+    from agents.scene_maps import AMCL_LIKE
+    from localizers.registry import make_localizer
+
+    kwargs = {"crowd_size": 10, "localizer": "mcl_lidar", "localizer_params": AMCL_LIKE, "prior": "start"}
+    rec = record_policy("crowdloc/StereoCampus-v0", lambda env: make_policy("route_follower", env, seed=3), 3, max_steps=60,
+                        env_kwargs=kwargs)  # fmt: skip
+    assert rec.steps == 61 and rec.estimates.shape == (61, 3) and np.isfinite(rec.estimates).all()
+    assert set(rec.observations) == {"odometry", "lidar", "stereo"}  # the sensors only, not the wrapper's entries
+    assert float(np.hypot(*(rec.true_pose[-1, :2] - rec.true_pose[0, :2]))) > 1.0  # it drove on the estimate
+    loc = make_localizer("mcl_lidar", rec.localizer_map("scan"), dt_s=rec.dt_s, params=AMCL_LIKE)
+    out = replay_into(loc, rec, online_rng(3), prior=start_prior(rec), measurement="scan")
+    np.testing.assert_array_equal(out.estimates, rec.estimates)
+    # without a localizer in the env there is no estimate to keep
+    assert record("crowdloc/RoboCupStatic-v0", exp1_driver, seed=4, max_steps=3).estimates.shape == (0, 3)
