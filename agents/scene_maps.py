@@ -9,9 +9,10 @@ records every ``period_s``: the pose is that reference's estimate (``pose="refer
 default, as on a real robot) or the truth (``pose="truth"``); the landmarks are the camera's
 detections of that step.
 
-:func:`default_scene_map` is the world's default map: made once (seed 0, the world's crowd as
-configured) and cached under ``$CROWDLOC_CACHE/scene_maps`` (default ``~/.cache/crowdloc``),
-keyed by the world's geometry and camera, so ``gym.make(id, localizer="far_landmark_pf")``
+:func:`default_scene_map` is the world's default map: made once (seed 0, the env's crowd size)
+and cached under ``$CROWDLOC_CACHE/scene_maps`` (default ``~/.cache/crowdloc``), keyed by the
+world's geometry, its camera and the crowd size (so the map an env gets never depends on which
+crowd size asked first), so ``gym.make(id, localizer="far_landmark_pf")``
 works without a map file (:func:`prepare_far_landmark_pf`, the localizer's preparation hook).
 ``crowdloc map WORLD`` makes one explicitly.
 """
@@ -88,6 +89,19 @@ class MappingDrive:
         check(math.isfinite(self.period_s) and self.period_s > 0, f"mapping drive: period_s must be > 0, got {self.period_s!r}")
 
 
+def reference_env_kwargs(config: WorldConfig) -> dict[str, Any]:
+    """``gym.make`` keywords that run the LIDAR reference online from the start pose: ``mcl_lidar``
+    with :data:`AMCL_LIKE` on the world's one LIDAR (what a route drive steers on).
+
+    Raises:
+        ConfigError: a world without exactly one LIDAR.
+    """
+    lidars = list(config.sensors_of_type("lidar"))
+    if len(lidars) != 1:
+        raise ConfigError(f"the LIDAR reference needs one LIDAR: world {config.name!r} has {len(lidars)}")
+    return {"localizer": "mcl_lidar", "localizer_params": dict(AMCL_LIKE), "prior": "start", "localizer_sensor": lidars[0]}
+
+
 def _camera(env: LocalizationEnv) -> tuple[str, dict[str, Any]]:
     found = [name for name, meta in env.sensor_metadata.items() if meta["type"] == "stereo_camera"]
     if len(found) != 1:
@@ -124,14 +138,11 @@ def build_scene_map(
     base = LocalizationEnv(world, **kwargs)
     if not base.config.features_of_type("route"):
         raise ConfigError(f"a scene map is made by driving a route: world {base.config.name!r} has none")
-    lidars = [name for name, meta in base.sensor_metadata.items() if meta["type"] == "lidar"]
-    if len(lidars) != 1:
-        raise ConfigError(
-            f"the mapping drive follows the LIDAR reference's estimate: world {base.config.name!r} has {len(lidars)} LIDARs"
-        )
+    reference = reference_env_kwargs(base.config)
     camera, meta = _camera(base)
     key = str(meta["key"])
-    env = LocalizationObservation(base, "mcl_lidar", AMCL_LIKE, prior="start", sensor=lidars[0])
+    env = LocalizationObservation(base, reference["localizer"], reference["localizer_params"], prior=reference["prior"],
+                                  sensor=reference["localizer_sensor"])  # fmt: skip
     policy = make_policy("route_follower", env, seed=drive.seed)
     obs, info = env.reset(seed=drive.seed)
     every = max(1, round(drive.period_s / base.config.dt_s))
@@ -176,14 +187,14 @@ def build_scene_map(
 
 
 def default_map_path(env: LocalizationEnv) -> Path:
-    """Where the world's default scene map is cached: named by the world, its geometry and camera."""
+    """Where the world's default scene map is cached: named by the world, its geometry, camera and crowd size."""
     _, meta = _camera(env)
     camera = hashlib.sha256(json.dumps(camera_signature(meta), sort_keys=True).encode()).hexdigest()[:8]
-    return cache_dir() / "scene_maps" / f"{env.config.name}-{world_fingerprint(env)}-{camera}.npz"
+    return cache_dir() / "scene_maps" / f"{env.config.name}-{world_fingerprint(env)}-{camera}-crowd{env.config.crowd_count}.npz"
 
 
 def default_scene_map(env: LocalizationEnv) -> Path:
-    """The world's default scene map (seed 0, its configured crowd), made and cached on first use."""
+    """The world's default scene map (seed 0, the env's crowd), made and cached on first use."""
     path = default_map_path(env)
     if not path.is_file():
         _log.warning("making the default scene map of %s (the route driven once; cached in %s)", env.config.name, path)

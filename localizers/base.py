@@ -210,6 +210,26 @@ class EdgeMeasurement:
         return EdgeMeasurement(t.astype(np.int64), inv, b)
 
 
+@dataclass(frozen=True)
+class ConsistencyPromise:
+    """How honest a localizer's reported covariance is on a seeded run of its world: the share of
+    the steps with a pose whose error lies inside the reported 95 % region (NEES at most the
+    chi-square 0.95 quantile, 3 dof) is at least ``inside_95`` (about 0.95 for a consistent
+    estimator; measured on seed 0 and rounded down). The run: ``env_id`` from seed 0 driven by the
+    fixed policy ``policy`` for ``steps`` steps, the localizer given the start pose. Each
+    localizer's docstring says why it falls short where it does;
+    ``tests/localizers/test_consistency_promises.py`` holds every localizer to its promise."""
+
+    env_id: str
+    policy: str
+    steps: int
+    inside_95: float
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.inside_95 <= 1.0 and self.steps >= 1):
+            raise ValueError(f"ConsistencyPromise: inside_95 in [0, 1] and steps >= 1, got {self.inside_95}, {self.steps}")
+
+
 @dataclass(frozen=True, eq=False)
 class PoseEstimate:
     """A localizer's answer.

@@ -56,6 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 from localizers.base import (
     DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
+    ConsistencyPromise,
     LandmarkMap,
     OdometryDelta,
     Overlay,
@@ -289,6 +290,8 @@ class KalmanLocalizer:
     """
 
     name: ClassVar[str] = "kalman"
+    #: measured on this run: share 0.690, NEES median 4.4: among the crowd's contacts the constant-acceleration prediction is too sure between fixes (module docstring) (tests/localizers/test_consistency_promises.py)
+    consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.65)
 
     def __init__(self, landmarks: LandmarkMap, params: KalmanParams, *, dt_s: float) -> None:
         self._dt = checked_dt("KalmanLocalizer", dt_s)

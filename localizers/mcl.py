@@ -35,6 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 from localizers.base import (
     DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
+    ConsistencyPromise,
     LandmarkMap,
     OdometryDelta,
     Overlay,
@@ -293,6 +294,8 @@ class PaperBearingMCL(_ParticleLocalizer):
     """
 
     name: ClassVar[str] = "mcl_bearing_paper"
+    #: measured on this run: share 1.000, NEES median 0.22: cautious (module docstring) (tests/localizers/test_consistency_promises.py)
+    consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.95)
 
     def __init__(self, landmarks: LandmarkMap, params: PaperMCLParams, *, dt_s: float) -> None:
         super().__init__(
@@ -530,6 +533,8 @@ class BearingMCL(_ParticleLocalizer):
     """
 
     name: ClassVar[str] = "mcl_bearing"
+    #: measured on this run: share 0.962, NEES median 0.28 (tests/localizers/test_consistency_promises.py)
+    consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.9)
 
     def __init__(self, landmarks: LandmarkMap, params: BearingMCLParams, *, dt_s: float) -> None:
         super().__init__(

@@ -13,13 +13,18 @@ parameters for a given world, crowd density and motion scenario:
 * **World**: by the measurement kind the localizer reads (:data:`DEFAULT_WORLDS`): bearing
   localizers on the crowded soccer field (``crowdloc/RoboCupCrowded-v0``, Exp 2's soccer
   scenario), LIDAR ones in the far-point paper's crowded room (``crowdloc/CrowdedRoom-v0``)
-  on its square path (3 laps of a 2.5 m square, as in that experiment); ``--env-id``,
-  ``--scenario`` and ``--episode-steps`` override (:func:`default_setup`).
+  on its square path (3 laps of a 2.5 m square, as in that experiment), stereo-edge ones on
+  the far-landmark paper's campus (``crowdloc/StereoCampus-v0``) along its route; ``--env-id``,
+  ``--scenario`` and ``--episode-steps`` override (:func:`default_setup`). A localizer with a
+  preparation hook gets what it makes once per study (``far_landmark_pf``: the world's default
+  scene map at the study's crowd size, :meth:`EpisodeSetup.prepared_params`), the same for every
+  trial and held-out episode.
 * **Episodes, recorded once**: ``--train-seeds`` episodes are rolled out once
   (:func:`agents.replay.record`) and every trial replays its localizer into the same
   recordings. This is exact, not an approximation: the world, the crowd, the scenario driver
   and the sensors never read the localizer (the driver steers on the *true* pose, and a
-  localizer draws from its own generator), so the observation stream of a seed is the same
+  localizer draws from its own generator; the route scenario steers on the LIDAR reference,
+  which runs online beside, never on the tuned localizer), so the observation stream of a seed is the same
   whatever the parameters are; replaying it equals running the localizer online
   (``tests/agents/test_replay.py``). It also gives every trial identical data (common random
   numbers), which makes trial-to-trial differences due to the parameters alone. (An active

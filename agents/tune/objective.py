@@ -24,16 +24,19 @@ from agents.scenarios import SoccerDriver
 from agents.train import EVAL_SEED_BASE
 from agents.tune.space import SearchSpace
 from agents.util import nest
-from localizers.registry import load_params, spec
+from localizers.registry import load_params, prepared_params, spec
 from localizers.schema import ConfigError
 
 DEFAULT_ENV_ID = "crowdloc/RoboCupCrowded-v0"
 #: the LIDAR paper's room (docs/papers.md section B) and its square path
 ROOM_ENV_ID = "crowdloc/CrowdedRoom-v0"
-SCENARIOS = ("soccer", "random_walk", "square")
+#: the far-landmark stereo paper's campus (docs/papers.md section D) and its route
+CAMPUS_ENV_ID = "crowdloc/StereoCampus-v0"
+SCENARIOS = ("soccer", "random_walk", "square", "route")
 #: the world a localizer is tuned in by default, by the measurement kind it reads: bearing
-#: localizers on the crowded soccer field (paper A), LIDAR ones in the crowded room (paper B)
-DEFAULT_WORLDS = {"bearings": DEFAULT_ENV_ID, "scan": ROOM_ENV_ID}
+#: localizers on the crowded soccer field (paper A), LIDAR ones in the crowded room (paper B),
+#: stereo-edge ones on the campus (paper D)
+DEFAULT_WORLDS = {"bearings": DEFAULT_ENV_ID, "scan": ROOM_ENV_ID, "stereo_edges": CAMPUS_ENV_ID}
 #: Exp 2 of the candidate-set paper: the field robot starts at (0, 3000) mm facing +x
 SOCCER_START_POSE = (0.0, 3.0, 0.0)
 #: steps of a soccer or random-walk episode (30 s at 30 Hz)
@@ -127,8 +130,13 @@ class EpisodeSetup:
             ``"random_walk"``: :class:`agents.policies.RandomWalk` from the world's start pose;
             ``"square"``: the LIDAR paper's run in ``crowdloc/CrowdedRoom-v0``
             (:mod:`agents.papers.lidar_far_point.experiment`: 3 laps of its 2.5 m square at
-            0.15 m/s from the lower-left corner; the queue heads give way to the robot).
-        episode_steps: steps per episode (the square path stops when its laps are done).
+            0.15 m/s from the lower-left corner; the queue heads give way to the robot);
+            ``"route"``: ``route_follower`` drives the world's route (a world with a ``route``
+            feature and one LIDAR) steering on the LIDAR reference run online
+            (:func:`agents.scene_maps.reference_env_kwargs`), never on the tuned localizer, so
+            replaying a trial's parameters into the recording is exact.
+        episode_steps: steps per episode (the square path stops when its laps are done, the
+            route at its end).
         env_overrides: further ``gym.make`` world overrides (``{"camera": {"dropout_probability": 0.5}}``).
         measurement: the measurement kind the tuned localizer reads (:mod:`localizers.measurements`).
     """
@@ -163,6 +171,14 @@ class EpisodeSetup:
                               f"(its default world: {DEFAULT_WORLDS.get(self.measurement, 'none')})")  # fmt: skip
         if self.scenario == "soccer" and not any(getattr(c, "ball", False) for c in world.crowds.values()):
             raise ConfigError(f"scenario 'soccer' needs a world with a ball; {self.env_id} has none (try --scenario random_walk)")
+        if self.scenario == "route":
+            if not world.features_of_type("route"):
+                raise ConfigError(
+                    f"scenario 'route' drives the world's route; {self.env_id} has none (try --scenario random_walk)"
+                )
+            from agents.scene_maps import reference_env_kwargs
+
+            reference_env_kwargs(world)  # the route is driven on the LIDAR reference: one LIDAR
         return world
 
     def world_overrides(self) -> dict[str, Any]:
@@ -173,6 +189,24 @@ class EpisodeSetup:
         """The crowd size and time step of :meth:`world` (same checks)."""
         world = self.world()
         return WorldFacts(int(world.crowd.count) if world.crowd is not None else 0, float(world.dt_s))
+
+    def prepared_params(self, localizer: str) -> dict[str, Any]:
+        """What ``localizer``'s preparation hook (:attr:`localizers.registry.LocalizerSpec.prepare`)
+        makes from this setup's world, resolved once per study and handed to every replay:
+        ``far_landmark_pf``'s scene map (the world's default at this crowd size, built and cached
+        on first use). Empty for a localizer without a hook."""
+        from envs.localization_env import LocalizationEnv
+        from localizers.measurements import measurement_kind
+
+        if not spec(localizer).prepare:
+            return {}
+        world = self.world()
+        sensor = next(iter(world.sensors_of_type(measurement_kind(self.measurement).sensor_type)))
+        env = LocalizationEnv(world)
+        try:
+            return dict(prepared_params(localizer, env, sensor, None) or {})
+        finally:
+            env.close()
 
     def env_kwargs(self) -> dict[str, Any]:
         kwargs: dict[str, Any] = {**self.world_overrides(), "max_episode_steps": self.episode_steps}
@@ -191,6 +225,14 @@ class EpisodeSetup:
 
             return record(self.env_id, experiment.driver_factory(LAPS), seed, max_steps=self.episode_steps,
                           env_kwargs=self.env_kwargs(), reset_options={"robot_pose": list(experiment.start_pose())})  # fmt: skip
+        if self.scenario == "route":
+            from agents.policies import make_policy
+            from agents.replay import record_policy
+            from agents.scene_maps import reference_env_kwargs
+
+            kwargs = {**self.env_kwargs(), **reference_env_kwargs(self.world())}
+            return record_policy(self.env_id, lambda env: make_policy("route_follower", env, seed=seed), seed,
+                                 max_steps=self.episode_steps, env_kwargs=kwargs)  # fmt: skip
         from gymnasium import spaces
 
         from agents.policies import RandomWalk
@@ -200,25 +242,33 @@ class EpisodeSetup:
 
 
 def default_scenario(env_id: str) -> str:
-    """The scenario a world is tuned with: the square path in the LIDAR room, soccer where there is a
-    ball, else the random walk."""
+    """The scenario a world is tuned with: the square path in the LIDAR room, the route where the
+    world has one, soccer where there is a ball, else the random walk."""
     import envs
 
     if env_id == ROOM_ENV_ID:
         return "square"
     if env_id not in envs.ENV_WORLDS:
         return "random_walk"  # EpisodeSetup.world() names the unknown id
-    crowds = envs.load_world(envs.ENV_WORLDS[env_id]).crowds.values()
-    return "soccer" if any(getattr(c, "ball", False) for c in crowds) else "random_walk"
+    world = envs.load_world(envs.ENV_WORLDS[env_id])
+    if world.features_of_type("route"):
+        return "route"
+    return "soccer" if any(getattr(c, "ball", False) for c in world.crowds.values()) else "random_walk"
 
 
-def default_episode_steps(scenario: str) -> int:
-    """Steps of one episode of ``scenario``: the square path's 3 laps (plus 10 steps), else 30 s."""
+def default_episode_steps(scenario: str, env_id: str | None = None) -> int:
+    """Steps of one episode of ``scenario``: the square path's 3 laps (plus 10 steps), the route's
+    world's episode length (the drive ends at the route's end), else 30 s."""
     if scenario == "square":
         from agents.papers.lidar_far_point import experiment
         from agents.papers.lidar_far_point.paper import LAPS
 
         return experiment.episode_steps(LAPS) + 10
+    if scenario == "route" and env_id is not None:
+        import envs
+
+        if env_id in envs.ENV_WORLDS:
+            return int(envs.load_world(envs.ENV_WORLDS[env_id]).max_episode_steps)
     return DEFAULT_EPISODE_STEPS
 
 
@@ -247,7 +297,7 @@ def default_setup(
             raise ConfigError(f"localizer {localizer!r} reads {measurement}, which has no default tuning world; give --env-id")
         env_id = DEFAULT_WORLDS[measurement]
     scenario = scenario if scenario is not None else default_scenario(env_id)
-    steps = episode_steps if episode_steps is not None else default_episode_steps(scenario)
+    steps = episode_steps if episode_steps is not None else default_episode_steps(scenario, env_id)
     return EpisodeSetup(env_id, crowd_size, scenario, steps, dict(env_overrides or {}), measurement)
 
 
@@ -353,11 +403,14 @@ def score_with(recording: Recording, localizer: str, params: Mapping[str, Any] |
                          fail_m=terms.fail_m)  # fmt: skip
 
 
-def evaluate_task(task: tuple[EpisodeSetup, int, str, Mapping[str, Any], ObjectiveTerms]) -> tuple[EpisodeScore, EpisodeScore]:
-    """One held-out episode: the defaults and the tuned parameters on the same recording."""
-    setup, seed, localizer, tuned, terms = task
+def evaluate_task(
+    task: tuple[EpisodeSetup, int, str, Mapping[str, Any], ObjectiveTerms, Mapping[str, Any]],
+) -> tuple[EpisodeScore, EpisodeScore]:
+    """One held-out episode: the defaults and the tuned parameters on the same recording (both
+    with the study's prepared parameters, :meth:`EpisodeSetup.prepared_params`)."""
+    setup, seed, localizer, tuned, terms, fixed = task
     rec = setup.record(seed)
-    return score_with(rec, localizer, None, terms), score_with(rec, localizer, tuned, terms)
+    return score_with(rec, localizer, dict(fixed), terms), score_with(rec, localizer, {**fixed, **tuned}, terms)
 
 
 # ------------------------------------------------------------------------------------ the trial function
@@ -365,17 +418,19 @@ def evaluate_task(task: tuple[EpisodeSetup, int, str, Mapping[str, Any], Objecti
 
 @dataclass(frozen=True)
 class Objective:
-    """The trial function: replay the recordings with the trial's parameters (picklable)."""
+    """The trial function: replay the recordings with the trial's parameters (picklable); ``fixed``:
+    parameters every trial gets besides (the study's prepared ones, :meth:`EpisodeSetup.prepared_params`)."""
 
     space: SearchSpace
     recordings: tuple[Recording, ...]
     terms: ObjectiveTerms
+    fixed: Mapping[str, Any] = field(default_factory=dict)
 
     def __call__(self, trial: optuna.Trial) -> float:
         applied = self.space.applied(self.space.suggest(trial))
         if applied != trial.params:
             trial.set_user_attr("applied", applied)  # the sum_to_one groups as the localizer got them
-        overrides = nest(applied)
+        overrides = {**self.fixed, **nest(applied)}
         load_params(self.space.localizer, overrides)  # a combination the params class rejects fails the trial
         scores: list[EpisodeScore] = []
         for step, rec in enumerate(self.recordings):

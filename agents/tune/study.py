@@ -336,14 +336,15 @@ def tune(config: TuneConfig) -> TuneResult:
     first_new = len(study.trials)
     recordings = run_tasks(record_task, [(setup, s) for s in plan.train_seeds], workers=config.workers,
                            desc="record training episodes", progress=config.verbose)  # fmt: skip
-    _optimize(config, study, Objective(plan.space, tuple(recordings), plan.terms), first_new)
+    fixed = setup.prepared_params(config.localizer)
+    _optimize(config, study, Objective(plan.space, tuple(recordings), plan.terms, fixed), first_new)
 
     study = optuna.load_study(study_name=plan.name, storage=_storage(config.storage))
     if not any(t.state == optuna.trial.TrialState.COMPLETE for t in study.trials):
         raise ConfigError(f"study {plan.name!r}: no trial completed (all pruned or failed); see the log above")
     best = study.best_trial
     applied = plan.space.applied(best.params)
-    tasks = [(setup, s, config.localizer, nest(applied), plan.terms) for s in plan.held_out_seeds]
+    tasks = [(setup, s, config.localizer, nest(applied), plan.terms, fixed) for s in plan.held_out_seeds]
     evals = run_tasks(evaluate_task, tasks, workers=config.workers, ray_address=config.ray_address,
                       desc="held-out episodes", progress=config.verbose)  # fmt: skip
     summary = write_report(plan, config, study, evals)
@@ -385,10 +386,12 @@ def add_arguments(parser: Any) -> None:
     parser.add_argument("--scenario", choices=SCENARIOS,
                         help=f"soccer: Exp 2's chase-dribble-shoot driver from ({x_m:g}, {y_m:g}) m; random_walk: the "
                              "RandomWalk policy from the world's start; square: the LIDAR paper's 3 laps of a 2.5 m "
-                             "square in the crowded room (default: square in the room, soccer where there is a ball, "
-                             "else random_walk)")  # fmt: skip
+                             "square in the crowded room; route: route_follower drives the world's route on the LIDAR "
+                             "reference (default: square in the room, route where the world has one, soccer where "
+                             "there is a ball, else random_walk)")  # fmt: skip
     parser.add_argument("--episode-steps", type=_count(1),
-                        help=f"steps per episode (default {DEFAULT_EPISODE_STEPS}; square: its 3 laps)")  # fmt: skip
+                        help=f"steps per episode (default {DEFAULT_EPISODE_STEPS}; square: its 3 laps; route: the "
+                             "world's episode length)")  # fmt: skip
     parser.add_argument("--env-set", action="append", default=[], metavar="KEY=VALUE",
                         help="world override, e.g. --env-set camera.dropout_probability=0.5 (repeatable)")  # fmt: skip
     parser.add_argument("--train-seeds", type=_count(1), default=config.train_seeds,

@@ -7,6 +7,7 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
 import optuna
 import pytest
 
@@ -18,6 +19,7 @@ from agents.replay import Recording
 from agents.tune.report import compare_held_out
 from agents.tune.study import _stored_attr
 from agents.util import nest
+from envs.config import load_world
 from localizers.registry import BUILTIN_LOCALIZERS, load_params
 from localizers.schema import ConfigError
 
@@ -129,6 +131,38 @@ def test_default_worlds_by_measurement_kind() -> None:
         assert tune.default_fail_m(lidar.env_id) == 1.0  # paper B's failure
     assert tune.default_fail_m(bearing.env_id) == tune.DEFAULT_FAIL_M
     assert tune.default_setup("mcl_lidar", env_id="crowdloc/RoboCupCrowded-v0").scenario == "soccer"
+
+
+def test_stereo_edge_localizers_are_tuned_on_the_campus_route() -> None:
+    setup = tune.default_setup("far_landmark_pf")
+    assert (setup.env_id, setup.scenario, setup.measurement) == ("crowdloc/StereoCampus-v0", "route", "stereo_edges")
+    assert setup.episode_steps == load_world("stereo_campus").max_episode_steps  # the drive ends at the route's end
+    assert tune.default_setup("mcl_lidar", env_id="crowdloc/StereoCampus-v0").scenario == "route"
+    with pytest.raises(ConfigError, match="scenario 'route' drives the world's route; crowdloc/CrowdedRoom-v0 has none"):
+        tune.default_setup("mcl_lidar", scenario="route").world()
+
+
+def test_route_scenario_steers_on_the_reference_and_replays_with_the_prepared_map(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The route is driven on the LIDAR reference (its estimates are in the recording, never the
+    tuned localizer's); far_landmark_pf gets the world's default scene map, made once per study."""
+    monkeypatch.setenv("CROWDLOC_CACHE", str(tmp_path))
+    setup = tune.default_setup("far_landmark_pf", crowd_size=0, episode_steps=120)
+    fixed = setup.prepared_params("far_landmark_pf")
+    assert Path(fixed["scene_map"]).is_file() and Path(fixed["scene_map"]).is_relative_to(tmp_path)
+    assert setup.prepared_params("far_landmark_pf") == fixed  # cached: the same map for every trial
+    assert tune.default_setup("mcl_lidar").prepared_params("mcl_lidar") == {}  # no preparation hook
+    rec = setup.record(0)
+    assert rec.steps == 121 and rec.estimates.shape == (121, 3) and np.all(np.isfinite(rec.estimates))
+    ahead = rec.true_pose[-1, :2] - rec.true_pose[0, :2]
+    assert np.hypot(*ahead) > 5.0  # it drove along the route
+    shipped = tune.score_episode(rec, "far_landmark_pf", fixed, 1.0, failure_penalty_m=1.0, fail_m=0.5)
+    assert shipped.availability == 1.0 and shipped.position_error_m < 0.5
+    widened = tune.score_episode(
+        rec, "far_landmark_pf", {**fixed, "sigma_theta_rad": 0.1}, 1.0, failure_penalty_m=1.0, fail_m=0.5
+    )
+    assert widened.objective != shipped.objective  # the searched parameters reach the replay
 
 
 def test_square_scenario_drives_the_lidar_papers_path() -> None:

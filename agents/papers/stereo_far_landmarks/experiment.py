@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from agents.scene_maps import AMCL_LIKE
+from agents.scene_maps import reference_env_kwargs as reference_env_kwargs_of
 
 from . import world
 
@@ -69,8 +69,7 @@ SHORT = {"farthest": "farthest", "all": "all", "nearest": "nearest", REFERENCE_K
 
 def reference_env_kwargs(crowd_size: int) -> dict[str, Any]:
     """``gym.make`` arguments of run 2: the crowd, and the LIDAR reference run online (what the robot drives on)."""
-    return {"crowd_size": crowd_size, "localizer": world.REFERENCE, "localizer_params": dict(AMCL_LIKE), "prior": "start",
-            "localizer_sensor": world.lidar_name()}  # fmt: skip
+    return {"crowd_size": crowd_size, **reference_env_kwargs_of(world.campus())}
 
 
 def pf_params(selection: str) -> dict[str, Any]:
