@@ -363,7 +363,7 @@ def _run_map(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     drive = MappingDrive(seed=args.seed, crowd_size=args.crowd_size, pose=args.pose, period_s=args.period_s)
     out = args.out
     if out is None:
-        out = default_map_path(LocalizationEnv(args.world, crowd_size=args.crowd_size))
+        out = default_map_path(LocalizationEnv(args.world))
     elif out.suffix != ".npz":
         parser.error(f"--out {out}: a scene map is an .npz file")
     refuse_to_overwrite(out, args.overwrite)

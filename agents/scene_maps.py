@@ -9,10 +9,10 @@ records every ``period_s``: the pose is that reference's estimate (``pose="refer
 default, as on a real robot) or the truth (``pose="truth"``); the landmarks are the camera's
 detections of that step.
 
-:func:`default_scene_map` is the world's default map: made once (seed 0, the env's crowd size)
-and cached under ``$CROWDLOC_CACHE/scene_maps`` (default ``~/.cache/crowdloc``), keyed by the
-world's geometry, its camera and the crowd size (so the map an env gets never depends on which
-crowd size asked first), so ``gym.make(id, localizer="far_landmark_pf")``
+:func:`default_scene_map` is the world's default map: made once (seed 0, the crowd size of the
+world's file, whatever crowd the env asking for it runs: the map comes from a normal day's drive,
+and every env of the world gets the same one) and cached under ``$CROWDLOC_CACHE/scene_maps``
+(default ``~/.cache/crowdloc``), keyed by the world's geometry and camera, so ``gym.make(id, localizer="far_landmark_pf")``
 works without a map file (:func:`prepare_far_landmark_pf`, the localizer's preparation hook).
 ``crowdloc map WORLD`` makes one explicitly.
 """
@@ -187,18 +187,18 @@ def build_scene_map(
 
 
 def default_map_path(env: LocalizationEnv) -> Path:
-    """Where the world's default scene map is cached: named by the world, its geometry, camera and crowd size."""
+    """Where the world's default scene map is cached: named by the world, its geometry and camera."""
     _, meta = _camera(env)
     camera = hashlib.sha256(json.dumps(camera_signature(meta), sort_keys=True).encode()).hexdigest()[:8]
-    return cache_dir() / "scene_maps" / f"{env.config.name}-{world_fingerprint(env)}-{camera}-crowd{env.config.crowd_count}.npz"
+    return cache_dir() / "scene_maps" / f"{env.config.name}-{world_fingerprint(env)}-{camera}.npz"
 
 
 def default_scene_map(env: LocalizationEnv) -> Path:
-    """The world's default scene map (seed 0, the env's crowd), made and cached on first use."""
+    """The world's default scene map (seed 0, the crowd size of the world's file), made and cached on first use."""
     path = default_map_path(env)
     if not path.is_file():
         _log.warning("making the default scene map of %s (the route driven once; cached in %s)", env.config.name, path)
-        build_scene_map(env.config, MappingDrive(), progress=True).save(path)
+        build_scene_map(env.config, MappingDrive(crowd_size=env.file_crowd_size), progress=True).save(path)
     return path
 
 

@@ -74,6 +74,9 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         **overrides: Any,
     ) -> None:
         config = world if isinstance(world, WorldConfig) else load_world(world)
+        #: the crowd size of the world as given, before the env's overrides (None without a crowd):
+        #: what a world's default data is made with, whatever crowd this env runs (a scene map)
+        self.file_crowd_size: int | None = config.crowd.count if config.crowd is not None else None
         config = apply_overrides(config, crowd_size=crowd_size, **overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")

@@ -17,7 +17,7 @@ parameters for a given world, crowd density and motion scenario:
   the far-landmark paper's campus (``crowdloc/StereoCampus-v0``) along its route; ``--env-id``,
   ``--scenario`` and ``--episode-steps`` override (:func:`default_setup`). A localizer with a
   preparation hook gets what it makes once per study (``far_landmark_pf``: the world's default
-  scene map at the study's crowd size, :meth:`EpisodeSetup.prepared_params`), the same for every
+  scene map, driven at the crowd of the world's file, :meth:`EpisodeSetup.prepared_params`), the same for every
   trial and held-out episode.
 * **Episodes, recorded once**: ``--train-seeds`` episodes are rolled out once
   (:func:`agents.replay.record`) and every trial replays its localizer into the same

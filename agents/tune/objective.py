@@ -193,8 +193,10 @@ class EpisodeSetup:
     def prepared_params(self, localizer: str) -> dict[str, Any]:
         """What ``localizer``'s preparation hook (:attr:`localizers.registry.LocalizerSpec.prepare`)
         makes from this setup's world, resolved once per study and handed to every replay:
-        ``far_landmark_pf``'s scene map (the world's default at this crowd size, built and cached
-        on first use). Empty for a localizer without a hook."""
+        ``far_landmark_pf``'s scene map (the world's default, driven at the crowd of the world's
+        file whatever the study's crowd size, built and cached on first use). Empty for a
+        localizer without a hook."""
+        import envs
         from envs.localization_env import LocalizationEnv
         from localizers.measurements import measurement_kind
 
@@ -202,7 +204,7 @@ class EpisodeSetup:
             return {}
         world = self.world()
         sensor = next(iter(world.sensors_of_type(measurement_kind(self.measurement).sensor_type)))
-        env = LocalizationEnv(world)
+        env = LocalizationEnv(envs.ENV_WORLDS[self.env_id], crowd_size=self.crowd_size, **self.world_overrides())
         try:
             return dict(prepared_params(localizer, env, sensor, None) or {})
         finally:
