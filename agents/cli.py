@@ -19,11 +19,13 @@ DEFAULT_RESULTS = Path("results")
 def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     demo = sub.add_parser(
         "demo",
-        help="the worlds survey, the ceiling corridor, the active-localization table and the verdict; writes "
+        help="the worlds survey, the ceiling corridor, the stereo campus, the active-localization table and the verdict; writes "
         "results/demo/report.md",
         description="Drive the papers' first worlds at several crowd densities with a random-walk policy (steps "
         "per second, landmark / wall visibility, one frame per world); drive the ceiling corridor among people with "
-        "the paper's navigation (errors at the targets, a camera frame with the pipeline's findings, a top view); then evaluate the fixed policies and the "
+        "the paper's navigation (errors at the targets, a camera frame with the pipeline's findings, a top view); drive "
+        "30 s of the stereo campus on far_landmark_pf (errors against the truth, a camera image with its edges marked "
+        "by type, a top view with the particles and the selected far landmarks); then evaluate the fixed policies and the "
         "shipped PPO policies x 2 localizers x 3 crowd sizes on held-out test seeds (the active-localization "
         "table), and judge each trained policy against the table's best fixed policies on fresh test seeds "
         "(the verdict).",
