@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -19,11 +20,13 @@ DEFAULT_RESULTS = Path("results")
 def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     demo = sub.add_parser(
         "demo",
-        help="the worlds survey, the ceiling corridor, the active-localization table and the verdict; writes "
+        help="the worlds survey, the ceiling corridor, the stereo campus, the active-localization table and the verdict; writes "
         "results/demo/report.md",
         description="Drive the papers' first worlds at several crowd densities with a random-walk policy (steps "
         "per second, landmark / wall visibility, one frame per world); drive the ceiling corridor among people with "
-        "the paper's navigation (errors at the targets, a camera frame with the pipeline's findings, a top view); then evaluate the fixed policies and the "
+        "the paper's navigation (errors at the targets, a camera frame with the pipeline's findings, a top view); drive "
+        "a short stretch of the stereo campus on far_landmark_pf (errors against the truth, a camera image with its edges marked "
+        "by type, a top view with the particles and the selected far landmarks); then evaluate the fixed policies and the "
         "shipped PPO policies x 2 localizers x 3 crowd sizes on held-out test seeds (the active-localization "
         "table), and judge each trained policy against the table's best fixed policies on fresh test seeds "
         "(the verdict).",
@@ -227,9 +230,9 @@ def _add_map(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     mapping.add_argument("world", help="a shipped world name (stereo_campus) or a world YAML path")
     mapping.add_argument("--out", type=Path, default=None, help="the map file (.npz; default: the world's cached default)")
     mapping.add_argument("--seed", type=seed_int, default=0, help="the drive's env seed (default 0)")
-    mapping.add_argument("--crowd-size", type=int, default=None, help="the crowd during the drive (default: the world's)")
+    mapping.add_argument("--crowd-size", type=int, default=None, help="the crowd during the drive (>= 0; default: the world's)")
     mapping.add_argument("--pose", choices=("reference", "truth"), default="reference", help="where the scenes' poses come from")
-    mapping.add_argument("--period-s", type=float, default=1.0, help="a scene every this many seconds (default 1)")
+    mapping.add_argument("--period-s", type=float, default=1.0, help="a scene every this many seconds (finite, > 0; default 1)")
     mapping.add_argument("--overwrite", action="store_true", help="replace an existing map file")
 
 
@@ -360,6 +363,10 @@ def _run_map(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.util import refuse_to_overwrite
     from envs.localization_env import LocalizationEnv
 
+    if not (math.isfinite(args.period_s) and args.period_s > 0):
+        parser.error(f"--period-s must be a finite number of seconds > 0, got {args.period_s}")
+    if args.crowd_size is not None and args.crowd_size < 0:
+        parser.error(f"--crowd-size must be >= 0, got {args.crowd_size}")
     drive = MappingDrive(seed=args.seed, crowd_size=args.crowd_size, pose=args.pose, period_s=args.period_s)
     out = args.out
     if out is None:

@@ -9,6 +9,11 @@ Then the ceiling corridor: one drive of the corridor_follower among people, a ca
 with what the ceiling-target pipeline found drawn on it, and a top view
 (:mod:`agents.papers.ceiling_target.demo`).
 
+Then the stereo campus: a short drive of route_follower on far_landmark_pf's estimate among the
+campus crowd (the position error against the truth, the detections and the selected far
+landmarks), one camera image with its edges marked by type and a top view with the particles
+and the selected far landmarks (:mod:`agents.papers.stereo_far_landmarks.demo`).
+
 Part 2, active localization: the fixed policies and the shipped PPO policies (one per
 localizer, ``models/ppo_<localizer>.zip``) x two localizers x three crowd densities on
 ``RoboCupCrowded-v0`` in the conditions the policies were trained in (those of
@@ -237,14 +242,16 @@ def run_demo(
     workers: int | None = None,
     verdict_seeds: int = VERDICT_SEEDS,
 ) -> Path:
-    """Part 1, the corridor and part 2; writes ``out_dir/report.md`` and prints it.
+    """Part 1, the corridor, the campus and part 2; writes ``out_dir/report.md`` and prints it.
 
     ``models``: the PPO policy per localizer (default :data:`SHIPPED_MODELS`).
     """
     report = run_worlds(out_dir, steps=steps, seed=seed, densities=densities)
     from agents.papers.ceiling_target.demo import corridor_section
+    from agents.papers.stereo_far_landmarks.demo import campus_section
 
     report.write_text(report.read_text() + "\n" + corridor_section(out_dir / "corridor", seed))
+    report.write_text(report.read_text() + "\n" + campus_section(out_dir / "campus", seed))
     if active_seeds > 0:
         active = run_active(out_dir / "active", seeds=active_seeds, models=models, workers=workers,
                             verdict_seeds=verdict_seeds)  # fmt: skip
