@@ -81,10 +81,23 @@ def record_rollouts() -> dict[str, Any]:
     return {name: rollout(env_id, kwargs) for name, env_id, kwargs in CASES}
 
 
+#: a NEES this large comes from a collapsed particle set's near-singular covariance (condition
+#: number ~1e10): it magnifies last-bit differences of the covariance, which differ between CPUs
+#: (numba compiles for the host's vector units), by as much; measured: 3.8e-5 relative between two
+#: machines on the LIDAR quick run. Such values are compared to NEES_LOOSE_REL, the rest to 1e-9.
+NEES_SINGULAR = 1e6
+NEES_LOOSE_REL = 1e-3
+
+
+def _rel_tol(where: str, expected: float) -> float:
+    key = where.rsplit(".", 1)[-1].split("[", 1)[0]
+    return NEES_LOOSE_REL if key.startswith("nees") and abs(expected) >= NEES_SINGULAR else 1e-9
+
+
 def assert_same_numbers(expected: Any, actual: Any, where: str = "", ignore: frozenset[str] = frozenset()) -> None:
     """Every number in ``expected`` equals the one at the same place in ``actual`` (to 1e-9
-    relative, the print precision of the reports); keys in ``ignore`` (timings) are skipped.
-    ``actual`` may hold more keys than ``expected``."""
+    relative, the print precision of the reports; a near-singular NEES to :data:`NEES_LOOSE_REL`);
+    keys in ``ignore`` (timings) are skipped. ``actual`` may hold more keys than ``expected``."""
     if isinstance(expected, dict):
         assert isinstance(actual, dict), f"{where}: expected a mapping, got {actual!r}"
         for key, value in expected.items():
@@ -103,7 +116,8 @@ def assert_same_numbers(expected: Any, actual: Any, where: str = "", ignore: fro
         if math.isnan(expected):
             assert math.isnan(actual), f"{where}: expected nan, got {actual!r}"
         else:
-            assert math.isclose(expected, actual, rel_tol=1e-9, abs_tol=1e-12), f"{where}: expected {expected!r}, got {actual!r}"
+            tol = _rel_tol(where, expected)
+            assert math.isclose(expected, actual, rel_tol=tol, abs_tol=1e-12), f"{where}: expected {expected!r}, got {actual!r}"
     else:
         raise TypeError(f"{where}: cannot compare {type(expected).__name__}")
 
