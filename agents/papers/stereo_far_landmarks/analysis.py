@@ -19,7 +19,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import metrics
+from agents import consistency, metrics
 from agents.evaluate.stats import bootstrap_ci
 
 from . import paper, world
@@ -147,6 +147,9 @@ class Summary:
         runs_failing: runs with at least one failure or lost step.
         diff_max_m: the largest distance to the reference over the runs; ``diff_run_max_m``: the
             per-run maxima (seed order); ``diff_mean_m``: the mean distance.
+        nees_median, inside_95: the consistency of the reported covariance over every step with a
+            pose of every run (:func:`agents.consistency.pooled`); ``covariance_missing``: the
+            share of those steps without a usable covariance (left out of both).
     """
 
     key: str
@@ -165,6 +168,9 @@ class Summary:
     diff_mean_m: float
     diff_max_m: float
     diff_run_max_m: tuple[float, ...]
+    nees_median: float = math.nan
+    inside_95: float = math.nan
+    covariance_missing: float = math.nan
 
     @property
     def bad_share(self) -> float:
@@ -190,6 +196,7 @@ def summarize(episodes: Sequence[Episode], key: str) -> Summary:
     d = np.concatenate(diffs) if diffs else np.zeros(0)
     nan = math.nan
     lost = sum(r.lost_share * r.steps for r in rs) / steps
+    fit = consistency.pooled([ep.nees[key] for ep in eps], [np.isfinite(ep.estimates[key][:, 0]) for ep in eps])
     return Summary(
         key, eps[0].crowd_size, len(rs), spread.mean, spread.sd,
         float(np.median(err)) if err.size else nan, float(np.percentile(err, 95)) if err.size else nan,
@@ -198,6 +205,7 @@ def summarize(episodes: Sequence[Episode], key: str) -> Summary:
         sum(r.bad_share > 0 for r in rs),
         float(d.mean()) if d.size else nan, float(d.max()) if d.size else nan,
         tuple(float(x.max()) if x.size else nan for x in diffs),
+        fit.nees_median, fit.inside_95, consistency.missing_share(fit),
     )  # fmt: skip
 
 

@@ -24,8 +24,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from agents.consistency import run_nees
 from agents.policies import make_policy
-from agents.replay import Recording, online_rng, record_policy, replay_into, start_prior
+from agents.replay import Recording, ReplayResult, online_rng, record_policy, replay_into, start_prior
 from agents.scene_maps import AMCL_LIKE, MappingDrive, build_scene_map, camera_signature
 from agents.sweep import run_tasks
 from localizers.far_landmark_pf import FarLandmarkPF
@@ -103,6 +104,8 @@ class Episode:
         time_s: ``(T,)``; truth: ``(T, 3)`` the true pose.
         arc_m: ``(T,)`` the arc length of the route point nearest the true position.
         estimates: localizer key (:data:`.experiment.KEYS`) -> ``(T, 3)`` its estimates, NaN where it claimed none.
+        nees: localizer key -> ``(T,)`` the NEES of its estimate against the truth under its reported
+            covariance (:func:`agents.consistency.run_nees`; NaN where it claimed no pose).
         detections: ``(T,)`` the stereo camera's matched edges a frame (its valid slots).
         far_detections: ``(T,)`` those at least far emphasis's ``min_range_m`` away.
         used: ``(T,)`` the detections the paper's far emphasis weighed a frame (for its estimate's pose).
@@ -131,6 +134,7 @@ class Episode:
     contacts: int
     blocked_s: float
     record_s: float = 0.0
+    nees: dict[str, Array] = field(default_factory=dict)
     replay_s: dict[str, float] = field(default_factory=dict)
     cpu_s: float = 0.0
 
@@ -166,12 +170,11 @@ def record_run(seed: int, crowd_size: int, max_steps: int | None) -> tuple[Recor
     return rec, made[0]
 
 
-def reference_replay(rec: Recording) -> Array:
-    """The LIDAR reference replayed into the recording with the online wrapper's generator: ``(T, 3)``."""
+def reference_replay(rec: Recording) -> ReplayResult:
+    """The LIDAR reference replayed into the recording with the online wrapper's generator."""
     lidar = world.lidar_name()
     loc = make_localizer(world.REFERENCE, rec.localizer_map("scan", lidar), dt_s=rec.dt_s, params=AMCL_LIKE)
-    out = replay_into(loc, rec, online_rng(rec.seed), prior=start_prior(rec), measurement="scan", sensor=lidar)
-    return out.estimates
+    return replay_into(loc, rec, online_rng(rec.seed), prior=start_prior(rec), measurement="scan", sensor=lidar)
 
 
 def pf_rng(seed: int, crowd_size: int) -> np.random.Generator:
@@ -208,6 +211,7 @@ def run_episode(task: EpisodeTask) -> Episode:
     rec, policy = record_run(task.seed, task.crowd_size, task.max_steps)
     record_s = time.perf_counter() - t0
     estimates: dict[str, Array] = {}
+    nees: dict[str, Array] = {}
     replay_s: dict[str, float] = {}
     used: list[int] = []
 
@@ -222,9 +226,12 @@ def run_episode(task: EpisodeTask) -> Episode:
         out = replay_into(pf, rec, pf_rng(task.seed, task.crowd_size), prior=prior, measurement="stereo_edges",
                           sensor=world.camera_name(), observer=observer)  # fmt: skip
         estimates[selection] = out.estimates
+        nees[selection] = run_nees(world.LOCALIZER, out.estimates, rec.true_pose, out.covariances)
         replay_s[selection] = time.perf_counter() - t
     t = time.perf_counter()
-    estimates[REFERENCE_KEY] = reference_replay(rec)
+    ref = reference_replay(rec)
+    estimates[REFERENCE_KEY] = ref.estimates
+    nees[REFERENCE_KEY] = run_nees(world.REFERENCE, ref.estimates, rec.true_pose, ref.covariances)
     replay_s[REFERENCE_KEY] = time.perf_counter() - t
     online = rec.estimates
     if online.shape != estimates[REFERENCE_KEY].shape or not np.array_equal(online, estimates[REFERENCE_KEY], equal_nan=True):
@@ -242,6 +249,7 @@ def run_episode(task: EpisodeTask) -> Episode:
         truth=rec.true_pose.copy(),
         arc_m=arc_length(rec.true_pose[:, :2], world.route()),
         estimates=estimates,
+        nees=nees,
         detections=total,
         far_detections=far,
         used=np.asarray(used, dtype=np.int64),

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from agents import consistency
 from agents.papers.world_text import odometry_text
 from agents.scene_maps import AMCL_LIKE
 from agents.util import jsonable, markdown_table, text_table
@@ -27,6 +28,7 @@ from .analysis import (
     Facts,
     Paired,
     Profile,
+    Summary,
     Table,
     Verdict,
     WeakSpot,
@@ -312,7 +314,9 @@ def paper_section(c: Context) -> Lines:
         f"{far.runs} runs (per run: median {fmt(float(np.median(far.diff_run_max_m)), '{:.2f}')} m), the mean distance "
         f"{fmt(far.diff_mean_m, '{:.2f}')} m. Against the truth: far_landmark_pf {fmt(far.mean_m)} m on average (largest "
         f"{fmt(far.max_m, '{:.2f}')} m), the reference {fmt(ref.mean_m)} m (largest {fmt(ref.max_m, '{:.2f}')} m). "
-        + track_text(eps),
+        + track_text(eps)
+        + " "
+        + consistency_text(far, ref),
         "",
         *markdown_table(head, rows),
         "",
@@ -325,6 +329,13 @@ def paper_section(c: Context) -> Lines:
         f"![Fig. 9]({c.figs['place2'].name})",
         "",
     ]
+
+
+def consistency_text(far: Summary, ref: Summary) -> str:
+    """How honest the two reported covariances are at the paper's crowd (NEES against the truth)."""
+    (fm, fi), (rm, ri) = (consistency.cells(True, s.nees_median, s.inside_95) for s in (far, ref))
+    return (f"Their reported covariances against the truth: far_landmark_pf's NEES median {fm}, {fi} of the steps inside "
+            f"its 95 % region; the reference's {rm} and {ri} (consistent: about {consistency.consistent_median():.2f} and 95 %).")  # fmt: skip
 
 
 def track_text(eps: Sequence[Episode]) -> str:
@@ -379,14 +390,16 @@ def detections_section(c: Context) -> Lines:
 def crowd_section(c: Context) -> Lines:
     crowds = sorted({n for _, n in c.table})
     head = ["crowd", "localizer", "mean error [m] (± sd over seeds)", "median [m]", "95th percentile [m]", "max [m]",
-            "mean heading error [deg]", "failed steps", "lost steps", "availability", "runs with a failure or loss", "max distance to reference [m]"]  # fmt: skip
+            "mean heading error [deg]", "failed steps", "lost steps", "availability", "runs with a failure or loss", "max distance to reference [m]",
+            "NEES median", "inside 95 %"]  # fmt: skip
     rows = []
     for n in crowds:
         for k in KEYS:
             s = c.table[k, n]
             rows.append([crowd_text(n), LABELS[k], f"{fmt(s.mean_m)} ± {fmt(s.seed_sd_m)}", fmt(s.median_m), fmt(s.p95_m),
                          fmt(s.max_m, "{:.2f}"), fmt(s.heading_mean_deg, "{:.2f}"), pct(s.failure_share, 2), pct(s.lost_share, 2), pct(s.availability, 2),
-                         f"{s.runs_failing}/{s.runs}", "—" if k == REFERENCE_KEY else fmt(s.diff_max_m, "{:.2f}")])  # fmt: skip
+                         f"{s.runs_failing}/{s.runs}", "—" if k == REFERENCE_KEY else fmt(s.diff_max_m, "{:.2f}"),
+                         *consistency.cells(True, s.nees_median, s.inside_95)])  # fmt: skip
     pair_head = ["crowd", "a - b", "mean error difference [m]", "95 % interval [m]", "a lower in", "failed-or-lost share difference",
                  "its 95 % interval"]  # fmt: skip
     pair_rows = []
@@ -408,6 +421,8 @@ def crowd_section(c: Context) -> Lines:
         "cars), each seed on its own map from run 1 at the world's crowd.",
         "",
         *markdown_table(head, rows),
+        "",
+        consistency.legend(),
         "",
         f"Where each starts failing (>= {100 * FAILING_SHARE:g} % of the steps failed or lost): {starts}.",
         "",

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from agents.cli import build_parser, main
+from agents.consistency import run_nees
 from agents.papers.stereo_far_landmarks import analysis, jobs, paper, world
 from agents.papers.stereo_far_landmarks import experiment as ex
 from tests.console import assert_aligned, printed_tables
@@ -65,6 +66,9 @@ def test_arc_length_along_the_route() -> None:
     assert arc[3] == pytest.approx(b + 6.0) and arc[4] == pytest.approx(world.route_length_m())
 
 
+SD_M = 0.3  # the position sd the hand-made runs' localizers report
+
+
 def hand_episode(seed: int, crowd: int, errors: dict[str, list[float]], used: list[int] | None = None) -> jobs.Episode:
     """A run whose localizers are ``errors[key]`` m east of a truth standing at the origin (NaN: no pose)."""
     t = len(next(iter(errors.values())))
@@ -75,8 +79,10 @@ def hand_episode(seed: int, crowd: int, errors: dict[str, list[float]], used: li
         e[:, 0] = errors.get(key, [0.0] * t)
         est[key] = np.where(np.isnan(e[:, :1]), np.nan, e)
     u = np.asarray(used if used is not None else [2] * t, dtype=np.int64)
+    cov = np.broadcast_to(np.diag([SD_M**2, SD_M**2, 0.01]), (t, 3, 3))  # every localizer claims 0.3 m
+    nees = {key: run_nees("far_landmark_pf", est[key], truth, cov) for key in ex.KEYS}
     return jobs.Episode(seed, crowd, 0.1 * np.arange(t), truth, np.zeros(t), est, np.full(t, 96), np.full(t, 90), u, np.zeros(t, dtype=np.int64), 0.0, True, 0,
-                        0.0)  # fmt: skip
+                        0.0, nees=nees)  # fmt: skip
 
 
 def test_failures_lost_steps_and_the_distance_to_the_reference_on_a_hand_made_run() -> None:
@@ -91,6 +97,8 @@ def test_failures_lost_steps_and_the_distance_to_the_reference_on_a_hand_made_ru
     s = analysis.summarize([ep, hand_episode(1, 30, {"farthest": [0.0] * 4})], "farthest")
     assert s.runs == 2 and s.runs_failing == 1 and s.failure_share == pytest.approx(1 / 8) and s.fails
     assert s.mean_m == pytest.approx((r.mean_m + 0.0) / 2) and s.diff_run_max_m == pytest.approx((0.9, 0.0))
+    # consistency over the 7 steps with a pose: NEES (e / 0.3 m)^2 = 0.44, 11.1, 1.78 and four 0; 11.1 > 7.81 is outside
+    assert s.inside_95 == pytest.approx(6 / 7) and s.nees_median == 0.0 and s.covariance_missing == 0.0
     with pytest.raises(ValueError, match="no episodes"):
         analysis.summarize([], "farthest")
 
