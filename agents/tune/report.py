@@ -319,6 +319,14 @@ def _setup_section(plan: StudyPlan, config: TuneConfig, outcome: StudyOutcome) -
         "",
         f"- World `{setup.env_id}`, crowd size {attrs['crowd_size']}, scenario `{setup.scenario}`, {seconds} per episode"
         f"{overrides}.",
+        *(
+            [
+                f"- Given to every trial and held-out episode besides the searched parameters (the localizer's preparation): "
+                f"{', '.join(f'`{k}` = `{v}`' for k, v in plan.fixed.items())}."
+            ]
+            if plan.fixed
+            else []
+        ),  # fmt: skip
         f"- Objective (minimized): {plan.terms.describe()}, mean over the training episodes "
         f"(env seeds {list(attrs['train_seeds'])}), each recorded once and replayed into every trial. A failure is a "
         f"step whose valid estimate is >= {plan.terms.fail_m:g} m from the truth; failures are counted and reported "

@@ -136,6 +136,9 @@ class StudyPlan:
         train_seeds: env seeds of the training episodes.
         held_out_seeds: env seeds of the held-out episodes (never a training seed).
         attrs: the study's user attributes: the objective's definition (``_SETUP_ATTRS``) and the space.
+        fixed: parameters every trial and held-out episode gets besides the searched ones, from the
+            localizer's preparation hook (:meth:`~agents.tune.objective.EpisodeSetup.prepared_params`:
+            ``far_landmark_pf``'s scene map); empty for most localizers.
     """
 
     name: str
@@ -147,6 +150,7 @@ class StudyPlan:
     train_seeds: tuple[int, ...]
     held_out_seeds: tuple[int, ...]
     attrs: Mapping[str, Any]
+    fixed: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
 
 def check_tunable(localizer: str, space: Path | None = None) -> None:
@@ -196,7 +200,7 @@ def plan_study(config: TuneConfig) -> StudyPlan:
     }
     if space.sum_to_one:
         attrs["sum_to_one"] = [list(g) for g in space.sum_to_one]
-    return StudyPlan(name, out, space, setup, terms, world, train, held_out, attrs)
+    return StudyPlan(name, out, space, setup, terms, world, train, held_out, attrs, setup.prepared_params(config.localizer))
 
 
 def _stored_attr(stored: Mapping[str, Any], key: str, attrs: Mapping[str, Any]) -> Any:
@@ -336,7 +340,7 @@ def tune(config: TuneConfig) -> TuneResult:
     first_new = len(study.trials)
     recordings = run_tasks(record_task, [(setup, s) for s in plan.train_seeds], workers=config.workers,
                            desc="record training episodes", progress=config.verbose)  # fmt: skip
-    fixed = setup.prepared_params(config.localizer)
+    fixed = plan.fixed
     _optimize(config, study, Objective(plan.space, tuple(recordings), plan.terms, fixed), first_new)
 
     study = optuna.load_study(study_name=plan.name, storage=_storage(config.storage))

@@ -272,3 +272,17 @@ def test_resolution_text_is_computed_from_the_interval() -> None:
     assert "fewer than 5 seeds" in tune.resolution_text(few)
     one = compare_held_out(range(1), better[:1], seed=0)
     assert "single point" in tune.resolution_text(one)
+
+
+def test_a_far_landmark_pf_study_names_its_scene_map_and_keeps_it_out_of_best_params(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("CROWDLOC_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "out"
+    argv = ["tune", "far_landmark_pf", "--crowd-size", "0", "--episode-steps", "60", "--trials", "2", "--train-seeds", "1",
+            "--eval-seeds", "1", "--storage", f"sqlite:///{tmp_path / 'tuning.db'}", "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    scene_map = tune.default_setup("far_landmark_pf", crowd_size=0).prepared_params("far_landmark_pf")["scene_map"]
+    assert f"`scene_map` = `{scene_map}`" in (out / "report.md").read_text()
+    best = json.loads((out / "summary.json").read_text())["best_params"]
+    assert set(best) == set(tune.load_search_space("far_landmark_pf").names)  # the map is given, never tuned
