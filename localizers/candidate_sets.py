@@ -314,7 +314,9 @@ class CandidateSetLocalizer:
     """
 
     name: ClassVar[str] = "candidate_sets"
-    #: measured on this run: share 0.541, NEES median 2.8: among the crowd's pushes one set's best candidates spread less than the error of the frame they came from (module docstring) (tests/localizers/test_consistency_promises.py)
+    #: measured on this run: share 0.541, NEES median 2.8: among the crowd's pushes one set's best candidates
+    #: spread less than the error of the frame they came from (module docstring)
+    #: (tests/localizers/test_consistency_promises.py)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.5)
 
     def __init__(self, landmarks: LandmarkMap, params: CandidateSetParams, *, dt_s: float) -> None:

@@ -119,7 +119,9 @@ class DeadReckoningLocalizer:
     estimate is valid while its position spread is at most ``max_spread_m``."""
 
     name: ClassVar[str] = "dead_reckoning"
-    #: measured on this run: share 0.330, NEES median 145: the world's odometry has systematic errors (UMBmark wheel diameters and wheelbase, slip) and the crowd pushes the robot; the drift model knows neither (tests/localizers/test_consistency_promises.py)
+    #: measured on this run: share 0.330, NEES median 145: the world's odometry has systematic errors (UMBmark
+    #: wheel diameters and wheelbase, slip) and the crowd pushes the robot; the drift model knows neither
+    #: (tests/localizers/test_consistency_promises.py)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.3)
 
     def __init__(self, landmarks: LandmarkMap, params: DeadReckoningParams, *, dt_s: float) -> None:

@@ -232,7 +232,9 @@ class FarLandmarkPF:
     """The far-landmark particle filter (module docstring)."""
 
     name: ClassVar[str] = "far_landmark_pf"
-    #: measured on this run: share 0.447, NEES median 9.2: the scene map's poses are the LIDAR reference's estimates, off by about 0.1-0.2 m, and the observation model's sigma_inv_r and sigma_theta_rad know only the camera's noise, not the map's errors (tests/localizers/test_consistency_promises.py)
+    #: measured on this run: share 0.447, NEES median 9.2: the scene map's poses are the LIDAR reference's
+    #: estimates, off by about 0.1-0.2 m, and the observation model's sigma_inv_r and sigma_theta_rad know
+    #: only the camera's noise, not the map's errors (tests/localizers/test_consistency_promises.py)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/StereoCampus-v0", "route_follower", 1200, 0.4)
 
     def __init__(self, landmarks: LandmarkMap, params: FarLandmarkParams, *, dt_s: float, scenes: SceneMap | None = None) -> None:

@@ -290,7 +290,9 @@ class KalmanLocalizer:
     """
 
     name: ClassVar[str] = "kalman"
-    #: measured on this run: share 0.690, NEES median 4.4: among the crowd's contacts the constant-acceleration prediction is too sure between fixes (module docstring) (tests/localizers/test_consistency_promises.py)
+    #: measured on this run: share 0.690, NEES median 4.4: among the crowd's contacts the constant-
+    #: acceleration prediction is too sure between fixes (module docstring)
+    #: (tests/localizers/test_consistency_promises.py)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.65)
 
     def __init__(self, landmarks: LandmarkMap, params: KalmanParams, *, dt_s: float) -> None:

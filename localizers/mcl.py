@@ -294,7 +294,8 @@ class PaperBearingMCL(_ParticleLocalizer):
     """
 
     name: ClassVar[str] = "mcl_bearing_paper"
-    #: measured on this run: share 1.000, NEES median 0.22: cautious (module docstring) (tests/localizers/test_consistency_promises.py)
+    #: measured on this run: share 1.000, NEES median 0.22: cautious (module docstring)
+    #: (tests/localizers/test_consistency_promises.py)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.95)
 
     def __init__(self, landmarks: LandmarkMap, params: PaperMCLParams, *, dt_s: float) -> None:

@@ -385,7 +385,8 @@ class LidarMCL:
     """
 
     name: ClassVar[str] = "mcl_lidar"
-    #: measured on this run: share 0.562, NEES median 5.6: the beam model counts every beam as independent, so the cloud is narrower than the error (module docstring) (tests/localizers/test_consistency_promises.py)
+    #: measured on this run: share 0.562, NEES median 5.6: the beam model counts every beam as independent, so
+    #: the cloud is narrower than the error (module docstring) (tests/localizers/test_consistency_promises.py)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/CrowdedRoom-v0", "random_walk", 500, 0.5)
 
     def __init__(self, landmarks: LandmarkMap, params: LidarMCLParams, *, dt_s: float) -> None:

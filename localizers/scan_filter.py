@@ -339,7 +339,9 @@ class FarPointMCL:
     """
 
     name: ClassVar[str] = "far_point_mcl"
-    #: measured on this run: share 0.400, NEES median 11.9: the beams of scans accumulated over 0.5 m count as independent, and the odometry inside the window, which shifts them, is not in the model (tests/localizers/test_consistency_promises.py)
+    #: measured on this run: share 0.400, NEES median 11.9: the beams of scans accumulated over 0.5 m count as
+    #: independent, and the odometry inside the window, which shifts them, is not in the model
+    #: (tests/localizers/test_consistency_promises.py)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/CrowdedRoom-v0", "random_walk", 500, 0.35)
 
     def __init__(self, landmarks: LandmarkMap, params: FarPointMCLParams, *, dt_s: float) -> None:
