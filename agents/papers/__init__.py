@@ -6,6 +6,14 @@ Each experiment module exposes ``add_arguments(parser)`` (its own options) and
 
 from __future__ import annotations
 
+import argparse
+import os
+
+from agents.util import positive_int
+
+#: worker processes a reproduction runs by default: min(DEFAULT_WORKERS, cpu count)
+DEFAULT_WORKERS = 2
+
 #: experiment name -> (module implementing it, one-line summary for --help)
 EXPERIMENTS: dict[str, tuple[str, str]] = {
     "bearing-candidates": (
@@ -25,3 +33,11 @@ EXPERIMENTS: dict[str, tuple[str, str]] = {
         "far landmarks first, stereo edges + particle filter (paper D): Figs 8-10 against the LIDAR reference, and crowds",
     ),
 }
+
+
+def add_worker_arguments(parser: argparse.ArgumentParser, what: str = "worker processes", ray: bool = False) -> None:
+    """``--workers`` (default min(:data:`DEFAULT_WORKERS`, cpu count)), and with ``ray`` ``--ray-address``."""
+    parser.add_argument("--workers", type=positive_int, default=min(DEFAULT_WORKERS, os.cpu_count() or 1),
+                        help=f"{what} (default min({DEFAULT_WORKERS}, cpu count))")  # fmt: skip
+    if ray:
+        parser.add_argument("--ray-address", help="run the tasks on this Ray cluster instead (e.g. auto)")

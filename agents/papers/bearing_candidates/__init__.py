@@ -19,10 +19,10 @@ numbers). ``crowdloc reproduce bearing-candidates`` calls :func:`add_arguments` 
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
+from agents.papers import add_worker_arguments
 from agents.papers.bearing_candidates.jobs import (
     DEFAULT_PUSH_SEEDS,
     DEFAULT_SEEDS,
@@ -46,8 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"seeds of the shove-recovery study (default {DEFAULT_PUSH_SEEDS})")  # fmt: skip
     parser.add_argument("--quick", action="store_true",
                         help=f"tiny smoke run: {QUICK_SEEDS} seeds, short episodes, {len(QUICK_DENSITIES)} sweep points")  # fmt: skip
-    parser.add_argument("--workers", type=positive_int, default=min(2, os.cpu_count() or 1),
-                        help="worker processes over seeds (default min(2, cpu count))")  # fmt: skip
+    add_worker_arguments(parser, "worker processes over seeds")
 
 
 def run(args: argparse.Namespace) -> Path:

@@ -14,10 +14,10 @@ thresholds it uses are the shipped ones (``crowdloc fit ceiling_target`` re-lear
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
+from agents.papers import add_worker_arguments
 from agents.util import positive_int
 
 DEFAULT_SEEDS = 10
@@ -31,12 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--seeds", type=positive_int, default=DEFAULT_SEEDS, help=f"seeds per setting and drive (default {DEFAULT_SEEDS})"
     )
     parser.add_argument("--quick", action="store_true", help=f"smoke run: {QUICK_SEEDS} seeds, crowd 0 and {DENSITIES[1]} only")
-    parser.add_argument(
-        "--workers",
-        type=positive_int,
-        default=min(2, os.cpu_count() or 1),
-        help="worker processes for the drives (default min(2, cpu count))",
-    )
+    add_worker_arguments(parser, "worker processes for the drives")
 
 
 def run(args: argparse.Namespace) -> Path:

@@ -19,15 +19,13 @@ the localizer configs), :mod:`.jobs` (the episodes and the replays, in workers),
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
+from agents.papers import add_worker_arguments
 from agents.util import positive_int
 
 from .experiment import DEFAULT_SEEDS, QUICK_LAPS, QUICK_SAMPLINGS, QUICK_SEEDS
-
-DEFAULT_WORKERS = 2  # the default is min(2, cpu count)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,9 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=positive_int, default=DEFAULT_SEEDS, help=f"seeds per point (default {DEFAULT_SEEDS})")
     quick = f"smoke run: {QUICK_SEEDS} seeds, {len(QUICK_SAMPLINGS)} values per sweep, {QUICK_LAPS} lap"
     parser.add_argument("--quick", action="store_true", help=quick)
-    parser.add_argument("--workers", type=positive_int, default=min(DEFAULT_WORKERS, os.cpu_count() or 1),
-                        help=f"worker processes (default min({DEFAULT_WORKERS}, cpu count))")  # fmt: skip
-    parser.add_argument("--ray-address", help="run the tasks on this Ray cluster instead (e.g. auto)")
+    add_worker_arguments(parser, ray=True)
 
 
 def run(args: argparse.Namespace) -> Path:

@@ -18,15 +18,13 @@ and :mod:`.report`. ``crowdloc reproduce stereo-far-landmarks`` calls :func:`add
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
+from agents.papers import add_worker_arguments
 from agents.util import positive_int
 
 from .experiment import DEFAULT_SEEDS, DENSITIES, QUICK_DENSITIES, QUICK_SEEDS, QUICK_STEPS, crowd_sizes
-
-DEFAULT_WORKERS = 2  # the default is min(2, cpu count)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -38,9 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     quick = (f"smoke run: {QUICK_SEEDS} seeds, crowd sizes {','.join(map(str, QUICK_DENSITIES))}, the drives cut after "
              f"{QUICK_STEPS} steps")  # fmt: skip
     parser.add_argument("--quick", action="store_true", help=quick)
-    parser.add_argument("--workers", type=positive_int, default=min(DEFAULT_WORKERS, os.cpu_count() or 1),
-                        help=f"worker processes (default min({DEFAULT_WORKERS}, cpu count))")  # fmt: skip
-    parser.add_argument("--ray-address", help="run the tasks on this Ray cluster instead (e.g. auto)")
+    add_worker_arguments(parser, ray=True)
 
 
 def run(args: argparse.Namespace) -> Path:
