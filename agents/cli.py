@@ -7,12 +7,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import math
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from agents.util import positive_int, seed_int
+from agents.util import at_least, positive_float, positive_int, seed_int
 
 DEFAULT_RESULTS = Path("results")
 
@@ -230,9 +229,13 @@ def _add_map(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     mapping.add_argument("world", help="a shipped world name (stereo_campus) or a world YAML path")
     mapping.add_argument("--out", type=Path, default=None, help="the map file (.npz; default: the world's cached default)")
     mapping.add_argument("--seed", type=seed_int, default=0, help="the drive's env seed (default 0)")
-    mapping.add_argument("--crowd-size", type=int, default=None, help="the crowd during the drive (>= 0; default: the world's)")
+    mapping.add_argument(
+        "--crowd-size", type=at_least(0), default=None, help="the crowd during the drive (>= 0; default: the world's)"
+    )
     mapping.add_argument("--pose", choices=("reference", "truth"), default="reference", help="where the scenes' poses come from")
-    mapping.add_argument("--period-s", type=float, default=1.0, help="a scene every this many seconds (finite, > 0; default 1)")
+    mapping.add_argument(
+        "--period-s", type=positive_float, default=1.0, help="a scene every this many seconds (finite, > 0; default 1)"
+    )
     mapping.add_argument("--overwrite", action="store_true", help="replace an existing map file")
 
 
@@ -363,10 +366,6 @@ def _run_map(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.util import refuse_to_overwrite
     from envs.localization_env import LocalizationEnv
 
-    if not (math.isfinite(args.period_s) and args.period_s > 0):
-        parser.error(f"--period-s must be a finite number of seconds > 0, got {args.period_s}")
-    if args.crowd_size is not None and args.crowd_size < 0:
-        parser.error(f"--crowd-size must be >= 0, got {args.crowd_size}")
     drive = MappingDrive(seed=args.seed, crowd_size=args.crowd_size, pose=args.pose, period_s=args.period_s)
     out = args.out
     if out is None:

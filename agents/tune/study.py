@@ -41,7 +41,7 @@ from agents.tune.objective import (
 )
 from agents.tune.report import write_report
 from agents.tune.space import UNTUNED, SearchSpace, load_search_space, tunable_localizers
-from agents.util import flatten, nest, refuse_to_overwrite, seed_int
+from agents.util import at_least, flatten, nest, refuse_to_overwrite, seed_int
 from localizers.registry import spec
 from localizers.schema import ConfigError
 
@@ -359,22 +359,6 @@ def tune(config: TuneConfig) -> TuneResult:
 # ------------------------------------------------------------------------------------ command line
 
 
-def _count(minimum: int) -> Any:
-    """argparse type: an integer >= ``minimum``, with a one-line error."""
-    import argparse
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {value}")
-        return value
-
-    return parse
-
-
 def add_arguments(parser: Any) -> None:
     """The ``crowdloc tune`` options; their defaults are :class:`TuneConfig`'s and :class:`EpisodeSetup`'s."""
     config = TuneConfig(localizer="")
@@ -386,25 +370,25 @@ def add_arguments(parser: Any) -> None:
                                           "others: give --space)")  # fmt: skip
     parser.add_argument("--space", type=Path, help="search-space YAML (default configs/tuning/LOCALIZER.yaml)")
     parser.add_argument("--env-id", help=f"the world (default by what the localizer reads: {worlds})")
-    parser.add_argument("--crowd-size", type=_count(0), help="crowd size (default: the world's own)")
+    parser.add_argument("--crowd-size", type=at_least(0), help="crowd size (default: the world's own)")
     parser.add_argument("--scenario", choices=SCENARIOS,
                         help=f"soccer: Exp 2's chase-dribble-shoot driver from ({x_m:g}, {y_m:g}) m; random_walk: the "
                              "RandomWalk policy from the world's start; square: the LIDAR paper's 3 laps of a 2.5 m "
                              "square in the crowded room; route: route_follower drives the world's route on the LIDAR "
                              "reference (default: square in the room, route where the world has one, soccer where "
                              "there is a ball, else random_walk)")  # fmt: skip
-    parser.add_argument("--episode-steps", type=_count(1),
+    parser.add_argument("--episode-steps", type=at_least(1),
                         help=f"steps per episode (default {DEFAULT_EPISODE_STEPS}; square: its 3 laps; route: the "
                              "world's episode length)")  # fmt: skip
     parser.add_argument("--env-set", action="append", default=[], metavar="KEY=VALUE",
                         help="world override, e.g. --env-set camera.dropout_probability=0.5 (repeatable)")  # fmt: skip
-    parser.add_argument("--train-seeds", type=_count(1), default=config.train_seeds,
+    parser.add_argument("--train-seeds", type=at_least(1), default=config.train_seeds,
                         help=f"tuning episodes, env seeds 0..N-1 (default {config.train_seeds})")  # fmt: skip
-    parser.add_argument("--eval-seeds", type=_count(1), default=config.eval_seeds,
+    parser.add_argument("--eval-seeds", type=at_least(1), default=config.eval_seeds,
                         help=f"held-out episodes, env seeds {seed_base_text()} + i (default {config.eval_seeds})")  # fmt: skip
-    parser.add_argument("--trials", type=_count(1), default=config.trials,
+    parser.add_argument("--trials", type=at_least(1), default=config.trials,
                         help=f"trials to add to the study (default {config.trials})")  # fmt: skip
-    parser.add_argument("--workers", type=_count(1), default=config.workers,
+    parser.add_argument("--workers", type=at_least(1), default=config.workers,
                         help=f"parallel study.optimize workers (default {config.workers})")  # fmt: skip
     parser.add_argument("--ray-address", help="run the workers on this Ray cluster (use a storage all nodes reach)")
     parser.add_argument("--storage", default=config.storage, help=f"SQLAlchemy database URL (default {config.storage})")
