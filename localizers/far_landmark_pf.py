@@ -359,7 +359,8 @@ class FarLandmarkPF:
     def _landmarks_near(self, pose: Array) -> tuple[IntArray, Array, IntArray]:
         """Step 1, reused while the same scenes are the nearest."""
         p = self._params
-        scenes = tuple(int(s) for s in self.scenes.nearest_scenes(pose, p.scenes, p.scene_radius_m))
+        nearest = self.scenes.nearest_scenes(pose, p.scenes, p.scene_radius_m)
+        scenes = tuple(int(s) for s in nearest)
         if self._near is None or self._near[0] != scenes:
-            self._near = (scenes, *self.scenes.landmarks_near(pose, p.scenes, p.scene_radius_m))
+            self._near = (scenes, *self.scenes.landmarks_of(nearest))
         return self._near[1], self._near[2], self._near[3]

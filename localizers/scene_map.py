@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import LandmarkMap
 from localizers.schema import ConfigError
+from localizers.stereo_vision import EDGE_TYPES
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -78,8 +79,8 @@ class SceneMap:
             raise ValueError(f"SceneMap: {types.size} types but {rel.shape[0]} positions")
         if not (np.isfinite(poses).all() and np.isfinite(rel).all()):
             raise ValueError("SceneMap: poses and positions must be finite")
-        if types.size and (types.min() < 0 or types.max() > 29):
-            raise ValueError(f"SceneMap: edge types must be in 0..29, got {types.min()}..{types.max()}")
+        if types.size and (types.min() < 0 or types.max() >= EDGE_TYPES):
+            raise ValueError(f"SceneMap: edge types must be in 0..{EDGE_TYPES - 1}, got {types.min()}..{types.max()}")
         for name, value in (("poses", poses), ("first", first), ("types", types), ("relative_xy", rel)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
@@ -107,16 +108,19 @@ class SceneMap:
         return near[np.argsort(d[near], kind="stable")[:count]]
 
     def landmarks_near(self, pose: ArrayLike, count: int, radius_m: float) -> tuple[IntArray, Array, IntArray]:
-        """The landmarks of :meth:`nearest_scenes`, in the world frame, sorted by type:
-        ``(types (M,), xy (M, 2), type_start (31,))`` (type ``t``'s are ``type_start[t]:type_start[t + 1]``)."""
-        scenes = self.nearest_scenes(pose, count, radius_m)
+        """The landmarks of :meth:`nearest_scenes` (:meth:`landmarks_of` them)."""
+        return self.landmarks_of(self.nearest_scenes(pose, count, radius_m))
+
+    def landmarks_of(self, scenes: IntArray) -> tuple[IntArray, Array, IntArray]:
+        """The landmarks of ``scenes``, in the world frame, sorted by type: ``(types (M,), xy (M, 2),
+        type_start (EDGE_TYPES + 1,))`` (type ``t``'s are ``type_start[t]:type_start[t + 1]``)."""
         if scenes.size == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(31, dtype=np.int64)
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(EDGE_TYPES + 1, dtype=np.int64)
         types = np.concatenate([self.types[self.first[s] : self.first[s + 1]] for s in scenes])
         xy = np.concatenate([self.world_xy(int(s)) for s in scenes])
         order = np.argsort(types, kind="stable")
         types, xy = types[order], np.ascontiguousarray(xy[order])
-        return types, xy, np.searchsorted(types, np.arange(31)).astype(np.int64)
+        return types, xy, np.searchsorted(types, np.arange(EDGE_TYPES + 1)).astype(np.int64)
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | Path) -> Path:
