@@ -80,7 +80,7 @@ def campus_section(out_dir: Path, seed: int = 0, seconds: float = DEMO_SECONDS, 
     camera_name = next(name for name, sensor in base.sensors.items() if isinstance(sensor, StereoCamera))
     camera = base.sensors[camera_name]
     assert isinstance(camera, StereoCamera)
-    crowd = next(iter(base.config.crowds.values())).count  # what crowd_size sets: the campus's pedestrians and cars
+    crowd = base.config.crowd.count if base.config.crowd is not None else 0  # what crowd_size sets (parked cars aside)
     policy = make_policy("route_follower", env, seed=seed)
     obs, info = env.reset(seed=seed)
     start_xy = np.asarray(info["true_pose"][:2], dtype=np.float64)
