@@ -52,3 +52,9 @@ def test_a_seeded_run_keeps_the_promise(name: str) -> None:
     assert len(est) >= 0.5 * promise.steps, f"{name}: a pose on only {len(est)} steps"
     fit = metrics.consistency(run_nees(name, np.array(est), np.array(truth), np.array(cov)), POSE_DOF)
     assert fit.inside_95 >= promise.inside_95, (name, fit.inside_95, fit.nees_median)
+
+
+@pytest.mark.parametrize(("inside", "steps"), [(1.5, 100), (-0.1, 100), (0.5, 0)])
+def test_a_promise_out_of_range_is_refused_naming_its_values(inside: float, steps: int) -> None:
+    with pytest.raises(ValueError, match=f"got {inside}, {steps}"):
+        ConsistencyPromise("crowdloc/RoboCupStatic-v0", "random_walk", steps, inside)
