@@ -501,6 +501,11 @@ class LidarMCL:
         self._resample(rng, n_inject, (ranges, angles, max_range))
 
     @property
+    def params(self) -> LidarMCLParams:
+        """The parameters it was made with."""
+        return self._params
+
+    @property
     def estimate(self) -> PoseEstimate:
         """Weighted mean and covariance, both carried through the pending odometry (the
         covariance by :func:`localizers.particles.motion_covariance`: the noise the particles

@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from localizers.base import LandmarkMap, Localizer, MeasurementError, OdometryDelta, PoseEstimate, ScanMeasurement
+from localizers.bounds import odometry_process_noise
 from localizers.geometry import between, compose, wrap_angle
 from localizers.mcl_lidar import LidarMCLParams
 from localizers.motion import sample_odometry
@@ -155,6 +156,46 @@ def test_points_older_than_the_travel_window_are_dropped() -> None:
         # scans at travel T, T - 0.1, T - 0.2 are within 0.25 m; T - 0.3 is not
         assert filt.points_xy.shape[0] == sum(counts[-3:])
     assert filt.travel_m == pytest.approx(0.7)
+
+
+def test_the_window_increment_runs_from_the_oldest_scan_kept_to_now() -> None:
+    filt = ScanFilter(ScanFilterParams(travel_m=0.25))
+    filt.reset()
+    np.testing.assert_array_equal(filt.window_increment, np.zeros(3))  # nothing kept yet
+    poses = [np.zeros(3)]
+    for k in range(6):
+        if k:
+            d = np.array([0.1, 0.02, 0.1])
+            filt.predict(OdometryDelta(*d))
+            poses.append(compose(poses[-1], d))
+        filt.add_scan(scan_at(np.array([3.0, 3.0, 0.0])))
+        oldest = poses[max(0, k - 2)]  # scans at travel T, T - 0.1, T - 0.2 (about) are kept
+        np.testing.assert_allclose(filt.window_increment, between(oldest, poses[-1]), atol=1e-12)
+
+
+def test_the_reported_covariance_adds_a_third_of_the_windows_odometry_noise_at_the_last_fix() -> None:
+    m = LidarMCLParams()
+    out = []
+    for window_error in (True, False):
+        loc = FarPointMCL(room_map(), FarPointMCLParams(window_error=window_error), dt_s=0.025)
+        loc.reset(np.random.default_rng(0), PoseEstimate(3.0, 3.0, 0.0, np.diag([1e-3, 1e-3, 1e-3])))
+        added = None
+        for k in range(40):
+            if k:
+                loc.predict(OdometryDelta(0.02, 0.0, 0.01))
+            updates = loc.updates
+            loc.update(scan_at(np.array([3.0 + 0.02 * k, 3.0, 0.01 * k])))
+            if loc.updates > updates:  # a fix: what the window's odometry adds until the next
+                window = loc.filter.window_increment
+                start = compose(loc.mcl.estimate.as_array(), between(window, np.zeros(3)))
+                added = odometry_process_noise(start, window, m.alphas, min_translation_std_m=m.min_translation_std_m,
+                                               min_rotation_std_rad=m.min_rotation_std_rad) / 3.0  # fmt: skip
+                window_at_fix = window
+        out.append((loc.estimate, added, loc.updates))
+    (on, added, updates), (off, _, _) = out
+    assert updates == 2 and window_at_fix[0] > 0.4  # the fix at the start, and one after 0.5 m on a full window
+    assert on.as_array().tolist() == off.as_array().tolist()  # the estimate itself is the same
+    np.testing.assert_allclose(on.covariance, off.covariance + added, rtol=1e-9)
 
 
 def test_turning_in_place_keeps_points_until_the_cap() -> None:

@@ -31,10 +31,10 @@ from agents.replay import Recording, feed, odometry_deltas, record, replay_into,
 from agents.sweep import run_tasks
 from localizers.base import LandmarkMap, ScanMeasurement
 from localizers.geometry import between
-from localizers.mcl_lidar import LidarMCL
+from localizers.mcl_lidar import LidarMCL, LidarMCLParams
 from localizers.raycast import cast_rays
 from localizers.registry import make_localizer
-from localizers.scan_filter import FarPointMCL, far_points
+from localizers.scan_filter import FarPointMCL, far_points, window_covariance
 
 from . import world
 from .experiment import (
@@ -108,6 +108,12 @@ class Episode:
         wall_bias_m: ``"raw"`` / ``"far"`` -> ``(K,)`` mean of ``z - z*`` over the beams on
             the wall (the far point of a bin is the largest of many noisy returns).
         accumulated_points: ``(K,)`` points in the filter's window at each update.
+        window_increments: ``(K, 3)`` the filter's window at each update
+            (:attr:`localizers.scan_filter.ScanFilter.window_increment`).
+        window_fixed: ``(K,)`` whether the update was a fix on the window's points (not on a
+            blank scan): the replays add the window's odometry noise of the last such fix to a
+            far-point configuration's covariance, as ``far_point_mcl`` does
+            (:func:`window_terms`).
         contacts: contacts of our robot in the episode.
         push_m: path length of our robot's motion that its commands do not explain.
         snapshot: Fig. 5 material (one episode only).
@@ -130,6 +136,8 @@ class Episode:
     beams: dict[str, NDArray[np.int64]]
     wall_bias_m: dict[str, Array]
     accumulated_points: NDArray[np.int64]
+    window_increments: Array
+    window_fixed: NDArray[np.bool_]
     contacts: int
     push_m: float
     snapshot: Snapshot | None = None
@@ -220,6 +228,9 @@ class _UpdateLog:
         self.beams: dict[str, list[Breakdown]] = {"raw": [], "far": []}
         self.bias: dict[str, list[float]] = {"raw": [], "far": []}
         self.points: list[int] = []
+        self.windows: list[Array] = []
+        self.fixed: list[bool] = []
+        self._fixes = 0
         self.snapshot: Snapshot | None = None
         self._most_short = -1
 
@@ -238,6 +249,9 @@ class _UpdateLog:
             on_wall = np.abs(z - empty) < WALL_TOL_M
             self.bias[name].append(float(np.mean(z[on_wall] - empty[on_wall])) if on_wall.any() else float("nan"))
         self.points.append(int(localizer.filter.points_xy.shape[0]))
+        self.windows.append(localizer.filter.window_increment)
+        self.fixed.append(localizer.window_fixes > self._fixes)
+        self._fixes = localizer.window_fixes
         if self._want_snapshot and raw_b[1] > self._most_short and t < len(self._crowd_xy):
             self._most_short = raw_b[1]
             self.snapshot = self._snapshot(t, localizer.filter, raw_b)
@@ -321,6 +335,8 @@ def run_episode(task: EpisodeTask) -> Episode:
         beams={k: np.asarray(v, dtype=np.int64) for k, v in log.beams.items()},
         wall_bias_m={k: np.asarray(v) for k, v in log.bias.items()},
         accumulated_points=np.asarray(log.points, dtype=np.int64),
+        window_increments=np.asarray(log.windows, dtype=np.float64).reshape(-1, 3),
+        window_fixed=np.asarray(log.fixed, dtype=bool),
         contacts=int(rec.contacts.sum()),
         push_m=unexplained_motion_m(rec),
         snapshot=log.snapshot,
@@ -393,6 +409,21 @@ def update_streams(episode: Episode) -> dict[bool, list[ScanMeasurement]]:
     return out
 
 
+def window_terms(episode: Episode, estimates: Array, params: LidarMCLParams) -> Array:
+    """``(K, 3, 3)`` what ``far_point_mcl`` adds to its covariance at each update of ``episode``
+    (``window_error``): :func:`localizers.scan_filter.window_covariance` of the last fix on the
+    window's points, at the estimate then (``estimates``, ``(K, 3)``, this configuration's); zeros
+    before the first fix or after one without a pose."""
+    out = np.zeros((episode.update_steps.size, 3, 3))
+    term = np.zeros((3, 3))
+    for k in range(out.shape[0]):
+        if episode.window_fixed[k]:
+            pose = estimates[k]
+            term = window_covariance(pose, episode.window_increments[k], params) if np.isfinite(pose).all() else np.zeros((3, 3))
+        out[k] = term
+    return out
+
+
 def run_chunk(task: ChunkTask) -> list[Run]:
     """Replay ``mcl_lidar`` with each configuration on the episode's raw or far-point scans."""
     ep = task.episode
@@ -403,15 +434,21 @@ def run_chunk(task: ChunkTask) -> list[Run]:
     truth = rec.true_pose[ep.update_steps]
     ref = ep.reference_estimates
     runs = []
+    window_error = world.far_point_defaults().window_error  # far_point_mcl's, as the pass ran it
     for c in task.configs:
         c0 = time.process_time()
         loc = make_localizer("mcl_lidar", ep.scan_map, dt_s=rec.dt_s, params=c.mcl_params())
+        if not isinstance(loc, LidarMCL):
+            raise TypeError(f"mcl_lidar built a {type(loc).__name__}")
         est, _, updated, cov = feed(loc, deltas, streams[c.far], episode_rng(ep.task.seed, ep.task.crowd_size),
                                     prior=prior, read="updates")  # fmt: skip
         if updated is None or not np.array_equal(np.flatnonzero(updated), ep.update_steps):
             raise RuntimeError(f"{c.key} on seed {ep.task.seed}: the MCL weighed other steps than the far-point pass")
         e = est[ep.update_steps]
-        nees = consistency.run_nees(c.localizer, e, truth, cov[ep.update_steps])
+        c_k = cov[ep.update_steps]
+        if c.far and window_error:  # far_point_mcl's covariance
+            c_k = c_k + window_terms(ep, e, loc.params)
+        nees = consistency.run_nees(c.localizer, e, truth, c_k)
         runs.append(Run(c.key, ep.task.seed, ep.task.crowd_size, e, metrics.position_errors(e, truth),
                         metrics.heading_errors(e, truth), metrics.position_errors(e, ref), metrics.heading_errors(e, ref),
                         nees, time.process_time() - c0))  # fmt: skip

@@ -315,7 +315,14 @@ def beams_text(stride: int) -> str:
 
 def mcl_item() -> str:
     """The set-up's MCL item (from ``configs/localizers/mcl_lidar.yaml`` and ``far_point_mcl.yaml``)."""
-    m, f = world.mcl_defaults(), world.far_point_defaults().filter
+    m, far = world.mcl_defaults(), world.far_point_defaults()
+    f = far.filter
+    window = (
+        "; its reported covariance adds a third of the window's odometry noise at each fix (`window_error`, ours: "
+        "the fix inherits the error of the odometry that placed the points; the estimates are the same without it)"
+        if far.window_error
+        else ""
+    )
     ess = m.resample_ess_fraction
     resampling = "resampling after every update" if ess >= 1.0 else f"resampling when the ESS falls below {ess:g} of the set"
     return (
@@ -324,7 +331,7 @@ def mcl_item() -> str:
         f"them), {m.model.replace('_', ' ')} model z_hit {m.z_hit:g}, z_short {m.z_short:g}, z_max {m.z_max:g}, z_rand "
         f"{m.z_rand:g}, lambda_short {m.lambda_short:g}, {beams_text(m.beam_stride)}; {resampling}. Far points "
         f"(`far_point_mcl`): scans accumulated over the last {f.travel_m:g} m of travel by odometry, "
-        f"{math.degrees(f.bin_width_rad):g} deg bins."
+        f"{math.degrees(f.bin_width_rad):g} deg bins{window}."
     )
 
 

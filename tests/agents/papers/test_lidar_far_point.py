@@ -167,6 +167,10 @@ def test_replaying_stored_update_scans_equals_the_registered_localizers(small_sq
         assert out.updated is not None
         np.testing.assert_array_equal(np.flatnonzero(out.updated), ep.update_steps)
         np.testing.assert_array_equal(out.estimates[ep.update_steps], runs[c.key].estimates)
+        # and the same consistency: a far-point replay adds the window's odometry noise as far_point_mcl does
+        truth_k = full.true_pose[ep.update_steps]
+        nees = consistency.run_nees(name, out.estimates[ep.update_steps], truth_k, out.covariances[ep.update_steps])
+        np.testing.assert_allclose(runs[c.key].nees, nees, rtol=1e-9)
         ref_err = metrics.position_errors(runs[c.key].estimates, ep.reference_estimates)
         np.testing.assert_array_equal(runs[c.key].ref_errors_m, ref_err)
     assert jobs.pass_identity([ep], list(runs.values())) == 0.0
