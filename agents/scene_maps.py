@@ -148,6 +148,7 @@ def build_scene_map(
     every = max(1, round(drive.period_s / base.config.dt_s))
     limit = drive.max_steps or base.config.max_episode_steps
     poses: list[np.ndarray] = []
+    covariances: list[np.ndarray] = []
     types: list[np.ndarray] = []
     rel: list[np.ndarray] = []
     bar = tqdm(total=limit, desc=f"mapping {base.config.name}", unit="step", disable=not progress, leave=False)
@@ -159,6 +160,7 @@ def build_scene_map(
                 seen = edge_measurement(obs[key])
                 r = 1.0 / seen.inverse_range_m
                 poses.append(pose)
+                covariances.append(np.zeros((3, 3)) if drive.pose == "truth" else np.asarray(est.covariance, dtype=np.float64))
                 types.append(seen.types)
                 rel.append(np.stack([r * np.cos(seen.bearings_rad), r * np.sin(seen.bearings_rad)], axis=1))
         action, _ = policy.predict(obs)
@@ -183,6 +185,7 @@ def build_scene_map(
             "steps": step + 1,
             "reference": "mcl_lidar" if drive.pose == "reference" else None,
         },
+        pose_covariances=np.asarray(covariances, dtype=np.float64).reshape(-1, 3, 3),
     )
 
 

@@ -1,7 +1,8 @@
 """The far-landmark paper's map (paper D, sec. 2.2): *scenes* recorded on a first drive.
 
-A mapping drive records, at a fixed period, a scene: the robot's pose ``(x, y, theta)`` and
-the landmarks it observed, each as its edge type and its position ``(x, y)`` relative to that
+A mapping drive records, at a fixed period, a scene: the robot's pose ``(x, y, theta)``, how
+uncertain that pose was (its covariance: the LIDAR reference's own, zeros when the pose is the
+truth), and the landmarks it observed, each as its edge type and its position ``(x, y)`` relative to that
 pose (x forward, y left, metres). At localization time the scenes recorded near the current
 estimate give the landmarks to match (:meth:`SceneMap.landmarks_near`).
 
@@ -31,7 +32,7 @@ from localizers.stereo_vision import EDGE_TYPES
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-FORMAT = "crowdloc-scene-map-v1"
+FORMAT = "crowdloc-scene-map-v2"
 
 
 def geometry_fingerprint(landmarks: LandmarkMap) -> str:
@@ -55,6 +56,8 @@ class SceneMap:
         types: ``(L,)`` edge types; ``relative_xy``: ``(L, 2)`` positions relative to the scene's pose.
         world: the world's name; ``fingerprint``: :func:`geometry_fingerprint` of its map.
         camera: the camera's settings the edges depend on (plain values).
+        pose_covariances: ``(S, 3, 3)`` each recorded pose's covariance (None: zeros, the poses
+            are exact). A scene's landmarks inherit its pose's error, shared by all of them.
         source: how the poses were known (``"reference"``: a LIDAR localizer's estimate, as on
             a real robot; ``"truth"``), and what else describes the drive (plain values).
     """
@@ -67,6 +70,7 @@ class SceneMap:
     fingerprint: str
     camera: Mapping[str, Any] = field(default_factory=dict)
     source: Mapping[str, Any] = field(default_factory=dict)
+    pose_covariances: Array | None = None
 
     def __post_init__(self) -> None:
         poses = np.asarray(self.poses, dtype=np.float64).reshape(-1, 3)
@@ -81,7 +85,17 @@ class SceneMap:
             raise ValueError("SceneMap: poses and positions must be finite")
         if types.size and (types.min() < 0 or types.max() >= EDGE_TYPES):
             raise ValueError(f"SceneMap: edge types must be in 0..{EDGE_TYPES - 1}, got {types.min()}..{types.max()}")
-        for name, value in (("poses", poses), ("first", first), ("types", types), ("relative_xy", rel)):
+        covs = (
+            np.zeros((poses.shape[0], 3, 3))
+            if self.pose_covariances is None
+            else np.asarray(self.pose_covariances, dtype=np.float64)
+        )
+        if covs.shape != (poses.shape[0], 3, 3):
+            raise ValueError(f"SceneMap: pose_covariances must be ({poses.shape[0]}, 3, 3), one per scene, got {covs.shape}")
+        if not np.isfinite(covs).all() or np.any(np.diagonal(covs, axis1=1, axis2=2) < 0.0):
+            raise ValueError("SceneMap: pose_covariances must be finite with variances >= 0")
+        for name, value in (("poses", poses), ("first", first), ("types", types), ("relative_xy", rel),
+                            ("pose_covariances", covs)):  # fmt: skip
             value.setflags(write=False)
             object.__setattr__(self, name, value)
 
@@ -92,6 +106,20 @@ class SceneMap:
     @property
     def landmark_count(self) -> int:
         return int(self.types.size)
+
+    def pose_covariance(self, scenes: IntArray) -> Array:
+        """``(3, 3)`` the mean covariance of ``scenes``' poses (zeros for none). The mean, not the
+        covariance of an average: consecutive scenes' errors are those of one drifting estimate, so
+        matching several scenes does not average their errors away."""
+        if scenes.size == 0:
+            return np.zeros((3, 3))
+        return np.asarray(self._covariances()[scenes].mean(axis=0), dtype=np.float64)
+
+    def _covariances(self) -> Array:
+        """``pose_covariances`` as the array ``__post_init__`` made of it (None becomes zeros)."""
+        covs = self.pose_covariances
+        assert covs is not None  # __post_init__ replaced None
+        return covs
 
     def world_xy(self, scene: int) -> Array:
         """``(K, 2)`` scene ``scene``'s landmarks in the world frame (its pose composed with them)."""
@@ -131,7 +159,7 @@ class SceneMap:
                 "source": dict(self.source)}  # fmt: skip
         with out.open("wb") as f:
             np.savez_compressed(f, poses=self.poses, first=self.first, types=self.types, relative_xy=self.relative_xy,
-                                meta=np.array(json.dumps(meta, sort_keys=True)))  # fmt: skip
+                                pose_covariances=self._covariances(), meta=np.array(json.dumps(meta, sort_keys=True)))  # fmt: skip
         return out
 
     @staticmethod
@@ -147,11 +175,14 @@ class SceneMap:
         try:
             with np.load(src, allow_pickle=False) as data:
                 meta = json.loads(str(data["meta"]))
-                arrays = {k: data[k] for k in ("poses", "first", "types", "relative_xy")}
+                if meta.get("format") != FORMAT:
+                    raise ConfigError(
+                        f"{str(src)!r} is not a scene map of format {FORMAT!r} (found {meta.get('format')!r}): make it again "
+                        "with `crowdloc map WORLD`"
+                    )
+                arrays = {k: data[k] for k in ("poses", "first", "types", "relative_xy", "pose_covariances")}
         except (OSError, ValueError, KeyError) as exc:
             raise ConfigError(f"{str(src)!r} is not a scene map: {exc}") from None
-        if meta.get("format") != FORMAT:
-            raise ConfigError(f"{str(src)!r} is not a scene map of format {FORMAT!r} (found {meta.get('format')!r})")
         return SceneMap(
             **arrays, world=meta["world"], fingerprint=meta["fingerprint"], camera=meta["camera"], source=meta["source"]
         )

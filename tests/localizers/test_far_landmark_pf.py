@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.policies import make_policy
 from agents.scene_maps import MappingDrive, build_scene_map, default_map_path
-from localizers.base import EdgeMeasurement, LandmarkMap, MeasurementError, PoseEstimate
+from localizers.base import EdgeMeasurement, LandmarkMap, MeasurementError, OdometryDelta, PoseEstimate
 from localizers.far_landmark_pf import (
     FarLandmarkParams,
     FarLandmarkPF,
@@ -165,6 +165,54 @@ def test_a_map_of_another_world_or_camera_is_refused_naming_the_mismatch(tmp_pat
         SceneMap.load(tmp_path / "junk.npz")
 
 
+def test_scene_pose_covariances_round_trip_default_to_exact_and_refuse_bad_values(tmp_path: Path) -> None:
+    covs = np.stack([np.diag([0.01, 0.02, 0.001]), np.diag([0.03, 0.01, 0.002])])
+    scenes = SceneMap(
+        np.zeros((2, 3)), np.array([0, 1, 2]), np.array([1, 2]), np.ones((2, 2)), "toy", "abc", pose_covariances=covs
+    )
+    np.testing.assert_array_equal(SceneMap.load(scenes.save(tmp_path / "m.npz")).pose_covariances, covs)
+    np.testing.assert_allclose(scenes.pose_covariance(np.array([0, 1])), covs.mean(axis=0))
+    np.testing.assert_array_equal(scenes.pose_covariance(np.zeros(0, dtype=np.int64)), np.zeros((3, 3)))
+    np.testing.assert_array_equal(toy_map([(1, 10.0, 0.0)]).pose_covariances, np.zeros((1, 3, 3)))  # none given: exact poses
+    with pytest.raises(ValueError, match=r"must be \(2, 3, 3\), one per scene, got \(1, 3, 3\)"):
+        SceneMap(
+            np.zeros((2, 3)), np.array([0, 1, 2]), np.array([1, 2]), np.ones((2, 2)), "toy", "abc", pose_covariances=covs[:1]
+        )
+    with pytest.raises(ValueError, match="variances >= 0"):
+        SceneMap(np.zeros((2, 3)), np.array([0, 1, 2]), np.array([1, 2]), np.ones((2, 2)), "toy", "abc", pose_covariances=-covs)
+
+
+def test_a_map_of_the_first_format_is_refused_naming_both_formats(tmp_path: Path) -> None:
+    path = toy_map([(1, 10.0, 0.0)]).save(tmp_path / "m.npz")
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files if k not in ("pose_covariances", "meta")}
+        meta = str(data["meta"]).replace("crowdloc-scene-map-v2", "crowdloc-scene-map-v1")
+    np.savez(tmp_path / "old.npz", **arrays, meta=np.array(meta))
+    with pytest.raises(
+        ConfigError, match="not a scene map of format 'crowdloc-scene-map-v2' .found 'crowdloc-scene-map-v1'.: make it"
+    ):
+        SceneMap.load(tmp_path / "old.npz")
+
+
+def test_the_reported_covariance_adds_the_matched_scenes_pose_covariance_and_nothing_else() -> None:
+    cov = np.diag([0.04, 0.09, 0.0025])
+    scenes = SceneMap(np.zeros((1, 3)), np.array([0, 2]), np.array([3, 5]), np.array([[20.0, 4.0], [30.0, -6.0]]), "toy",
+                      geometry_fingerprint(SQUARE), pose_covariances=cov[None])  # fmt: skip
+    seen = EdgeMeasurement(np.array([3, 5]), 1.0 / np.hypot([20.0, 30.0], [4.0, -6.0]), np.arctan2([4.0, -6.0], [20.0, 30.0]))
+    out = []
+    for map_error in (True, False):
+        pf = FarLandmarkPF(SQUARE, FarLandmarkParams(map_error=map_error), dt_s=0.1, scenes=scenes)
+        pf.reset(np.random.default_rng(3), PoseEstimate(0.0, 0.0, 0.0))
+        before = pf.estimate.covariance  # no update yet: no scene matched, nothing added
+        pf.predict(OdometryDelta(0.05, 0.0, 0.01))
+        pf.update(seen)
+        out.append((before, pf.estimate))
+    (before_on, on), (before_off, off) = out
+    np.testing.assert_array_equal(before_on, before_off)
+    assert on.as_array().tolist() == off.as_array().tolist()  # the estimate itself is the same
+    np.testing.assert_allclose(on.covariance, off.covariance + cov, rtol=1e-12)
+
+
 def test_the_localizer_refuses_a_map_of_another_world(tmp_path: Path) -> None:
     path = toy_map([(1, 10.0, 0.0)]).save(tmp_path / "toy.npz")
     with pytest.raises(ConfigError, match="made in world 'toy', not 'stereo_campus'"):
@@ -238,6 +286,14 @@ def test_same_seed_same_estimates(campus_map: Path) -> None:
     a, _, _ = drive(campus_map, seed=2, steps=150)
     b, _, _ = drive(campus_map, seed=2, steps=150)
     np.testing.assert_array_equal(a, b)
+
+
+def test_a_map_from_the_reference_keeps_its_pose_covariances_and_one_from_the_truth_none() -> None:
+    reference = build_scene_map("stereo_campus", MappingDrive(seed=0, crowd_size=0, max_steps=60))
+    variances = np.diagonal(reference.pose_covariances, axis1=1, axis2=2)
+    assert reference.scene_count >= 2 and (variances > 0).all()  # the LIDAR reference's own uncertainty
+    truth = build_scene_map("stereo_campus", MappingDrive(seed=0, crowd_size=0, max_steps=60, pose="truth"))
+    np.testing.assert_array_equal(truth.pose_covariances, np.zeros((truth.scene_count, 3, 3)))
 
 
 def test_gym_make_builds_and_caches_the_default_map() -> None:
