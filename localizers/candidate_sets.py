@@ -314,8 +314,10 @@ class CandidateSetLocalizer:
     """
 
     name: ClassVar[str] = "candidate_sets"
-    #: measured on this run: share 0.541, NEES median 2.8: among the crowd's pushes one set's best candidates
-    #: spread less than the error of the frame they came from (module docstring)
+    #: measured on this run: share 0.541, NEES median 2.8: the robot's true motion differs from its commands by
+    #: 4.7 m over its 10.8 m path, 4.6 m of it on the 290 steps where the random walk drives it against the
+    #: field's edge, and one set's best candidates spread less than the error of the frame they came from
+    #: (module docstring)
     #: (tests/localizers/test_consistency_promises.py)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.5)
 

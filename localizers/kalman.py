@@ -290,8 +290,10 @@ class KalmanLocalizer:
     """
 
     name: ClassVar[str] = "kalman"
-    #: measured on this run: share 0.690, NEES median 4.4: among the crowd's contacts the constant-
-    #: acceleration prediction is too sure between fixes (module docstring)
+    #: measured on this run: share 0.690, NEES median 4.4: the robot's true motion differs from its commands by
+    #: 4.7 m over its 10.8 m path, 4.6 m of it on the 290 steps where the random walk drives it against the
+    #: field's edge: more than the odometry drift and the constant-acceleration prediction allow between fixes
+    #: (module docstring)
     #: (tests/localizers/test_consistency_promises.py)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.65)
 
