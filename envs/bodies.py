@@ -55,7 +55,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.schema import check, check_rgb
+from localizers.schema import check, check_ranges, check_rgb
 
 #: a person moving slower than this stands: legs together, heading and gait phase frozen
 STAND_SPEED_MPS = 0.05
@@ -167,12 +167,10 @@ class CarConfig:
         _check_palette(self.body_rgb, "car.body_rgb")
         check_rgb(self.cabin_rgb, "car.cabin_rgb")
         check_rgb(self.wheel_rgb, "car.wheel_rgb")
-        for name in (
+        check_ranges(self, "car", positive=(
             "length_m", "width_m", "height_m", "sill_m", "beltline_m", "cabin_length_m", "cabin_width_m",
             "wheel_radius_m", "wheel_width_m", "wheelbase_m", "track_m", "turn_rate_rps",
-        ):  # fmt: skip
-            value = getattr(self, name)
-            check(math.isfinite(value) and value > 0, f"car.{name} must be finite and > 0, got {value}")
+        ))  # fmt: skip
         check(math.isfinite(self.cabin_offset_m), f"car.cabin_offset_m must be finite, got {self.cabin_offset_m}")
         check(
             self.sill_m < self.beltline_m < self.height_m,

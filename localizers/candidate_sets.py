@@ -124,7 +124,7 @@ from localizers.candidate_kernels import (
 from localizers.contradiction import Contradiction
 from localizers.geometry import between, circular_std, compose
 from localizers.resection import inscribed_arc_poses, triple_indices
-from localizers.schema import check
+from localizers.schema import check, check_ranges
 
 
 @dataclass(frozen=True)
@@ -203,12 +203,12 @@ class CandidateSetParams:
         for name in ("candidates_per_arc", "max_sets", "determine_below", "max_live_candidates"):
             value = getattr(self, name)
             check(value >= 1, f"CandidateSetParams.{name} must be an integer >= 1, got {value!r}")
-        for name in ("prune_error_rad", "abort_error_rad", "fusion_median_m", "min_conditioning"):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value > 0.0, f"CandidateSetParams.{name} must be a number > 0, got {value!r}")
-        for name in ("bounds_margin_m", "position_floor_m", "heading_floor_rad", "coast_growth_per_m"):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value >= 0.0, f"CandidateSetParams.{name} must be a number >= 0, got {value!r}")
+        check_ranges(
+            self,
+            "CandidateSetParams",
+            positive=("prune_error_rad", "abort_error_rad", "fusion_median_m", "min_conditioning"),
+            non_negative=("bounds_margin_m", "position_floor_m", "heading_floor_rad", "coast_growth_per_m"),
+        )
         tau = self.error_time_constant_s
         check(
             tau > 0.0,  # false for NaN

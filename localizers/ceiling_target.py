@@ -19,7 +19,6 @@ they were learned from.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal
@@ -54,7 +53,7 @@ from localizers.ceiling_vision import (
 )
 from localizers.dead_reckoning import dead_reckon
 from localizers.geometry import wrap_angle
-from localizers.schema import ConfigError, check
+from localizers.schema import ConfigError, check, check_ranges
 
 
 @dataclass(frozen=True)
@@ -133,18 +132,18 @@ class CeilingTargetParams:
         check(
             0 < self.min_line_fraction <= 1, f"ceiling_target.min_line_fraction must be in (0, 1], got {self.min_line_fraction}"
         )
-        for name in (
-            "metres_per_px",
-            "position_sd_m",
-            "heading_sd_rad",
-            "position_var_m2_per_m",
-            "heading_var_rad2_per_m",
-            "heading_var_rad2_per_rad",
-            "max_gate",
-        ):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value >= 0, f"ceiling_target.{name} must be >= 0, got {value!r}")
-        check(self.position_sd_m > 0 and self.heading_sd_rad > 0, "ceiling_target: position_sd_m and heading_sd_rad must be > 0")
+        check_ranges(
+            self,
+            "ceiling_target",
+            positive=("position_sd_m", "heading_sd_rad"),
+            non_negative=(
+                "metres_per_px",
+                "position_var_m2_per_m",
+                "heading_var_rad2_per_m",
+                "heading_var_rad2_per_rad",
+                "max_gate",
+            ),
+        )
 
     @property
     def settings(self) -> PipelineSettings:

@@ -38,7 +38,7 @@ from localizers.base import (
     within_spread,
 )
 from localizers.geometry import compose, wrap_angle
-from localizers.schema import check
+from localizers.schema import check_ranges
 
 
 @dataclass(frozen=True)
@@ -67,15 +67,17 @@ class DeadReckoningParams:
 
     def __post_init__(self) -> None:
         check_max_spread("DeadReckoningParams", self.max_spread_m)
-        for name in (
-            "position_var_m2_per_m",
-            "heading_var_rad2_per_m",
-            "heading_var_rad2_per_rad",
-            "initial_position_std_m",
-            "initial_heading_std_rad",
-        ):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value >= 0.0, f"DeadReckoningParams.{name} must be >= 0, got {value!r}")
+        check_ranges(
+            self,
+            "DeadReckoningParams",
+            non_negative=(
+                "position_var_m2_per_m",
+                "heading_var_rad2_per_m",
+                "heading_var_rad2_per_rad",
+                "initial_position_std_m",
+                "initial_heading_std_rad",
+            ),
+        )
 
 
 def dead_reckon(

@@ -71,7 +71,7 @@ from localizers.particles import (
     weighted_pose_mean,
 )
 from localizers.scene_map import SceneMap
-from localizers.schema import ConfigError, check
+from localizers.schema import ConfigError, check, check_ranges
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -134,18 +134,18 @@ class FarLandmarkParams:
             len(self.alphas) == 4 and all(math.isfinite(a) and a >= 0.0 for a in self.alphas),
             f"{name}.alphas must be four finite values >= 0, got {self.alphas!r}",
         )
-        for key in ("sigma_inv_r", "sigma_theta_rad", "match_gate", "sector_rad", "scene_radius_m"):
-            value = getattr(self, key)
-            check(math.isfinite(value) and value > 0.0, f"{name}.{key} must be finite and > 0, got {value!r}")
-        for key in (
-            "min_translation_std_m",
-            "min_rotation_std_rad",
-            "initial_position_std_m",
-            "initial_heading_std_rad",
-            "min_range_m",
-        ):
-            value = getattr(self, key)
-            check(math.isfinite(value) and value >= 0.0, f"{name}.{key} must be finite and >= 0, got {value!r}")
+        check_ranges(
+            self,
+            name,
+            positive=("sigma_inv_r", "sigma_theta_rad", "match_gate", "sector_rad", "scene_radius_m"),
+            non_negative=(
+                "min_translation_std_m",
+                "min_rotation_std_rad",
+                "initial_position_std_m",
+                "initial_heading_std_rad",
+                "min_range_m",
+            ),
+        )
         check(self.selection in SELECTIONS, f"{name}.selection must be one of {SELECTIONS}, got {self.selection!r}")
         check(self.sector_rad <= 2.0 * math.pi, f"{name}.sector_rad must be at most a turn, got {self.sector_rad!r}")
         check(self.scenes >= 1, f"{name}.scenes must be >= 1, got {self.scenes!r}")

@@ -72,7 +72,7 @@ from localizers.base import (
 from localizers.dead_reckoning import drift_covariance
 from localizers.geometry import wrap_angle
 from localizers.resection import DEFAULT_MIN_CONDITIONING, fix_covariance, resect_all_triples
-from localizers.schema import check
+from localizers.schema import check, check_ranges
 
 Array = NDArray[np.float64]
 
@@ -230,32 +230,32 @@ class KalmanParams:
     max_spread_m: float = DEFAULT_MAX_SPREAD_M
 
     def __post_init__(self) -> None:
-        for name in (
-            "jerk_psd_xy_m2_per_s5",
-            "jerk_psd_heading_rad2_per_s5",
-            "odometry_velocity_std_m_per_s",
-            "odometry_yaw_rate_std_rad_per_s",
-            "vision_position_std_m",
-            "vision_heading_std_rad",
-            "resection_inlier_radius_m",
-            "resection_min_conditioning",
-            "initial_velocity_std_m_per_s",
-            "initial_yaw_rate_std_rad_per_s",
-            "initial_acceleration_std_m_per_s2",
-            "initial_yaw_acceleration_std_rad_per_s2",
-            "fix_bearing_std_rad",
-        ):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value > 0.0, f"KalmanParams.{name} must be > 0, got {value!r}")
-        for name in (
-            "initial_position_std_m",
-            "initial_heading_std_rad",
-            "position_var_m2_per_m",
-            "heading_var_rad2_per_m",
-            "heading_var_rad2_per_rad",
-        ):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value >= 0.0, f"KalmanParams.{name} must be >= 0, got {value!r}")
+        check_ranges(
+            self,
+            "KalmanParams",
+            positive=(
+                "jerk_psd_xy_m2_per_s5",
+                "jerk_psd_heading_rad2_per_s5",
+                "odometry_velocity_std_m_per_s",
+                "odometry_yaw_rate_std_rad_per_s",
+                "vision_position_std_m",
+                "vision_heading_std_rad",
+                "resection_inlier_radius_m",
+                "resection_min_conditioning",
+                "initial_velocity_std_m_per_s",
+                "initial_yaw_rate_std_rad_per_s",
+                "initial_acceleration_std_m_per_s2",
+                "initial_yaw_acceleration_std_rad_per_s2",
+                "fix_bearing_std_rad",
+            ),
+            non_negative=(
+                "initial_position_std_m",
+                "initial_heading_std_rad",
+                "position_var_m2_per_m",
+                "heading_var_rad2_per_m",
+                "heading_var_rad2_per_rad",
+            ),
+        )
         check(
             self.innovation_gate > 0.0, f"KalmanParams.innovation_gate must be > 0 (inf: no gate), got {self.innovation_gate!r}"
         )

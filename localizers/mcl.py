@@ -61,7 +61,7 @@ from localizers.particles import (
 )
 from localizers.particles import prior_covariance as _prior_covariance
 from localizers.resection import inscribed_arc_poses, resect_all_triples
-from localizers.schema import check
+from localizers.schema import check, check_ranges
 
 Array = NDArray[np.float64]
 _TWO_PI = 2.0 * math.pi
@@ -131,13 +131,6 @@ def _check_alphas(owner: str, alphas: tuple[float, float, float, float]) -> None
         len(alphas) == 4 and all(math.isfinite(a) and a >= 0.0 for a in alphas),
         f"{owner}.alphas must be four finite values >= 0, got {alphas!r}",
     )
-
-
-def _check_positive(owner: str, obj: object, names: tuple[str, ...], *, allow_zero: bool = False) -> None:
-    for name in names:
-        value = getattr(obj, name)
-        ok = math.isfinite(value) and (value >= 0.0 if allow_zero else value > 0.0)
-        check(ok, f"{owner}.{name} must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
 
 
 class _ParticleLocalizer:
@@ -254,22 +247,17 @@ class PaperMCLParams:
             math.isfinite(self.gate_rad) and 0.0 < self.gate_rad <= math.pi,
             f"PaperMCLParams.gate_rad must be in (0, pi], got {self.gate_rad!r}",
         )
-        _check_positive(
-            "PaperMCLParams",
+        check_ranges(
             self,
-            (
+            "PaperMCLParams",
+            positive=(
                 "one_landmark_heading_std_rad",
                 "two_landmark_position_std_m",
                 "two_landmark_heading_std_rad",
                 "three_landmark_position_std_m",
                 "three_landmark_heading_std_rad",
             ),
-        )
-        _check_positive(
-            "PaperMCLParams",
-            self,
-            ("min_translation_std_m", "min_rotation_std_rad", "initial_position_std_m", "initial_heading_std_rad"),
-            allow_zero=True,
+            non_negative=("min_translation_std_m", "min_rotation_std_rad", "initial_position_std_m", "initial_heading_std_rad"),
         )
         _check_alphas("PaperMCLParams", self.alphas)
 
@@ -495,12 +483,11 @@ class BearingMCLParams:
             f"BearingMCLParams.fix_memory_s must be > 0 s, got {self.fix_memory_s!r}",
         )
         _check_alphas("BearingMCLParams", self.alphas)
-        _check_positive("BearingMCLParams", self, ("bearing_std_rad", "injection_position_std_m", "injection_heading_std_rad"))
-        _check_positive(
-            "BearingMCLParams",
+        check_ranges(
             self,
-            ("min_translation_std_m", "min_rotation_std_rad", "initial_position_std_m", "initial_heading_std_rad"),
-            allow_zero=True,
+            "BearingMCLParams",
+            positive=("bearing_std_rad", "injection_position_std_m", "injection_heading_std_rad"),
+            non_negative=("min_translation_std_m", "min_rotation_std_rad", "initial_position_std_m", "initial_heading_std_rad"),
         )
         check(
             math.isfinite(self.likelihood_inflation) and self.likelihood_inflation >= 1.0,

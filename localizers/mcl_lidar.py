@@ -88,7 +88,7 @@ from localizers.particles import (
     weighted_pose_mean,
 )
 from localizers.range_table import CACHE_ENV, RangeTable, build_range_table, cache_dir, range_table_key, wall_distance_field
-from localizers.schema import check
+from localizers.schema import check, check_ranges
 
 __all__ = [
     "CACHE_ENV",
@@ -228,26 +228,32 @@ class LidarMCLParams:
             len(self.alphas_base) == 4 and all(math.isfinite(a) and a >= 0.0 for a in self.alphas_base),
             f"{name}.alphas_base must be four finite values >= 0, got {self.alphas_base!r}",
         )
-        positive: tuple[str, ...] = ("sampling", "hit_std_m", "lambda_short", "table_resolution_m")
-        positive += ("kld_epsilon", "kld_bin_xy_m", "kld_bin_theta_rad")
-        for key in positive:
-            value = getattr(self, key)
-            check(math.isfinite(value) and value > 0.0, f"{name}.{key} must be > 0, got {value!r}")
-        for key in (
-            "min_translation_std_m",
-            "min_rotation_std_rad",
-            "update_min_travel_m",
-            "update_min_rotation_rad",
-            "z_hit",
-            "z_short",
-            "z_max",
-            "z_rand",
-            "min_range_m",
-            "initial_position_std_m",
-            "initial_heading_std_rad",
-        ):
-            value = getattr(self, key)
-            check(math.isfinite(value) and value >= 0.0, f"{name}.{key} must be >= 0, got {value!r}")
+        check_ranges(
+            self,
+            name,
+            positive=(
+                "sampling",
+                "hit_std_m",
+                "lambda_short",
+                "table_resolution_m",
+                "kld_epsilon",
+                "kld_bin_xy_m",
+                "kld_bin_theta_rad",
+            ),  # fmt: skip
+            non_negative=(
+                "min_translation_std_m",
+                "min_rotation_std_rad",
+                "update_min_travel_m",
+                "update_min_rotation_rad",
+                "z_hit",
+                "z_short",
+                "z_max",
+                "z_rand",
+                "min_range_m",
+                "initial_position_std_m",
+                "initial_heading_std_rad",
+            ),
+        )
         total = self.z_hit + self.z_short + self.z_max + self.z_rand
         check(
             abs(total - 1.0) <= 1e-6,

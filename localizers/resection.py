@@ -72,7 +72,7 @@ from localizers.base import (
 )
 from localizers.geometry import circular_mean, wrap_angle
 from localizers.motion import wrap_scalar
-from localizers.schema import check
+from localizers.schema import check_ranges
 
 DEFAULT_MIN_CONDITIONING = 0.1
 """Default lower bound on the conditioning ``c`` (ours; see the module docstring)."""
@@ -450,9 +450,7 @@ class ResectionParams:
 
     def __post_init__(self) -> None:
         check_max_spread("ResectionParams", self.max_spread_m)
-        for name in ("min_conditioning", "inlier_radius_m", "bearing_std_rad"):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value > 0.0, f"ResectionParams.{name} must be a number > 0, got {value!r}")
+        check_ranges(self, "ResectionParams", positive=("min_conditioning", "inlier_radius_m", "bearing_std_rad"))
 
 
 class ResectionLocalizer:

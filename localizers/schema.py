@@ -9,10 +9,11 @@ is declared, nothing else is widened).
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -220,6 +221,22 @@ def check(condition: bool, message: str) -> None:
     """
     if not condition:
         raise ConfigError(message)
+
+
+def check_ranges(obj: object, where: str, *, positive: Iterable[str] = (), non_negative: Iterable[str] = ()) -> None:
+    """Raise :class:`ConfigError` unless each field of ``obj`` named in ``positive`` is a finite
+    number > 0 and each in ``non_negative`` a finite number >= 0, naming ``where.field`` and its value.
+
+    Used in dataclass ``__post_init__`` range checks (``where``: the class or section name).
+    """
+    for bound, names in (("> 0", positive), (">= 0", non_negative)):
+        for name in names:
+            value = getattr(obj, name)
+            number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            check(
+                number and (value > 0 if bound == "> 0" else value >= 0),
+                f"{where}.{name} must be finite and {bound}, got {value!r}",
+            )
 
 
 def check_rgb(value: Any, where: str) -> None:

@@ -63,7 +63,7 @@ from envs.crowds.queues import PEOPLE_FILL
 from envs.crowds.steering import give_way, seek
 from envs.crowds.walkers import SPEED_CAP
 from envs.state import Rows, WorldState
-from localizers.schema import ConfigError, check
+from localizers.schema import ConfigError, check, check_ranges
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -247,16 +247,11 @@ class CampusConfig(CrowdConfig):
             "join_m", "lookahead_m", "end_m", "relaxation_s", "repulsion_range_m", "cutoff_ranges", "give_way_horizon_s",
             "car_mass_kg", "car_speed_mps", "car_accel_mps2", "car_brake_mps2", "car_max_brake_mps2", "car_lookahead_m",
         )  # fmt: skip
-        for name in positive:
-            value = getattr(self, name)
-            check(math.isfinite(value) and value > 0, f"campus.{name} must be finite and > 0, got {value}")
         non_negative = (
             "repulsion_strength_mps2", "robot_repulsion_gain", "car_repulsion_gain", "give_way_margin_m", "yield_s",
             "fidget_m", "car_gap_m", "car_stop_gap_m", "car_watch_margin_m", "car_watch_s",
         )  # fmt: skip
-        for name in non_negative:
-            value = getattr(self, name)
-            check(math.isfinite(value) and value >= 0, f"campus.{name} must be finite and >= 0, got {value}")
+        check_ranges(self, "campus", positive=positive, non_negative=non_negative)
         check(
             self.car_brake_mps2 <= self.car_max_brake_mps2,
             f"campus.car_brake_mps2 ({self.car_brake_mps2}) must not exceed car_max_brake_mps2 ({self.car_max_brake_mps2})",

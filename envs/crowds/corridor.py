@@ -35,7 +35,7 @@ from envs.crowds.steering import seek
 from envs.crowds.walkers import SPEED_CAP, social_force_velocities
 from envs.state import Rows, WorldState
 from localizers.raycast import cast_rays
-from localizers.schema import ConfigError, check
+from localizers.schema import ConfigError, check, check_ranges
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -138,17 +138,19 @@ class CorridorConfig(CrowdConfig):
             f"corridor.lane_offset_m must be (low, high) with 0 <= low <= high <= half_width_m - radius_m ({lane:g}), "
             f"got {self.lane_offset_m}",
         )
-        for name in ("lookahead_m", "relaxation_s", "repulsion_range_m"):
-            check(getattr(self, name) > 0, f"corridor.{name} must be > 0, got {getattr(self, name)}")
-        for name in (
-            "detour_ahead_m",
-            "repulsion_strength_mps2",
-            "robot_repulsion_gain",
-            "end_margin_m",
-            "wall_gap_m",
-            "fidget_m",
-        ):
-            check(getattr(self, name) >= 0, f"corridor.{name} must be >= 0, got {getattr(self, name)}")
+        check_ranges(
+            self,
+            "corridor",
+            positive=("lookahead_m", "relaxation_s", "repulsion_range_m"),
+            non_negative=(
+                "detour_ahead_m",
+                "repulsion_strength_mps2",
+                "robot_repulsion_gain",
+                "end_margin_m",
+                "wall_gap_m",
+                "fidget_m",
+            ),
+        )
         check(self.groups >= 0, f"corridor.groups must be >= 0, got {self.groups}")
         check(
             len(self.group_sizes) > 0 and all(1 <= n <= 6 for n in self.group_sizes),

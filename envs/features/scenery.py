@@ -37,7 +37,7 @@ from envs.features.base import (
     register_feature,
     regular_polygon,
 )
-from localizers.schema import check, check_rgb
+from localizers.schema import check, check_ranges, check_rgb
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -80,9 +80,7 @@ class FacadeConfig:
     def __post_init__(self) -> None:
         for name in ("wall_rgb", "panel_rgb", "column_rgb", "window_rgb", "door_rgb"):
             check_rgb(getattr(self, name), f"facade.{name}")
-        for name in ("panel_m", "column_pitch_m", "window_pitch_m", "margin_m", "sill_m"):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value >= 0, f"facade.{name} must be finite and >= 0, got {value}")
+        check_ranges(self, "facade", non_negative=("panel_m", "column_pitch_m", "window_pitch_m", "margin_m", "sill_m"))
         check(math.isfinite(self.floor_m) and self.floor_m > 0, f"facade.floor_m must be finite and > 0, got {self.floor_m}")
         check(
             math.isfinite(self.column_width_m) and self.column_width_m > 0,

@@ -57,7 +57,7 @@ from envs.features.ceiling import LABEL_CEILING, LABEL_HEAD, LABEL_JOINT, Ceilin
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.state import WorldState
 from localizers.ceiling_vision import undistort
-from localizers.schema import ConfigError, check
+from localizers.schema import ConfigError, check, check_ranges
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -113,9 +113,7 @@ class CeilingCameraConfig(SensorConfig):
         check(0.2 <= self.pixel_aspect <= 5, f"ceiling_camera.pixel_aspect must be in [0.2, 5], got {self.pixel_aspect}")
         check(self.mount_height_m >= 0, f"ceiling_camera.mount_height_m must be >= 0, got {self.mount_height_m}")
         check(-0.5 <= self.k1 <= 0.5, f"ceiling_camera.k1 must be in [-0.5, 0.5], got {self.k1}")
-        for name in ("noise_std", "exposure_s", "head_height_m", "head_radius_m"):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value >= 0, f"ceiling_camera.{name} must be >= 0, got {value}")
+        check_ranges(self, "ceiling_camera", non_negative=("noise_std", "exposure_s", "head_height_m", "head_radius_m"))
         for name in ("gain_along_amplitude", "gain_time_amplitude", "vignetting"):
             value = getattr(self, name)
             check(0 <= value < 1, f"ceiling_camera.{name} must be in [0, 1), got {value}")

@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.state import WorldState
 from localizers.motion import odometry_noise_std, sample_odometry
-from localizers.schema import check
+from localizers.schema import check, check_ranges
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -76,8 +76,7 @@ class OdometryConfig(SensorConfig):
     distance_scale: float = 1.0  # metres reported per metre driven (nominal over actual mean diameter)
 
     def __post_init__(self) -> None:
-        for name in ("alpha1", "alpha2", "alpha3", "alpha4"):
-            check(getattr(self, name) >= 0, f"odometry.{name} must be >= 0, got {getattr(self, name)}")
+        check_ranges(self, "odometry", non_negative=("alpha1", "alpha2", "alpha3", "alpha4"))
         lo, hi = WHEELBASE_RANGE_M
         check(
             math.isfinite(self.wheelbase_m) and lo <= self.wheelbase_m <= hi,

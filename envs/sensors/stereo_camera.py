@@ -51,7 +51,7 @@ from envs.state import WorldState
 from envs.stereo.geometric import camera_edges, lines
 from envs.stereo.render import ColumnRenderer, Moving
 from envs.stereo.scene import Rig, static_scene
-from localizers.schema import ConfigError, check
+from localizers.schema import ConfigError, check, check_ranges
 from localizers.stereo_vision import (
     CHANNEL_COLOURS,
     EDGE_TYPES,
@@ -127,9 +127,8 @@ class StereoCameraConfig(SensorConfig):
         check(self.mode in ("fast", "image"), f"{where}.mode must be 'fast' or 'image', got {self.mode!r}")
         check(32 <= self.width_px <= 4096, f"{where}.width_px must be in 32..4096, got {self.width_px}")
         check(32 <= self.height_px <= 4096, f"{where}.height_px must be in 32..4096, got {self.height_px}")
-        for name in ("focal_px", "baseline_m", "min_range_m", "max_range_m", "match_tolerance_px", "threshold", "render_range_m"):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value > 0, f"{where}.{name} must be finite and > 0, got {value}")
+        check_ranges(self, where, positive=("focal_px", "baseline_m", "min_range_m", "max_range_m", "match_tolerance_px",
+                                            "threshold", "render_range_m"))  # fmt: skip
         cx, cy = self.principal
         check(
             0 < cx < self.width_px and 0 < cy < self.height_px,
@@ -155,9 +154,7 @@ class StereoCameraConfig(SensorConfig):
             raise ConfigError(str(exc)) from None
         check(len(self.rows) == LEVELS, f"{where}.detection_rows_px must be {LEVELS} rows, got {self.rows}")
         check(1 <= self.slots <= 1024, f"{where}.slots must be in 1..1024, got {self.slots}")
-        for name in ("edge_noise_px", "pixel_noise_std", "gain_std"):
-            value = getattr(self, name)
-            check(math.isfinite(value) and value >= 0, f"{where}.{name} must be finite and >= 0, got {value}")
+        check_ranges(self, where, non_negative=("edge_noise_px", "pixel_noise_std", "gain_std"))
         check(0 <= self.gain_rho < 1, f"{where}.gain_rho must be in [0, 1), got {self.gain_rho}")
         lo, hi = self.gain_range
         check(0 < lo <= 1 <= hi < math.inf, f"{where}.gain_range must hold 1 and be positive, got {self.gain_range}")

@@ -603,8 +603,8 @@ def test_update_before_reset_raises() -> None:
 @pytest.mark.parametrize(
     ("key", "value", "needle"),
     [
-        ("hit_std_m", 0.0, "hit_std_m must be > 0"),
-        ("sampling", -0.1, "sampling must be > 0"),
+        ("hit_std_m", 0.0, "hit_std_m must be finite and > 0, got 0.0"),
+        ("sampling", -0.1, "sampling must be finite and > 0, got -0.1"),
         ("z_hit", 0.9, "must be 1"),
         ("model", "beams", "'beams' is not one of"),
         ("beam_stride", 0, "beam_stride must be >= 1"),

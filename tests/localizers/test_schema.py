@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -10,7 +11,7 @@ from typing import Any, Literal
 
 import pytest
 
-from localizers.schema import ConfigError, check, from_mapping, load_yaml, merge_nested, replace_checked
+from localizers.schema import ConfigError, check, check_ranges, from_mapping, load_yaml, merge_nested, replace_checked
 
 
 @dataclass(frozen=True)
@@ -189,3 +190,31 @@ def test_load_yaml_errors(tmp_path: Path) -> None:
     good = tmp_path / "good.yaml"
     good.write_text("name: a\ninner: {gain: 2}\n")
     assert from_mapping(Outer, load_yaml(good), where=str(good)) == Outer(name="a", inner=Inner(gain=2.0))
+
+
+@dataclass(frozen=True)
+class _Ranged:
+    gain: Any = 1.0
+    margin: Any = 0.0
+
+
+@pytest.mark.parametrize(
+    ("gain", "margin", "message"),
+    [
+        (0.0, 0.0, "box.gain must be finite and > 0, got 0.0"),
+        (float("inf"), 0.0, "box.gain must be finite and > 0, got inf"),
+        (float("nan"), 0.0, "box.gain must be finite and > 0, got nan"),
+        (True, 0.0, "box.gain must be finite and > 0, got True"),
+        ("1", 0.0, "box.gain must be finite and > 0, got '1'"),
+        (1.0, -0.5, "box.margin must be finite and >= 0, got -0.5"),
+        (1.0, float("inf"), "box.margin must be finite and >= 0, got inf"),
+    ],
+)
+def test_check_ranges_names_the_field_and_the_value(gain: Any, margin: Any, message: str) -> None:
+    with pytest.raises(ConfigError, match=f"^{re.escape(message)}$"):
+        check_ranges(_Ranged(gain, margin), "box", positive=("gain",), non_negative=("margin",))
+
+
+def test_check_ranges_accepts_the_bounds_and_integers() -> None:
+    check_ranges(_Ranged(1, 0), "box", positive=("gain",), non_negative=("margin",))
+    check_ranges(_Ranged(1e-300, 0.0), "box", positive=("gain",), non_negative=("margin",))
