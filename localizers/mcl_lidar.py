@@ -239,7 +239,7 @@ class LidarMCLParams:
                 "kld_epsilon",
                 "kld_bin_xy_m",
                 "kld_bin_theta_rad",
-            ),  # fmt: skip
+            ),
             non_negative=(
                 "min_translation_std_m",
                 "min_rotation_std_rad",
