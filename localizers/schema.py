@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import re
 import types
 import typing
@@ -232,7 +233,7 @@ def check_ranges(obj: object, where: str, *, positive: Iterable[str] = (), non_n
     for bound, names in (("> 0", positive), (">= 0", non_negative)):
         for name in names:
             value = getattr(obj, name)
-            number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            number = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
             check(
                 number and (value > 0 if bound == "> 0" else value >= 0),
                 f"{where}.{name} must be finite and {bound}, got {value!r}",

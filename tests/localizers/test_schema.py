@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
 import pytest
 
 from localizers.schema import ConfigError, check, check_ranges, from_mapping, load_yaml, merge_nested, replace_checked
@@ -218,3 +219,9 @@ def test_check_ranges_names_the_field_and_the_value(gain: Any, margin: Any, mess
 def test_check_ranges_accepts_the_bounds_and_integers() -> None:
     check_ranges(_Ranged(1, 0), "box", positive=("gain",), non_negative=("margin",))
     check_ranges(_Ranged(1e-300, 0.0), "box", positive=("gain",), non_negative=("margin",))
+
+
+def test_check_ranges_accepts_numpy_numbers_and_refuses_numpy_bools() -> None:
+    check_ranges(_Ranged(np.int64(2), np.float32(0.5)), "box", positive=("gain",), non_negative=("margin",))
+    with pytest.raises(ConfigError, match="box.gain must be finite and > 0"):
+        check_ranges(_Ranged(np.bool_(True), 0.0), "box", positive=("gain",))
