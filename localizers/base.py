@@ -176,12 +176,18 @@ class ScanMeasurement:
     max_range_m: float
 
 
+#: what types a stereo camera's vertical edges have (paper D): colour channel (R, G, B) x detection
+#: row (topmost first) x polarity (rising, falling), numbered by :func:`localizers.stereo_vision.edge_type`
+EDGE_CHANNELS, EDGE_LEVELS, EDGE_POLARITIES = 3, 5, 2
+EDGE_TYPES = EDGE_CHANNELS * EDGE_LEVELS * EDGE_POLARITIES  # 30
+
+
 @dataclass(frozen=True)
 class EdgeMeasurement:
     """Typed vertical edges seen by a stereo camera in one frame (paper D's landmarks).
 
     Attributes:
-        types: ``(n,)`` edge types in ``0..29`` (:func:`localizers.stereo_vision.edge_type`).
+        types: ``(n,)`` edge types in ``0..EDGE_TYPES - 1`` (:func:`localizers.stereo_vision.edge_type`).
         inverse_range_m: ``(n,)`` 1 / range from the robot centre, 1/m, finite and > 0.
         bearings_rad: ``(n,)`` bearings in the robot frame, counter-clockwise from the heading.
     """
@@ -198,8 +204,8 @@ class EdgeMeasurement:
         if t.ndim != 1 or inv.shape != t.shape or b.shape != t.shape:
             raise MeasurementError(f"{source}: types, inverse_range_m and bearings_rad must be 1-D of one length, got "
                                    f"{t.shape}, {inv.shape}, {b.shape}")  # fmt: skip
-        if t.size and (t.dtype.kind not in "iu" or t.min() < 0 or t.max() > 29):
-            raise MeasurementError(f"{source}: edge types must be integers in 0..29, got {t.tolist()!r}")
+        if t.size and (t.dtype.kind not in "iu" or t.min() < 0 or t.max() >= EDGE_TYPES):
+            raise MeasurementError(f"{source}: edge types must be integers in 0..{EDGE_TYPES - 1}, got {t.tolist()!r}")
         bad = ~(np.isfinite(inv) & (inv > 0.0))
         if bad.any():
             raise MeasurementError(

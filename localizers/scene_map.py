@@ -26,9 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import LandmarkMap
+from localizers.base import EDGE_TYPES, LandmarkMap
 from localizers.schema import ConfigError
-from localizers.stereo_vision import EDGE_TYPES
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -50,14 +50,12 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import MeasurementError
+from localizers.base import EDGE_CHANNELS as CHANNELS  # R, G, B
+from localizers.base import EDGE_LEVELS as LEVELS  # detection rows; level 0 is the topmost
+from localizers.base import EDGE_POLARITIES as POLARITIES  # rising, falling
+from localizers.base import EDGE_TYPES, MeasurementError
 from localizers.geometry import wrap_angle
 from localizers.schema import check
-
-CHANNELS = 3  # R, G, B
-LEVELS = 5  # detection rows; level 0 is the topmost
-POLARITIES = 2  # rising, falling
-EDGE_TYPES = CHANNELS * LEVELS * POLARITIES  # 30
 
 # The paper's filter at its cameras' 640 x 480.
 PAPER_FILTER_ROWS = 101

@@ -15,7 +15,17 @@ from hypothesis import strategies as st
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.policies import make_policy
 from agents.scene_maps import MappingDrive, build_scene_map, default_map_path
-from localizers.base import EdgeMeasurement, LandmarkMap, MeasurementError, OdometryDelta, PoseEstimate
+from localizers.base import (
+    EDGE_CHANNELS,
+    EDGE_LEVELS,
+    EDGE_POLARITIES,
+    EDGE_TYPES,
+    EdgeMeasurement,
+    LandmarkMap,
+    MeasurementError,
+    OdometryDelta,
+    PoseEstimate,
+)
 from localizers.far_landmark_pf import (
     FarLandmarkParams,
     FarLandmarkPF,
@@ -25,6 +35,7 @@ from localizers.far_landmark_pf import (
 )
 from localizers.scene_map import SceneMap, geometry_fingerprint
 from localizers.schema import ConfigError
+from localizers.stereo_vision import edge_type
 
 CAMPUS = "crowdloc/StereoCampus-v0"
 SQUARE = LandmarkMap(np.zeros((0, 2)), (), (0.0, 0.0, 50.0, 50.0), np.array([[0.0, 0.0, 50.0, 0.0]]), {})
@@ -228,6 +239,15 @@ def test_detections_with_a_bad_range_are_refused_naming_the_value(inverse_range:
     pf.reset(np.random.default_rng(0), PoseEstimate(0.0, 0.0, 0.0))
     with pytest.raises(MeasurementError, match=words):
         pf.update(EdgeMeasurement(np.array([1]), np.array([inverse_range]), np.array([0.0])))
+
+
+def test_edge_types_run_from_0_to_29_and_others_are_refused_naming_them() -> None:
+    assert (EDGE_CHANNELS, EDGE_LEVELS, EDGE_POLARITIES, EDGE_TYPES) == (3, 5, 2, 30)  # the paper's 3 x 5 x 2
+    assert EDGE_TYPES == max(edge_type(c, lv, f) for c in range(3) for lv in range(5) for f in (False, True)) + 1
+    ok = EdgeMeasurement(np.array([0, 29]), np.array([0.1, 0.1]), np.array([0.0, 0.1])).validated()
+    assert ok.types.tolist() == [0, 29]
+    with pytest.raises(MeasurementError, match=r"edge types must be integers in 0\.\.29, got \[0, 30\]"):
+        EdgeMeasurement(np.array([0, 30]), np.array([0.1, 0.1]), np.array([0.0, 0.1])).validated()
 
 
 def test_without_a_start_pose_or_a_map_it_says_what_it_needs() -> None:
