@@ -19,52 +19,34 @@ import numpy as np
 from localizers.schema import ConfigError
 
 
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1, with a one-line error naming the bad text."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
-    return value
+def _argument_type(convert: Callable[[str], Any], accept: Callable[[Any], bool], what: str) -> Callable[[str], Any]:
+    """An argparse type: ``convert`` the text and keep it when ``accept`` holds, else a one-line
+    error ``expected WHAT, got TEXT`` naming the bad text (or the converted value)."""
 
-
-def seed_int(text: str) -> int:
-    """argparse type: a seed, an integer >= 0 (what numpy and Gymnasium accept), with a one-line error."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a seed (an integer >= 0), got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a seed (an integer >= 0), got {value}")
-    return value
-
-
-def at_least(minimum: int) -> Callable[[str], int]:
-    """argparse type: an integer >= ``minimum``, with a one-line error naming the bad text."""
-
-    def parse(text: str) -> int:
+    def parse(text: str) -> Any:
         try:
-            value = int(text)
+            value = convert(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {value}")
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if not accept(value):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {value}")
         return value
 
     return parse
 
 
-def positive_float(text: str) -> float:
-    """argparse type: a finite number > 0, with a one-line error naming the bad value."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {value}")
-    return value
+#: argparse type: an integer >= 1
+positive_int: Callable[[str], int] = _argument_type(int, lambda v: v > 0, "a positive integer")
+#: argparse type: a seed, an integer >= 0 (what numpy and Gymnasium accept)
+seed_int: Callable[[str], int] = _argument_type(int, lambda v: v >= 0, "a seed (an integer >= 0)")
+#: argparse type: a finite number > 0
+positive_float: Callable[[str], float] = _argument_type(float, lambda v: math.isfinite(v) and v > 0, "a finite number > 0")
+
+
+def at_least(minimum: int) -> Callable[[str], int]:
+    """argparse type: an integer >= ``minimum``, with a one-line error naming the bad text."""
+    parse: Callable[[str], int] = _argument_type(int, lambda v: v >= minimum, f"an integer >= {minimum}")
+    return parse
 
 
 def nest(dotted: Mapping[str, Any]) -> dict[str, Any]:
