@@ -274,7 +274,8 @@ class FarLandmarkPF:
         self._log_w = np.zeros(0)
         self._weights: Array | None = None
         self._cache: tuple[Array, Array] | None = None
-        self._near: tuple[tuple[int, ...], IntArray, Array, IntArray] | None = None
+        # the nearest scenes, their landmarks (types, xy, type_start) and their mean pose covariance
+        self._near: tuple[tuple[int, ...], IntArray, Array, IntArray, Array] | None = None
         #: the detections the estimate's pose used at the last update, in the world frame (for drawing)
         self.used_xy = np.zeros((0, 2))
 
@@ -346,7 +347,7 @@ class FarLandmarkPF:
             return PoseEstimate.invalid()
         mean, cov = self._mean_cov()
         if self._params.map_error and self._near is not None:
-            cov = cov + self.scenes.pose_covariance(np.asarray(self._near[0], dtype=np.int64))
+            cov = cov + self._near[4]
         return PoseEstimate(
             float(mean[0]), float(mean[1]), float(mean[2]), cov.copy(), within_spread(cov, self._params.max_spread_m)
         )
@@ -378,5 +379,5 @@ class FarLandmarkPF:
         nearest = self.scenes.nearest_scenes(pose, p.scenes, p.scene_radius_m)
         scenes = tuple(int(s) for s in nearest)
         if self._near is None or self._near[0] != scenes:
-            self._near = (scenes, *self.scenes.landmarks_of(nearest))
+            self._near = (scenes, *self.scenes.landmarks_of(nearest), self.scenes.pose_covariance(nearest))
         return self._near[1], self._near[2], self._near[3]

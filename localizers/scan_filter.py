@@ -392,9 +392,9 @@ class FarPointMCL:
         self._ready = False
         self._last: ScanMeasurement | None = None
         self._processed: ScanMeasurement | None = None
-        # the last fix made on the window's points: the estimate right after it and the window's
-        # increment then (None before the first, or when that fix left no valid pose)
-        self._fix: tuple[Array, Array] | None = None
+        # what the last fix on the window's points inherits from their odometry (window_covariance
+        # at the estimate right after it; zeros before the first, or when that fix left no valid pose)
+        self._window_cov = np.zeros((3, 3))
         #: fixes made on the window's points since the reset (an update on a blank scan is none)
         self.window_fixes = 0
 
@@ -404,7 +404,7 @@ class FarPointMCL:
         self._ready = True
         self._last = None
         self._processed = None
-        self._fix = None
+        self._window_cov = np.zeros((3, 3))
         self.window_fixes = 0
 
     def predict(self, odometry: OdometryDelta) -> None:
@@ -430,9 +430,13 @@ class FarPointMCL:
             if informative(ranges[:: self.params.mcl.beam_stride], max_range, self.params.mcl):
                 self._processed = self.filter.extract(measurement.angles_rad, max_range)
                 self.mcl.update(self._processed)
-                est = self.mcl.estimate  # the fix was made on the window's points: it keeps their error
-                self._fix = (est.as_array(), self.filter.window_increment) if est.valid else None
                 self.window_fixes += 1
+                if self.params.window_error:  # the fix was made on the window's points: it keeps their error
+                    est = self.mcl.estimate
+                    window = self.filter.window_increment
+                    self._window_cov = (
+                        window_covariance(est.as_array(), window, self.params.mcl) if est.valid else np.zeros((3, 3))
+                    )
             else:
                 self._processed = ScanMeasurement(np.full(ranges.shape, max_range), np.asarray(measurement.angles_rad), max_range)
                 self.mcl.update(self._processed)
@@ -442,9 +446,9 @@ class FarPointMCL:
         """The MCL's estimate; its covariance widened by the window's odometry noise at the last
         fix (``window_error``, :func:`window_covariance`)."""
         est = self.mcl.estimate
-        if not (est.valid and self.params.window_error and self._fix is not None):
+        if not (est.valid and self.params.window_error):
             return est
-        cov = est.covariance + window_covariance(*self._fix, self.params.mcl)
+        cov = est.covariance + self._window_cov
         return PoseEstimate(est.x_m, est.y_m, est.theta_rad, cov, within_spread(cov, self.params.mcl.max_spread_m))
 
     @property
