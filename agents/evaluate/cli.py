@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from agents.evaluate.kidnap import Kidnap
 from agents.evaluate.journal import JOURNAL_NAME, EpisodeJournal
+from agents.evaluate.kidnap import Kidnap
 from agents.evaluate.outputs import EVAL_OUTPUTS, summary_markdown, write_outputs
 from agents.evaluate.spec import Cell, EvalSpec, check_first_seed
 from agents.evaluate.stats import EvalResult, evaluate

@@ -96,13 +96,14 @@ class EpisodeJournal:
                 episode = pickle.loads(base64.b64decode(json.loads(lines[i])["data"], validate=True))
             except (ValueError, KeyError, TypeError, pickle.UnpicklingError, EOFError):
                 if i < last:  # damage, not a kill: the run wrote on after this line
-                    raise ConfigError(f"--resume: line {i + 1} of {path} is damaged; remove it (or the file) and resume") from None
+                    raise ConfigError(f"--resume: line {i + 1} of {path} is damaged; remove it (or the file)") from None
                 kept = sum(len(line) + 1 for line in lines[:i])  # the run was killed while writing this line
                 break
             if not isinstance(episode, Episode):
                 raise ConfigError(f"--resume: line {i + 1} of {path} holds no episode")
             done.setdefault(episode.cell, episode)
-        with open(path, "r+b") as f:  # drop a torn line and end the file with a newline, so the next episode has a line of its own
+        # drop a torn line and end the file with a newline, so that the next episode has a line of its own
+        with open(path, "r+b") as f:
             f.truncate(kept)
             if kept and not raw[:kept].endswith(b"\n"):
                 f.seek(kept)

@@ -152,8 +152,10 @@ def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
 @pytest.mark.parametrize(
     ("storage", "message"),
     [
-        ("notadb://x", "--storage 'notadb://x': cannot open the database (NoSuchModuleError: Can't load plugin: "
-                       "sqlalchemy.dialects:notadb)"),  # fmt: skip
+        (
+            "notadb://x",
+            "--storage 'notadb://x': cannot open the database (NoSuchModuleError: Can't load plugin: sqlalchemy.dialects:notadb)",
+        ),  # fmt: skip
         ("not a url", "--storage 'not a url': not a database URL"),
         ("sqlite:///{blocker}/sub/t.db", "cannot create its folder"),
     ],
