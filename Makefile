@@ -22,8 +22,10 @@ $(STAMP): pyproject.toml setup.py constraints.txt
 
 venv: $(STAMP)
 
+# results/demo is the demo's own folder: each make demo replaces the previous demo's files there
+# (--overwrite deletes only what the demo writes); crowdloc demo by hand refuses a folder that is not empty
 demo: venv
-	$(VENV)/bin/crowdloc demo
+	$(VENV)/bin/crowdloc demo --overwrite
 
 test: venv lint
 	$(PY) -m pytest

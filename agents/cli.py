@@ -34,6 +34,12 @@ def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     demo.add_argument("--seed", type=seed_int, default=0, help="seed of the env and the policy (default 0)")
     demo.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "demo", help="output folder (default results/demo)")
     demo.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="run into an --out that is not empty: an earlier demo's files there are deleted first (other files stay); "
+        "make demo gives it",
+    )
+    demo.add_argument(
         "--active-seeds",
         type=int,
         default=20,
@@ -163,6 +169,17 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ev.add_argument("--gif-cell", metavar="POLICY,LOCALIZER,CROWD", help="the episode to animate (default: the first)")
     ev.add_argument("--no-gif", action="store_true", help="write no GIF")
     ev.add_argument("--out", type=Path, default=DEFAULT_RESULTS / "eval", help="output folder (default results/eval)")
+    again = ev.add_mutually_exclusive_group()
+    again.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="run into an --out that is not empty: its earlier eval files are deleted first (other files stay)",
+    )
+    again.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the interrupted run in --out (same options): run only the episodes its episodes.jsonl lacks",
+    )
     ev.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -286,6 +303,7 @@ def _run_demo(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         verdict_seeds=VERDICT_SEEDS if args.verdict_seeds is None else args.verdict_seeds,
         models=None if args.model is None else dict.fromkeys(ACTIVE_LOCALIZERS, args.model),
         workers=args.workers,
+        overwrite=args.overwrite,
     )
     return 0
 
@@ -343,13 +361,10 @@ def _run_tune(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 def _run_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.papers import EXPERIMENTS
-    from agents.util import refuse_to_overwrite
+    from agents.util import make_out_dir, refuse_to_overwrite
 
     refuse_to_overwrite(Path(args.out) / "report.md", args.overwrite)  # before minutes of work, not after
-    try:
-        Path(args.out).mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        parser.error(f"--out {args.out}: cannot create the output folder ({exc.strerror})")
+    make_out_dir(Path(args.out))
     report = importlib.import_module(EXPERIMENTS[args.experiment][0]).run(args)
     print(f"wrote {report}")
     return 0

@@ -40,6 +40,7 @@ from tqdm import tqdm
 
 import crowdloc_models
 import envs
+from agents.evaluate.outputs import EVAL_OUTPUTS
 from agents.metrics import beam_breakdown
 from agents.policies import RandomWalk
 from envs.sensors import RangeSensor
@@ -232,6 +233,21 @@ MIN_VERDICT_SEEDS = 5
 VERDICT_SEEDS = 100
 
 
+#: what ``crowdloc demo`` writes in its output folder (glob patterns): ``--overwrite`` deletes these and nothing else.
+#: The frames of part 1 are named after every registered world's id, the active part is an eval's outputs with the
+#: verdict's tables beside them.
+DEMO_OUTPUTS: tuple[str, ...] = (
+    "report.md",
+    *(f"{env_id.split('/')[-1]}.png" for env_id in envs.ENV_WORLDS),
+    "corridor/ceiling_camera.png",
+    "corridor/corridor_top.png",
+    "campus/campus_camera.png",
+    "campus/campus_top.png",
+    *(f"active/{pattern}" for pattern in EVAL_OUTPUTS),
+    *(f"active/verdict/{name}" for name in ("episodes.csv", "summary.csv", "run.json")),
+)
+
+
 def run_demo(
     out_dir: Path,
     steps: int = 3000,
@@ -241,11 +257,21 @@ def run_demo(
     models: Mapping[str, Path] | None = None,
     workers: int | None = None,
     verdict_seeds: int = VERDICT_SEEDS,
+    overwrite: bool = False,
 ) -> Path:
     """Part 1, the corridor, the campus and part 2; writes ``out_dir/report.md`` and prints it.
 
-    ``models``: the PPO policy per localizer (default :data:`SHIPPED_MODELS`).
+    ``models``: the PPO policy per localizer (default :data:`SHIPPED_MODELS`). ``out_dir`` must be
+    empty or missing unless ``overwrite``, which first deletes what an earlier demo wrote there
+    (:data:`DEMO_OUTPUTS`) and nothing else.
+
+    Raises:
+        ConfigError: before any run, for an ``out_dir`` that is not empty (without ``overwrite``)
+            or cannot be created.
     """
+    from agents.util import prepare_out_dir
+
+    prepare_out_dir(out_dir, DEMO_OUTPUTS, command="crowdloc demo", overwrite=overwrite)
     report = run_worlds(out_dir, steps=steps, seed=seed, densities=densities)
     from agents.papers.ceiling_target.demo import corridor_section
     from agents.papers.stereo_far_landmarks.demo import campus_section

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, TypeVar
 
 from tqdm import tqdm
@@ -31,6 +31,7 @@ def run_tasks(
     ray_address: str | None = None,
     desc: str = "tasks",
     progress: bool = True,
+    on_result: Callable[[int, R], None] | None = None,
 ) -> list[R]:
     """Apply ``fn`` to every task and return the results in task order.
 
@@ -42,6 +43,8 @@ def run_tasks(
             the tasks then run as Ray remote functions there instead of locally.
         desc: progress-bar label.
         progress: show a progress bar.
+        on_result: called in this process with ``(index, result)`` as each task finishes (in
+            the order they finish), e.g. to save each result before the others are done.
 
     Raises:
         ImportError: with the install hint, when Ray is asked for but not installed.
@@ -50,26 +53,37 @@ def run_tasks(
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     if ray_address is not None:
-        return _run_on_ray(fn, tasks, ray_address, desc, progress)
+        return _run_on_ray(fn, tasks, ray_address, desc, progress, on_result)
     n = min(workers or default_workers(), max(len(tasks), 1))
     bar = tqdm(total=len(tasks), desc=desc, unit="task", disable=not progress)
     try:
         if n == 1:
             results = []
-            for task in tasks:
+            for i, task in enumerate(tasks):
                 results.append(fn(task))
+                if on_result is not None:
+                    on_result(i, results[-1])
                 bar.update()
             return results
         with ProcessPoolExecutor(max_workers=n) as pool:
-            futures = [pool.submit(fn, task) for task in tasks]
-            for future in futures:
-                future.add_done_callback(lambda _: bar.update())
+            futures = {pool.submit(fn, task): i for i, task in enumerate(tasks)}
+            for future in as_completed(futures):
+                if on_result is not None:
+                    on_result(futures[future], future.result())
+                bar.update()
             return [f.result() for f in futures]
     finally:
         bar.close()
 
 
-def _run_on_ray(fn: Callable[[T], R], tasks: Sequence[T], address: str, desc: str, progress: bool) -> list[R]:
+def _run_on_ray(
+    fn: Callable[[T], R],
+    tasks: Sequence[T],
+    address: str,
+    desc: str,
+    progress: bool,
+    on_result: Callable[[int, R], None] | None = None,
+) -> list[R]:
     try:
         import ray
     except ImportError as exc:
@@ -78,6 +92,7 @@ def _run_on_ray(fn: Callable[[T], R], tasks: Sequence[T], address: str, desc: st
         ray.init(address=address, log_to_driver=False)
     remote = ray.remote(fn)
     refs: list[Any] = [remote.remote(task) for task in tasks]
+    index = {ref: i for i, ref in enumerate(refs)}
     results: dict[Any, R] = {}
     pending = list(refs)
     with tqdm(total=len(refs), desc=f"{desc} (ray)", unit="task", disable=not progress) as bar:
@@ -85,5 +100,7 @@ def _run_on_ray(fn: Callable[[T], R], tasks: Sequence[T], address: str, desc: st
             done, pending = ray.wait(pending, num_returns=1)
             for ref in done:
                 results[ref] = ray.get(ref)
+                if on_result is not None:
+                    on_result(index[ref], results[ref])
                 bar.update()
     return [results[ref] for ref in refs]

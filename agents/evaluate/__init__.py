@@ -14,6 +14,7 @@ path), with any localizer whose measurement kind's sensor that world has. Cells 
   bound and error / bound);
 - :mod:`.stats`: :func:`bootstrap_ci`, :func:`summarize` and :func:`evaluate`;
 - :mod:`.outputs`: CSV tables, ``summary.md``, plots, TUM trajectories, the GIF;
+- :mod:`.journal`: ``episodes.jsonl``, each episode written as it finishes (``--resume``);
 - :mod:`.cli`: :func:`run_cli`.
 
 Aggregates: per (policy, localizer, crowd size) the mean over seeds (over the episodes with a

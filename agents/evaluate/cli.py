@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
+from agents.evaluate.journal import JOURNAL_NAME, EpisodeJournal
 from agents.evaluate.kidnap import Kidnap
-from agents.evaluate.outputs import summary_markdown, write_outputs
+from agents.evaluate.outputs import EVAL_OUTPUTS, summary_markdown, write_outputs
 from agents.evaluate.spec import Cell, EvalSpec, check_first_seed
 from agents.evaluate.stats import EvalResult, evaluate
+from agents.util import prepare_out_dir
 from localizers.schema import ConfigError, check
 
 
@@ -67,15 +70,25 @@ def kidnap_from_args(args: Any) -> Kidnap | None:
 
 
 def run_cli(args: Any) -> EvalResult:
-    """``crowdloc eval``: build the spec from parsed options, run, write, print the summary.
+    """``crowdloc eval``: build the spec from parsed options, check the output folder, run (each
+    episode into the journal as it finishes; with ``--resume`` only those the journal lacks),
+    write, print the summary.
 
     Raises:
-        ConfigError: for a bad option value, before any episode runs.
+        ConfigError: for a bad option value, an output folder that is not empty (without
+            ``--overwrite`` or ``--resume``) or cannot be written, or a journal of another run, before
+            any episode runs.
     """
     spec = spec_from_args(args)
     gif_cell = parse_gif_cell(args.gif_cell, spec) if args.gif_cell else None
-    result = evaluate(spec, workers=args.workers, ray_address=args.ray_address, progress=not args.no_progress)
-    written = write_outputs(result, args.out, gif_cell=gif_cell, gif=not args.no_gif)
+    resume, overwrite = bool(getattr(args, "resume", False)), bool(getattr(args, "overwrite", False))
+    check(not (resume and overwrite), "--resume continues a run and --overwrite starts it again: give one")
+    out = Path(args.out)
+    prepare_out_dir(out, EVAL_OUTPUTS, command="crowdloc eval", overwrite=overwrite, resume=resume)
+    journal_path = out / JOURNAL_NAME
+    journal = EpisodeJournal.resume(journal_path, spec) if resume else EpisodeJournal.start(journal_path, spec)
+    result = evaluate(spec, workers=args.workers, ray_address=args.ray_address, progress=not args.no_progress, journal=journal)
+    written = write_outputs(result, out, gif_cell=gif_cell, gif=not args.no_gif)
     print(summary_markdown(result))
     names = ", ".join(p.name for p in written.values())
     print(f"\n{len(result.episodes)} episodes in {result.wall_s:.0f} s; wrote {args.out}/ ({names})")

@@ -276,6 +276,20 @@ def render_gif(spec: EvalSpec, cell: Cell, path: Path, max_frames: int = 150, ev
     return path
 
 
+#: what ``crowdloc eval`` writes in its output folder (glob patterns; :func:`write_outputs` and the
+#: run's journal): ``--overwrite`` deletes these and nothing else
+EVAL_OUTPUTS = (
+    "episodes.csv",
+    "summary.csv",
+    "summary.md",
+    "run.json",
+    "episode.gif",
+    "episodes.jsonl",
+    "plots/*.png",
+    "tum/*.tum",
+)
+
+
 def write_outputs(result: EvalResult, out_dir: Path, *, gif_cell: Cell | None = None, gif: bool = True) -> dict[str, Path]:
     """Write the CSV tables, ``summary.md``, the plots, TUM trajectories and a GIF under ``out_dir``.
 

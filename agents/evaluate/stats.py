@@ -7,7 +7,7 @@ import math
 import time
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -15,6 +15,9 @@ from numpy.typing import ArrayLike
 from agents.evaluate.episode import Episode, run_task
 from agents.evaluate.plugins import MetricInfo, localizer_metrics
 from agents.evaluate.spec import EvalSpec
+
+if TYPE_CHECKING:
+    from agents.evaluate.journal import EpisodeJournal
 from localizers.schema import check
 
 
@@ -111,6 +114,7 @@ def evaluate(
     ray_address: str | None = None,
     progress: bool = True,
     groups: Collection[tuple[str, str, int]] | None = None,
+    journal: EpisodeJournal | None = None,
 ) -> EvalResult:
     """Run every cell of ``spec``'s grid (in parallel) and aggregate.
 
@@ -121,6 +125,9 @@ def evaluate(
         progress: show a progress bar.
         groups: run only these ``(policy, localizer, crowd size)`` groups of the grid, on all of
             its seeds (default: the whole grid).
+        journal: write each episode to it as it finishes, and run only the cells it has not
+            got (:mod:`agents.evaluate.journal`, ``crowdloc eval --resume``); the result is the
+            same as without it.
 
     Raises:
         ConfigError: a group that is not in the grid, or no group.
@@ -136,7 +143,11 @@ def evaluate(
         stray = sorted(wanted - grid, key=str)
         check(not stray, f"groups {stray} are not in the grid of policies x localizers x crowd sizes")
         cells = [c for c in cells if c.group in wanted]
-    episodes = run_tasks(run_task, [(spec, c) for c in cells], workers=workers, ray_address=ray_address,
-                         desc="eval", progress=progress)  # fmt: skip
+    done = {} if journal is None else journal.done
+    todo = [c for c in cells if c not in done]
+    ran = run_tasks(run_task, [(spec, c) for c in todo], workers=workers, ray_address=ray_address, desc="eval",
+                    progress=progress, on_result=None if journal is None else lambda _, episode: journal.append(episode))  # fmt: skip
+    by_cell = {**done, **dict(zip(todo, ran))}
+    episodes = [by_cell[c] for c in cells]  # grid order, however the episodes finished or were split between runs
     summary = summarize(episodes, spec.bootstrap_resamples, spec.bootstrap_seed, spec.metrics)
     return EvalResult(spec, tuple(episodes), summary, time.perf_counter() - start)

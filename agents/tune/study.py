@@ -231,20 +231,35 @@ def _pruner() -> optuna.pruners.BasePruner:
 
 
 def _storage(url: str) -> optuna.storages.BaseStorage:
-    """An RDB storage for ``url``; for a SQLite file its folder is created first."""
+    """An RDB storage for ``url``; for a SQLite file its folder is created first.
+
+    Raises:
+        ConfigError: one line naming ``--storage`` and ``url``, for a URL that is not a database
+            URL, names a database kind SQLAlchemy has no driver for, or a database that cannot be
+            reached or created.
+    """
     from sqlalchemy.engine import make_url
-    from sqlalchemy.exc import ArgumentError
+    from sqlalchemy.exc import ArgumentError, SQLAlchemyError
+
+    def refused(why: str) -> ConfigError:
+        return ConfigError(f"--storage {url!r}: {why} (e.g. {DEFAULT_STORAGE})")
 
     try:
         parsed = make_url(url)
     except ArgumentError as exc:
-        raise ConfigError(f"--storage {url!r} is not a database URL (e.g. {DEFAULT_STORAGE}): {exc}") from None
+        raise refused(f"not a database URL: {exc}") from None
     engine_kwargs: dict[str, Any] = {}
-    if parsed.get_backend_name() == "sqlite":
-        if parsed.database and parsed.database != ":memory:":
-            Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
-        engine_kwargs["connect_args"] = {"timeout": 60}  # parallel workers wait for the write lock
-    return optuna.storages.RDBStorage(url, engine_kwargs=engine_kwargs)
+    try:
+        if parsed.get_backend_name() == "sqlite":
+            if parsed.database and parsed.database != ":memory:":
+                Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
+            engine_kwargs["connect_args"] = {"timeout": 60}  # parallel workers wait for the write lock
+        return optuna.storages.RDBStorage(url, engine_kwargs=engine_kwargs)
+    except (SQLAlchemyError, ImportError) as exc:  # no such dialect (NoSuchModuleError), no driver, cannot connect
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise refused(f"cannot open the database ({type(exc).__name__}: {reason})") from None
+    except OSError as exc:
+        raise refused(f"cannot create its folder ({exc.strerror or exc})") from None
 
 
 def _open_study(config: TuneConfig, plan: StudyPlan) -> optuna.Study:

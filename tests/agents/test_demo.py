@@ -217,3 +217,42 @@ def test_demo_help_gives_the_verdict_s_default_seed_count(capsys: pytest.Capture
     with pytest.raises(SystemExit):
         main(["demo", "--help"])
     assert f"(default {VERDICT_SEEDS};" in " ".join(capsys.readouterr().out.split())
+
+
+def test_demo_refuses_a_folder_that_is_not_empty_and_overwrite_clears_only_the_demo_s_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import agents.demo as demo
+    from agents.cli import main
+
+    old = [tmp_path / "report.md", tmp_path / "active" / "episode.gif", tmp_path / "active" / "tum" / "x__seed1_estimate.tum",
+           tmp_path / "corridor" / "corridor_top.png", tmp_path / "RoboCupStatic-v0.png"]  # fmt: skip
+    for path in old:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("an earlier demo's")
+    mine = tmp_path / "active" / "my_notes.md"
+    mine.write_text("the user's own")
+
+    class Started(Exception):
+        pass
+
+    def first_part(*args: object, **kwargs: object) -> None:
+        raise Started
+
+    monkeypatch.setattr(demo, "run_worlds", first_part)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["demo", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert f"--out {tmp_path} is not empty (RoboCupStatic-v0.png, active, corridor, report.md); give --overwrite" in (
+        capsys.readouterr().err
+    )
+    assert all(path.exists() for path in old)  # refused before any run, nothing touched
+    with pytest.raises(Started):
+        main(["demo", "--out", str(tmp_path), "--overwrite"])
+    assert not any(path.exists() for path in old) and mine.read_text() == "the user's own"
+    assert not (tmp_path / "corridor").exists() and not (tmp_path / "active" / "tum").exists()  # emptied folders go too
+
+
+def test_make_demo_replaces_the_previous_demo() -> None:
+    makefile = (Path(__file__).parents[2] / "Makefile").read_text()
+    assert "\t$(VENV)/bin/crowdloc demo --overwrite\n" in makefile  # a second make demo is no surprise

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import json
 import math
 import re
 from collections.abc import Iterator
@@ -396,3 +397,86 @@ def test_policy_labels_are_the_shortest_distinct_tails_of_their_paths() -> None:
         "ppo:/a/b/seed_1/model.zip": "ppo:seed_1/model",
         "ppo:/m/ppo_cs.zip": "ppo:ppo_cs",
     }
+
+
+# --------------------------------------------------------------------------- the output folder: checked, refused, cleared, resumed
+#: a tiny eval: one policy, no crowd, two seeds of 10 steps, one process, no GIF
+TINY_EVAL = ["eval", "--policies", "spin", "--localizers", "candidate_sets", "--crowd-sizes", "0", "--seeds", "2",
+             "--episode-steps", "10", "--workers", "1", "--no-gif", "--no-progress"]  # fmt: skip
+
+
+def test_eval_into_a_folder_that_cannot_be_made_fails_before_any_episode(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import agents.evaluate.cli as eval_cli
+
+    def no_episodes(*args: object, **kwargs: object) -> None:
+        raise AssertionError("episodes ran before the output folder was checked")
+
+    monkeypatch.setattr(eval_cli, "evaluate", no_episodes)
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    with pytest.raises(SystemExit):
+        main([*TINY_EVAL, "--out", str(blocker / "out")])
+    err = capsys.readouterr().err
+    assert f"--out {blocker / 'out'}: cannot create the output folder" in err and "Traceback" not in err
+
+
+def test_eval_refuses_a_folder_that_is_not_empty_and_overwrite_clears_only_its_own_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "eval"
+    (out / "tum").mkdir(parents=True)
+    stale = out / "tum" / "old__candidate_sets__crowd9__seed1_estimate.tum"  # an earlier run's trajectory
+    stale.write_text("# old\n")
+    mine = out / "notes.txt"  # the user's own file
+    mine.write_text("keep me")
+    with pytest.raises(SystemExit):
+        main([*TINY_EVAL, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert f"--out {out} is not empty (notes.txt, tum); give --overwrite" in err
+    assert not (out / "episodes.csv").exists() and stale.exists()
+    assert main([*TINY_EVAL, "--out", str(out), "--overwrite"]) == 0
+    assert not stale.exists() and mine.read_text() == "keep me"
+    assert len(list((out / "tum").glob("*.tum"))) == 4 and (out / "episodes.csv").is_file()
+    with pytest.raises(SystemExit):
+        main([*TINY_EVAL, "--out", str(out), "--overwrite", "--resume"])
+    assert "not allowed with argument" in capsys.readouterr().err
+
+
+def test_a_killed_eval_resumes_to_the_outputs_of_an_uninterrupted_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import agents.evaluate.stats as stats
+
+    clean, killed = tmp_path / "clean", tmp_path / "killed"
+    assert main([*TINY_EVAL, "--out", str(clean)]) == 0
+    header, first, second = (clean / "episodes.jsonl").read_text().splitlines()
+    assert json.loads(header)["spec"]["seeds"] == 2 and json.loads(first)["seed"] == EVAL_SEED_BASE
+    # killed while writing the second episode's line: the header, one whole line, half of the next
+    killed.mkdir()
+    (killed / "episodes.jsonl").write_text(f"{header}\n{first}\n{second[: len(second) // 2]}")
+    ran: list[Cell] = []
+    run_task = stats.run_task
+    monkeypatch.setattr(stats, "run_task", lambda task: ran.append(task[1]) or run_task(task))
+    assert main([*TINY_EVAL, "--out", str(killed), "--resume"]) == 0
+    assert ran == [Cell("spin", "candidate_sets", 0, EVAL_SEED_BASE + 1)]  # only the episode that was not done
+    for name in ("episodes.csv", "summary.csv", "episodes.jsonl"):
+        assert (killed / name).read_bytes() == (clean / name).read_bytes(), name
+    for path in (clean / "tum").glob("*.tum"):
+        assert (killed / "tum" / path.name).read_bytes() == path.read_bytes(), path.name
+
+    # the summary page differs only in the wall time
+    def without_time(path: Path) -> str:
+        return re.sub(r"episodes in \d+ s", "", path.read_text())
+
+    assert without_time(killed / "summary.md") == without_time(clean / "summary.md")
+
+    # another evaluation into that folder is refused, naming what differs; so is a folder with nothing to resume
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main([*("12" if a == "10" else a for a in TINY_EVAL), "--out", str(killed), "--resume"])
+    assert "is a run of another evaluation (episode_steps: 10 then, 12 now)" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main([*TINY_EVAL, "--out", str(tmp_path / "empty"), "--resume"])
+    assert "--resume: no episodes.jsonl in" in capsys.readouterr().err

@@ -30,6 +30,15 @@ def test_local_pool_keeps_task_order(workers: int) -> None:
         assert os.getpid() not in pids
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_on_result_sees_every_result_in_this_process_as_it_finishes(workers: int) -> None:
+    seen: list[tuple[int, int, int]] = []
+    results = run_tasks(square_and_pid, list(range(7)), workers=workers, progress=False,
+                        on_result=lambda i, r: seen.append((i, r[0], os.getpid())))  # fmt: skip
+    assert sorted(seen) == [(i, i * i, os.getpid()) for i in range(7)]  # each once, called here (not in a worker)
+    assert [r[0] for r in results] == [x * x for x in range(7)]  # the returned list keeps the task order
+
+
 def test_bad_worker_count_is_refused() -> None:
     with pytest.raises(ValueError, match="0"):
         run_tasks(square_and_pid, [1], workers=0)

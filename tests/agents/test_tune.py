@@ -149,6 +149,29 @@ def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize(
+    ("storage", "message"),
+    [
+        (
+            "notadb://x",
+            "--storage 'notadb://x': cannot open the database (NoSuchModuleError: Can't load plugin: sqlalchemy.dialects:notadb)",
+        ),  # fmt: skip
+        ("not a url", "--storage 'not a url': not a database URL"),
+        ("sqlite:///{blocker}/sub/t.db", "cannot create its folder"),
+    ],
+)
+def test_a_bad_storage_is_one_line_naming_the_option(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], storage: str, message: str
+) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    with pytest.raises(SystemExit) as exc:
+        main(["tune", "resection", "--trials", "1", "--storage", storage.format(blocker=blocker), "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err.strip().splitlines()[-1] and "Traceback" not in err
+
+
 def test_tune_config_rejects_zero_trials() -> None:
     with pytest.raises(ConfigError, match="trials must be >= 1, got 0"):
         tune.tune(tune.TuneConfig("candidate_sets", trials=0))

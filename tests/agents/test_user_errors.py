@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import gymnasium as gym
@@ -192,3 +194,31 @@ def test_reproduce_never_replaces_a_report_unasked(experiment: str, tmp_path: Pa
     assert exc.value.code == 2
     assert "report.md exists; give --overwrite to replace it" in capsys.readouterr().err
     assert (tmp_path / "report.md").read_text() == "mine"
+
+
+def _every_command_parser() -> Iterator[tuple[str, argparse.ArgumentParser]]:
+    """Every (sub-)command's parser, each experiment's and fitter's own options included."""
+    from agents.cli import FITTERS
+    from agents.papers import EXPERIMENTS
+
+    def leaves(name: str, parser: argparse.ArgumentParser) -> Iterator[tuple[str, argparse.ArgumentParser]]:
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        yield name, parser
+        for sub in subs:
+            for child, child_parser in sub.choices.items():
+                yield from leaves(f"{name} {child}".strip(), child_parser)
+
+    argvs = [["tune"], *(["reproduce", e] for e in EXPERIMENTS), *(["fit", f] for f in FITTERS)]
+    for argv in argvs:
+        yield from leaves("", build_parser(argv))
+
+
+def test_every_list_option_takes_its_values_separated_by_spaces() -> None:
+    lists = set()
+    for name, parser in _every_command_parser():
+        for action in parser._actions:
+            text = f"{name} {'/'.join(action.option_strings)}: {action.help}"
+            assert "comma" not in (action.help or "").lower(), text  # one convention: nargs, values separated by spaces
+            if action.nargs in ("+", "*"):
+                lists.add(f"{name} {action.option_strings[0]}")
+    assert {"eval --crowd-sizes", "train --seeds", "reproduce stereo-far-landmarks --crowd-sizes"} <= lists

@@ -113,3 +113,22 @@ def test_true_pose_is_in_info_but_not_in_the_observation(env_id: str) -> None:
         if key in RANGE_LEAVES:
             assert count.sum() <= 5, (key, count.sum())
     env.close()
+
+
+def _info_keys(env: gym.Env) -> set[str]:
+    _, reset_info = env.reset(seed=0)
+    _, _, _, _, step_info = env.step(np.zeros(2, dtype=np.float32))
+    env.close()
+    return set(reset_info) | set(step_info)
+
+
+def test_the_readme_lists_every_info_key_of_every_world() -> None:
+    from pathlib import Path
+
+    readme = (Path(__file__).parents[2] / "README.md").read_text()
+    paragraph = readme[readme.index("**info**") : readme.index("**Reset options**")]
+    listed = set(re.findall(r"`([a-z_]+)`", paragraph))
+    produced = {env_id: _info_keys(gym.make(env_id)) for env_id in [*envs.ENV_WORLDS, *envs.TASK_CONFIGS]}
+    for env_id, keys in produced.items():
+        assert keys <= listed, f"{env_id}: README's info list misses {sorted(keys - listed)}"
+    assert {"slip_fraction", "stereo_detections", "stereo_dropped", "estimate", "reward_terms"} <= set().union(*produced.values())

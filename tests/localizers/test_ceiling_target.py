@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 
 import envs  # noqa: F401  (registers the ids)
 from agents.papers.ceiling_target.fit import FitPlan, fit, inside, labelled_images
@@ -89,6 +91,42 @@ def test_learned_thresholds_separate_target_colours_from_the_distractors_on_held
     # the exit sign is green too: HSV keeps it out of the target's green, a plain RGB box does not
     assert record["held_out"]["green"]["hsv"]["false_positive"]["exit sign"] < 0.02
     assert record["held_out"]["green"]["rgb"]["false_positive"]["exit sign"] > 0.1
+
+
+def test_a_threshold_that_keeps_too_few_of_its_own_pixels_is_flagged_by_name_and_share(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import agents.papers.ceiling_target.fit as fitting
+    from agents.cli import main
+
+    def spaces(kept: float) -> dict:
+        return {"hsv": {"true_positive": kept, "false_positive": {"ceiling": 0.0}}, "rgb": {"true_positive": kept}}
+
+    record = {"plan": {"train_images": 20}, "training_pixels": {"red": 265, "blue": 92, "cyan": 2173},
+              "held_out": {"red": spaces(0.997), "blue": spaces(0.333), "cyan": spaces(0.26)}}  # fmt: skip
+    lines = fitting.fit_warnings(record)
+    assert len(lines) == 2 and "blue keeps only 33 % of blue's own pixels" in lines[0] and "92 pixels of 20 training" in lines[0]
+    assert "cyan keeps only 26 %" in lines[1] and "give more --train-images" in lines[1]
+    # the command prints them, and the YAML's record keeps them
+    monkeypatch.setattr(fitting, "fit", lambda plan: ({}, {**record, "warnings": lines}))
+    assert main(["fit", "ceiling_target", "--out", str(tmp_path / "t.yaml"), "--train-images", "20"]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {lines[0]}" in err and f"warning: {lines[1]}" in err
+    written = yaml.safe_load((tmp_path / "t.yaml").read_text().split(fitting.MARKER)[1])
+    assert written["fitted_on"]["warnings"] == lines
+
+
+def test_fit_options_have_help_and_are_checked(capsys: pytest.CaptureFixture[str]) -> None:
+    from agents.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["fit", "ceiling_target", "--help"])
+    shown = " ".join(capsys.readouterr().out.split())
+    assert "--train-images TRAIN_IMAGES rendered, labelled images the thresholds are learned from (>= 10; default 160" in shown
+    assert "--test-images TEST_IMAGES held-out images" in shown and "--seed SEED seed of the training images" in shown
+    with pytest.raises(SystemExit):
+        main(["fit", "ceiling_target", "--train-images", "5"])
+    assert "argument --train-images: expected an integer >= 10, got 5" in capsys.readouterr().err
 
 
 def test_the_shipped_thresholds_hold_on_fresh_images() -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -27,6 +28,7 @@ import yaml
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+from agents.util import at_least, seed_int
 from envs.features.ceiling import LABEL_NAMES, PALETTE, colour_label
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import CeilingCamera
@@ -35,6 +37,10 @@ from localizers.registry import params_path
 from localizers.schema import ConfigError, check
 
 MARKER = "# --- learned by `crowdloc fit ceiling_target` (do not edit below by hand) ---"
+#: a fitted threshold that keeps less than this share of its own colour's held-out pixels is
+#: flagged: the box is fitted to hold 99.5 % of the training pixels, so far less on fresh images
+#: means the training images showed too few of that colour's pixels, under too few illuminations
+MIN_KEPT_SHARE = 0.9
 _HSV_SCALE = np.array([256.0, 255.0, 255.0])  # OpenCV's 8-bit HSV_FULL -> the paper's units
 
 
@@ -154,7 +160,32 @@ def fit(plan: FitPlan) -> tuple[dict[str, ColourRange], dict[str, Any]]:
         "training_pixels": counts,
         "held_out": held_out,
     }
+    warnings = fit_warnings(record)
+    if warnings:
+        record["warnings"] = warnings
     return ranges, record
+
+
+def fit_warnings(record: dict[str, Any]) -> list[str]:
+    """One line per colour whose fitted HSV threshold keeps less than :data:`MIN_KEPT_SHARE` of
+    its own held-out pixels, naming the colour, the share kept and the training pixels behind it.
+
+    The fit itself is sound (a box holding 99.5 % of the training pixels on each channel, and
+    that is what it keeps of them); a low share on held-out images means the training images
+    showed the colour too rarely: a colour that only some targets carry (blue, magenta) gets a
+    few hundred pixels from a few images, under a few illumination gains, so its value range is
+    too narrow for the gains the held-out images have. More ``--train-images`` cure it."""
+    plan = record["plan"]
+    lines = []
+    for colour, spaces in record["held_out"].items():
+        kept = spaces["hsv"]["true_positive"]
+        if kept is not None and kept < MIN_KEPT_SHARE:
+            lines.append(
+                f"the fitted threshold of {colour} keeps only {100 * kept:.0f} % of {colour}'s own pixels on the held-out "
+                f"images (under {100 * MIN_KEPT_SHARE:.0f} %): it was fitted to {record['training_pixels'][colour]} pixels "
+                f"of {plan['train_images']} training images; give more --train-images (default {FitPlan.train_images})"
+            )
+    return lines
 
 
 def thresholds_yaml(ranges: dict[str, ColourRange], record: dict[str, Any]) -> str:
@@ -191,16 +222,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the localizer YAML to write (default results/fit/ceiling_target.yaml; the shipped one is "
                         "configs/localizers/ceiling_target.yaml)")  # fmt: skip
     parser.add_argument("--overwrite", action="store_true", help="replace the thresholds of an existing --out file")
-    parser.add_argument("--train-images", type=int, default=FitPlan.train_images)
-    parser.add_argument("--test-images", type=int, default=FitPlan.test_images)
-    parser.add_argument("--seed", type=int, default=FitPlan.seed)
+    parser.add_argument("--train-images", type=at_least(10), default=FitPlan.train_images,
+                        help=f"rendered, labelled images the thresholds are learned from (>= 10; default "
+                        f"{FitPlan.train_images}; fewer leave a colour that few targets carry with a box too narrow)")  # fmt: skip
+    parser.add_argument(
+        "--test-images",
+        type=at_least(10),
+        default=FitPlan.test_images,
+        help=f"held-out images the thresholds are measured on (>= 10; default {FitPlan.test_images})",
+    )
+    parser.add_argument(
+        "--seed",
+        type=seed_int,
+        default=FitPlan.seed,
+        help=f"seed of the training images; the held-out ones use seed + 1 (default {FitPlan.seed})",
+    )
 
 
 def run_cli(args: argparse.Namespace) -> Path:
-    for flag in ("train_images", "test_images", "seed"):
-        value = getattr(args, flag)
-        if value < 0:
-            raise ConfigError(f"--{flag.replace('_', '-')} must be >= 0, got {value}")
     if args.out.exists() and not args.overwrite:
         raise ConfigError(f"--out {args.out} exists; give --overwrite to replace its thresholds")
     plan = FitPlan(train_images=args.train_images, test_images=args.test_images, seed=args.seed)
@@ -210,4 +249,6 @@ def run_cli(args: argparse.Namespace) -> Path:
         print(
             f"{colour:8s} hsv: {spaces['hsv']['true_positive']:.3f} of its pixels inside, worst other: {worst[0]} {worst[1]:.4f}"
         )
+    for line in record.get("warnings", []):
+        print(f"warning: {line}", file=sys.stderr)
     return write(args.out, ranges, record, args.overwrite)

@@ -24,16 +24,16 @@ from pathlib import Path
 from agents.papers import add_worker_arguments
 from agents.util import positive_int
 
-from .experiment import DEFAULT_SEEDS, DENSITIES, QUICK_DENSITIES, QUICK_SEEDS, QUICK_STEPS, crowd_sizes
+from .experiment import DEFAULT_SEEDS, DENSITIES, QUICK_DENSITIES, QUICK_SEEDS, QUICK_STEPS, crowd_size
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The experiment's own options."""
     parser.add_argument("--seeds", type=positive_int, default=DEFAULT_SEEDS, help=f"seeds (default {DEFAULT_SEEDS})")
-    sizes = ",".join(map(str, DENSITIES))
-    parser.add_argument("--crowd-sizes", type=crowd_sizes, default=None,
-                        help=f"crowd sizes of run 2, comma-separated (default {sizes}; the world's own is always run)")  # fmt: skip
-    quick = (f"smoke run: {QUICK_SEEDS} seeds, crowd sizes {','.join(map(str, QUICK_DENSITIES))}, the drives cut after "
+    sizes = " ".join(map(str, DENSITIES))
+    parser.add_argument("--crowd-sizes", type=crowd_size, nargs="+", default=None, metavar="N",
+                        help=f"crowd sizes of run 2 (default {sizes}; the world's own is always run)")  # fmt: skip
+    quick = (f"smoke run: {QUICK_SEEDS} seeds, crowd sizes {' '.join(map(str, QUICK_DENSITIES))}, the drives cut after "
              f"{QUICK_STEPS} steps")  # fmt: skip
     parser.add_argument("--quick", action="store_true", help=quick)
     add_worker_arguments(parser, ray=True)

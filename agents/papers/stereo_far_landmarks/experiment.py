@@ -99,22 +99,23 @@ class Plan:
         return world.default_crowd()
 
 
-def crowd_sizes(text: str) -> tuple[int, ...]:
-    """``--crowd-sizes 0,30,60``: sorted distinct sizes within the world's limits."""
-    try:
-        sizes = sorted({int(v) for v in text.split(",") if v.strip()})
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"crowd sizes must be whole numbers separated by commas, got {text!r}") from None
+def crowd_size(text: str) -> int:
+    """argparse type of ``--crowd-sizes 0 30 60`` (each one, ``nargs``): a crowd size within the world's limits."""
     limit = int(world.crowd_config().max_count)
-    if not sizes or sizes[0] < 0 or sizes[-1] > limit:
-        raise argparse.ArgumentTypeError(f"crowd sizes must be 0..{limit}, at least one, got {text!r}")
-    return tuple(sizes)
+    try:
+        size = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a crowd size, a whole number 0..{limit} (several: separated by spaces), "
+                                         f"got {text!r}") from None  # fmt: skip
+    if not 0 <= size <= limit:
+        raise argparse.ArgumentTypeError(f"expected a crowd size 0..{limit}, got {size}")
+    return size
 
 
 def make_plan(args: argparse.Namespace) -> Plan:
     crowd = world.default_crowd()
     if args.quick:
-        chosen: Sequence[int] = args.crowd_sizes or QUICK_DENSITIES
+        chosen: Sequence[int] = args.crowd_sizes or QUICK_DENSITIES  # sorted and distinct below
         return Plan(min(args.seeds, QUICK_SEEDS), tuple(sorted({crowd, *chosen})), QUICK_STEPS, quick=True)
     return Plan(args.seeds, tuple(sorted({crowd, *(args.crowd_sizes or DENSITIES)})))
 

@@ -34,11 +34,13 @@ def test_options_and_the_default_plan() -> None:
     quick = ex.make_plan(parse("reproduce", "stereo-far-landmarks", "--quick"))
     assert (quick.seeds, quick.densities, quick.max_steps, quick.quick) == (2, (30, 150), ex.QUICK_STEPS, True)
     # the world's own crowd is always run (the paper's experiment), whatever --crowd-sizes says
-    some = ex.make_plan(parse("reproduce", "stereo-far-landmarks", "--crowd-sizes", "60,0,60"))
+    # a list option takes its values separated by spaces, as every list option of every command does
+    some = ex.make_plan(parse("reproduce", "stereo-far-landmarks", "--crowd-sizes", "60", "0", "60"))
     assert some.densities == (0, 30, 60)
-    for bad in ("0,x", "-1", "201", ""):
+    assert ex.make_plan(parse("reproduce", "stereo-far-landmarks", "--crowd-sizes", "30", "150")).densities == (30, 150)
+    for bad in (["0,30"], ["0", "x"], ["-1"], ["201"], [""], []):
         with pytest.raises(SystemExit):
-            parse("reproduce", "stereo-far-landmarks", "--crowd-sizes", bad)
+            parse("reproduce", "stereo-far-landmarks", "--crowd-sizes", *bad)
     with pytest.raises(SystemExit):
         parse("reproduce", "stereo-far-landmarks", "--seeds", "0")
 
