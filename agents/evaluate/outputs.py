@@ -227,7 +227,7 @@ def plot_error_vs_spread(result: EvalResult, path: Path, max_points: int = 4000)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from agents.plots import save_figure
+    from agents.plots import log_ticks, save_figure
 
     s = result.spec
     fig, axes = plt.subplots(1, len(s.localizers), figsize=(4.2 * len(s.localizers), 3.9), squeeze=False)
@@ -257,6 +257,7 @@ def plot_error_vs_spread(result: EvalResult, path: Path, max_points: int = 4000)
         ax.plot(line, 2 * line, "k--", lw=1, label="error = 2 x spread (2 sd)")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        log_ticks(ax)  # matplotlib labels the minor ticks of a short log axis, one over the other
         ax.legend(fontsize=7, loc="upper left")
     axes[0, 0].set_ylabel("position error [m]")
     return save_figure(fig, path, "position error against reported spread, every valid step")
