@@ -295,13 +295,18 @@ class Consistency:
 
     Attributes:
         nees_mean, nees_median: of the NEES (``dof`` for a consistent estimator, and about
-            ``dof - 2/3``); NaN without a usable step.
+            ``dof - 2/3``); NaN without a usable step. The mean is ``inf`` as soon as one step
+            is ``singular``: reports show the median, the share inside and ``singular`` (the
+            mean stays here for the reproductions' ``results.json``, whose quick runs pin it).
         inside_95: share of those steps inside the reported 95 % region (NEES at most the
             chi-square 0.95 quantile; about 0.95 for a consistent estimator).
         steps: the steps with a usable covariance (a singular one included: its NEES is
-            ``inf``, outside the region; then the mean is ``inf`` too).
+            ``inf``, outside the region).
         excluded: the steps asked for whose NEES is NaN (covariance missing, not finite or
             with a negative eigenvalue; or no estimate).
+        singular: those of ``steps`` whose NEES is ``inf``: a singular covariance (e.g. a
+            particle set collapsed onto one pose) claiming certainty along a direction in
+            which the estimate is off.
     """
 
     nees_mean: float
@@ -309,6 +314,12 @@ class Consistency:
     inside_95: float
     steps: int
     excluded: int
+    singular: int
+
+    @property
+    def singular_share(self) -> float:
+        """``singular`` over ``steps`` (NaN without a usable step)."""
+        return self.singular / self.steps if self.steps else math.nan
 
 
 def consistency(nees: ArrayLike, dof: int = 3, mask: ArrayLike | None = None) -> Consistency:
@@ -318,6 +329,9 @@ def consistency(nees: ArrayLike, dof: int = 3, mask: ArrayLike | None = None) ->
         v = v[np.asarray(mask, dtype=bool).reshape(-1)]
     usable = v[~np.isnan(v)]  # inf (a singular covariance with an error) counts: outside the region
     if usable.size == 0:
-        return Consistency(math.nan, math.nan, math.nan, 0, int(v.size))
+        return Consistency(math.nan, math.nan, math.nan, 0, int(v.size), 0)
     inside = float(np.mean(usable <= chi2_quantile(0.95, dof)))
-    return Consistency(float(usable.mean()), float(np.median(usable)), inside, int(usable.size), int(v.size - usable.size))
+    singular = int(np.count_nonzero(np.isinf(usable)))
+    return Consistency(
+        float(usable.mean()), float(np.median(usable)), inside, int(usable.size), int(v.size - usable.size), singular
+    )

@@ -27,6 +27,23 @@ def save_figure(fig: Any, path: Path, title: str | None = None) -> Path:
     return path
 
 
+def log_ticks(ax: Any, axis: str = "both") -> None:
+    """Readable ticks on log-scaled axes (call after the limits are set): labels only at 1, 2 and 5 times
+    a power of ten when the axis spans less than two decades, else at the powers of ten only, written
+    as plain numbers (0.02, not 2 x 10^-2), and no labels at the minor ticks. Matplotlib's own choice
+    labels the minor ticks of a short log axis, and their labels run into each other."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    for name in ("x", "y") if axis == "both" else (axis,):
+        which = ax.xaxis if name == "x" else ax.yaxis
+        lo, hi = sorted(ax.get_xlim() if name == "x" else ax.get_ylim())
+        decades = math.log10(hi / lo) if lo > 0 else math.inf
+        which.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0) if decades < 2.0 else (1.0,)))
+        which.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        which.set_minor_locator(LogLocator(base=10.0, subs=tuple(float(k) for k in range(2, 10))))
+        which.set_minor_formatter(NullFormatter())
+
+
 def trajectory_panels(
     path: Path,
     truth: Array,
@@ -83,6 +100,8 @@ def trajectory_panels(
         ax.set_ylim(-0.3, h + 0.3)
         ax.set_aspect("equal")
         ax.set_title(label, fontsize=9)
+        ax.set_xlabel("x [m]", fontsize=8)
+        ax.set_ylabel("y [m]", fontsize=8)
         ax.tick_params(labelsize=7)
     axes[0, 0].legend(fontsize=7, loc="lower left")
     return save_figure(fig, path, title)
@@ -144,7 +163,8 @@ def recovery_figure(
         t_rel_s: ``(n,)`` time relative to the start of the push.
         curves: label -> (median, 25th, 75th percentile) of the error in metres, each ``(n,)``.
         threshold_m: the recovery threshold, drawn dashed.
-        push_s: how long the push lasts (shaded).
+        push_s: how long the push lasts (shaded). The first panel's legend names the line, the
+            band, the threshold and the shading.
         title: figure title.
     """
     labels = list(curves)
@@ -155,10 +175,10 @@ def recovery_figure(
         ax.set_visible(False)
     for ax, label in zip(axes.ravel(), labels):
         med, lo, hi = curves[label]
-        ax.axvspan(0.0, push_s, color="tab:orange", alpha=0.15, lw=0)
-        ax.fill_between(t_rel_s, lo, hi, color="tab:blue", alpha=0.25, lw=0)
-        ax.plot(t_rel_s, med, color="tab:blue", lw=1.2)
-        ax.axhline(threshold_m, color="0.3", ls="--", lw=0.8)
+        ax.axvspan(0.0, push_s, color="tab:orange", alpha=0.15, lw=0, label=f"the push ({push_s:g} s)")
+        ax.fill_between(t_rel_s, lo, hi, color="tab:blue", alpha=0.25, lw=0, label="25-75 % of the seeds")
+        ax.plot(t_rel_s, med, color="tab:blue", lw=1.2, label="median error")
+        ax.axhline(threshold_m, color="0.3", ls="--", lw=0.8, label=f"recovered: error < {threshold_m:g} m")
         ax.set_yscale("log")
         ax.set_ylim(5e-3, 5.0)
         ax.set_title(label, fontsize=9)
@@ -167,6 +187,7 @@ def recovery_figure(
         ax.grid(alpha=0.3)
     for ax in axes[:, 0]:
         ax.set_ylabel("position error [m]", fontsize=8)
+    axes[0, 0].legend(fontsize=7, loc="upper right")
     return save_figure(fig, path, title)
 
 
@@ -249,5 +270,7 @@ def scan_snapshot(
         ax.set_ylim(lo, hi)
         ax.set_aspect("equal")
         ax.set_title(f"{name} ({pts.shape[0]} points)", fontsize=9)
+        ax.set_xlabel("x [m]", fontsize=8)
+        ax.set_ylabel("y [m]", fontsize=8)
         ax.tick_params(labelsize=7)
     return save_figure(fig, path, title)

@@ -3,7 +3,7 @@
 The frame shows the floor, walls, landmarks (coloured while the camera really sees them,
 grey otherwise), the crowd and ball, the true robot pose, what each sensor draws of itself
 (a camera's sight lines under the bodies, range sensors' hit points over them) and a
-one-line caption. Wrappers add their own drawing through
+caption (a line, or more where the frame is too narrow for it). Wrappers add their own drawing through
 ``env.add_overlay(draw)``: every frame calls ``draw(canvas)`` with a :class:`Canvas` whose
 methods take world coordinates (metres, y up).
 
@@ -61,6 +61,7 @@ if TYPE_CHECKING:
 Color = tuple[int, int, int]
 
 _FONT_PX = 16
+_CAPTION_LEFT_PX = 6  # where each caption line starts
 _LABEL_FONT_PX = 14
 _MIN_LANDMARK_PX = 5  # landmark discs are at least this radius so that thin poles show
 _DRAW_CALL_LIMIT = 200  # above this many marks, write pixels with numpy instead of pygame.draw
@@ -498,17 +499,34 @@ class Renderer:
             pygame.draw.circle(self.surface, color, center, radius_px)
             pygame.draw.circle(self.surface, WALL, center, radius_px, 1)
 
+    def caption_lines(self, parts: Sequence[tuple[str, Color]]) -> list[list[tuple[int, str, Color]]]:
+        """Where the caption's ``parts`` go: per line, ``(x px, text, colour)`` of each part. A part
+        that would run past the frame's right edge starts a new line (a narrow world's frame, many
+        overlays), so that every part is shown whole unless it alone is wider than the frame."""
+        lines: list[list[tuple[int, str, Color]]] = [[]]
+        x = _CAPTION_LEFT_PX
+        for text, color in parts:
+            shown = ("   " if lines[-1] else "") + text
+            width = self._font.size(shown)[0]
+            if lines[-1] and x + width > self.width:
+                lines.append([])
+                x, shown = _CAPTION_LEFT_PX, text
+                width = self._font.size(shown)[0]
+            lines[-1].append((x, shown, color))
+            x += width
+        return lines
+
     def _draw_caption(self, env: LocalizationEnv, extra: Sequence[tuple[str, Color]]) -> None:
-        self.surface.fill(CAPTION_BACKGROUND, pygame.Rect(0, 0, self.width, CAPTION_PX))
+        """The caption: the world, time and crowd, then the overlays' texts; the lines after the first
+        (:meth:`caption_lines`) lie over the top of the view."""
         world = env.world
         parts = [(f"{self.config.name}  t={world.time_s:.2f} s  crowd={self.config.crowd_count}", CAPTION_TEXT), *extra]
-        x = 6
-        for i, (text, color) in enumerate(parts):
-            if x >= self.width:
-                break
-            label = self._font.render(("   " if i else "") + text, True, color)
-            self.surface.blit(label, (x, (CAPTION_PX - label.get_height()) // 2))
-            x += label.get_width()
+        for row, line in enumerate(self.caption_lines(parts)):
+            top = row * CAPTION_PX
+            self.surface.fill(CAPTION_BACKGROUND, pygame.Rect(0, top, self.width, CAPTION_PX))
+            for x, text, color in line:
+                label = self._font.render(text, True, color)
+                self.surface.blit(label, (x, top + (CAPTION_PX - label.get_height()) // 2))
 
     def _show(self) -> None:
         if self._window is None:

@@ -15,6 +15,10 @@ if TYPE_CHECKING:
     from envs.config import WorldConfig
 
 FRAME_LONG_SIDE_PX = 600
+#: the narrowest frame: a tall, narrow world (a corridor) is drawn centred in a frame this wide, so
+#: that the caption line (world, time, crowd, the localizer's state: about 330 px) has room; every
+#: shipped world's frame is at least this wide anyway
+MIN_FRAME_WIDTH_PX = 320
 MARGIN_PX = 16
 CAPTION_PX = 20
 #: in follow mode the background reaches this far beyond the drawn bounds (a wall's width, labels)
@@ -39,12 +43,13 @@ class FrameLayout:
 
 
 def fit(span_x: float, span_y: float) -> FrameLayout:
-    """The frame of about :data:`FRAME_LONG_SIDE_PX` on its long side that shows ``span_x`` x ``span_y`` m."""
+    """The frame of about :data:`FRAME_LONG_SIDE_PX` on its long side that shows ``span_x`` x ``span_y`` m,
+    at least :data:`MIN_FRAME_WIDTH_PX` wide (the region centred)."""
     scale = min(
         (FRAME_LONG_SIDE_PX - 2 * MARGIN_PX) / span_x,
         (FRAME_LONG_SIDE_PX - 2 * MARGIN_PX - CAPTION_PX) / span_y,
     )
-    width = 2 * math.ceil((span_x * scale + 2 * MARGIN_PX) / 2)
+    width = max(MIN_FRAME_WIDTH_PX, 2 * math.ceil((span_x * scale + 2 * MARGIN_PX) / 2))
     height = 2 * math.ceil((span_y * scale + 2 * MARGIN_PX + CAPTION_PX) / 2)
     left = (width - span_x * scale) / 2
     top = CAPTION_PX + (height - CAPTION_PX - span_y * scale) / 2

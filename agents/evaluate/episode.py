@@ -9,14 +9,17 @@ The core metrics of every episode (``t0`` = the first step with a valid estimate
 - ``position_error_mean_m`` / ``_rms_m``, ``heading_error_mean_deg`` / ``_rms_deg``: over the
   valid steps from ``t0`` on;
 - ``failure_rate``: share of those steps with a position error >= 1 m;
-- ``nees_mean`` / ``nees_median``: the normalized estimation error squared ``e^T P^-1 e`` of the
+- ``nees_median``: the median of the normalized estimation error squared ``e^T P^-1 e`` of the
   pose error ``e`` (heading wrapped) against the reported covariance ``P`` of (x, y, theta), over
-  the valid steps with a usable ``P`` (finite, positive definite); 3 for a consistent
-  localizer (median 2.37), more for an overconfident one;
+  the valid steps with a usable ``P`` (finite, no negative variance); 2.37 for a consistent
+  localizer, more for an overconfident one. A singular ``P`` (a particle set collapsed onto one
+  pose) claims certainty: its NEES is ``inf`` (outside every region), so the median is ``inf``
+  when more than half the steps are singular. No mean: a single such step makes it ``inf``;
+- ``singular_share``: share of those steps whose ``P`` is singular (NEES ``inf``);
 - ``inside_95``: share of those steps whose error lies inside the reported 95 % region
   (NEES <= 7.815, the chi-square 0.95 quantile for 3 dof; about 0.95 for a consistent localizer);
 - ``covariance_missing``: share of the valid steps without a usable covariance (excluded from
-  the two above). A localizer registered with ``covariance=False`` (``LocalizerSpec``) reports
+  the three above). A localizer registered with ``covariance=False`` (``LocalizerSpec``) reports
   none: these are NaN and the tables say "no covariance";
 - ``availability``: share of all steps with a valid estimate;
 - ``fixed``: 1 if the localizer ever had a pose, else 0;
@@ -209,7 +212,7 @@ def episode_metrics(track: Track) -> dict[str, float]:
         "position_error_rms_m": metrics.rms(pos, t0),
         "heading_error_mean_deg": metrics.mean_sd(head, t0)[0],
         "heading_error_rms_deg": metrics.rms(head, t0),
-        "nees_mean": fit.nees_mean,
+        "singular_share": fit.singular_share,
         "nees_median": fit.nees_median,
         "inside_95": fit.inside_95,
         "covariance_missing": fit.excluded / (fit.steps + fit.excluded) if fit.steps + fit.excluded else float("nan"),

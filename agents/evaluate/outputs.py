@@ -155,11 +155,15 @@ def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
             summary_markdown(result),
             "",
             "Mean over seeds [95% percentile-bootstrap CI, "
-            f"{s.bootstrap_resamples} resamples]; (k/N): only k of N episodes had a value (the others never had a fix); "
-            "–: no value. Errors and failure rate are over the valid steps from the first fix on; failure: error >= 1 m; "
-            "NEES: pose error squared over the reported covariance (x, y, heading), 3 for a consistent localizer; "
-            "inside 95% region: share of steps with NEES <= 7.815 (about 0.95 if consistent), both over the steps "
-            f"with a usable covariance; {NO_COVARIANCE}: the localizer reports none; `plots/error_vs_spread.png`: error "
+            f"{s.bootstrap_resamples} resamples]; (k/N): only k of N episodes had a value (the others never had a fix, or, "
+            "for the NEES median, an infinite one); –: no value. Errors and failure rate are over the valid steps from the "
+            "first fix on; failure: error >= 1 m; NEES: pose error squared over the reported covariance (x, y, heading), "
+            "median 2.37 for a consistent localizer; inside 95% region: share of steps with NEES <= 7.815 (about 0.95 if "
+            "consistent); singular covariance: share of steps whose covariance is singular, i.e. the localizer claims "
+            "certainty along some direction (e.g. its particle set collapsed onto one pose), so any error there has NEES "
+            "inf and lies outside the region (more than half such steps make an episode's NEES median inf; there is no NEES "
+            "mean, one such step would make it inf); all three over the valid steps with a usable covariance; "
+            f"{NO_COVARIANCE}: the localizer reports none; `plots/error_vs_spread.png`: error "
             "against reported spread; availability: share of all steps with a pose; first fix: time and distance travelled from the reset; "
             f"collisions: contact events. {notes}Trajectories (TUM format, for evo): `tum/`. {animated}",
             "",
@@ -223,7 +227,7 @@ def plot_error_vs_spread(result: EvalResult, path: Path, max_points: int = 4000)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from agents.plots import save_figure
+    from agents.plots import log_ticks, save_figure
 
     s = result.spec
     fig, axes = plt.subplots(1, len(s.localizers), figsize=(4.2 * len(s.localizers), 3.9), squeeze=False)
@@ -253,6 +257,7 @@ def plot_error_vs_spread(result: EvalResult, path: Path, max_points: int = 4000)
         ax.plot(line, 2 * line, "k--", lw=1, label="error = 2 x spread (2 sd)")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        log_ticks(ax)  # matplotlib labels the minor ticks of a short log axis, one over the other
         ax.legend(fontsize=7, loc="upper left")
     axes[0, 0].set_ylabel("position error [m]")
     return save_figure(fig, path, "position error against reported spread, every valid step")

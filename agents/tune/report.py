@@ -133,6 +133,8 @@ def plot_importances(path: Path, importances: Mapping[str, float], title: str) -
 
 def plot_history(path: Path, study: optuna.Study, title: str) -> Path:
     """Objective per trial (completed: dots, pruned: last reported value, x), best so far, the defaults (star)."""
+    from matplotlib.ticker import MaxNLocator
+
     from agents.plots import plt, save_figure
 
     fig, ax = plt.subplots(figsize=(7.0, 3.8))
@@ -153,7 +155,8 @@ def plot_history(path: Path, study: optuna.Study, title: str) -> Path:
         ax.scatter([default[0].number], [_value(default[0])], s=90, marker="*", color="tab:orange", zorder=3,
                    label="defaults")  # fmt: skip
     ax.set_xlabel("trial")
-    ax.set_ylabel("objective (m)")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # trial numbers, never 2.5
+    ax.set_ylabel("objective [m]")
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)

@@ -9,6 +9,7 @@ import math
 import re
 from collections.abc import Iterator
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -25,6 +26,7 @@ from agents.evaluate import (
     evaluate,
     read_tum,
     run_episode,
+    summarize,
     write_outputs,
     write_tum,
 )
@@ -56,10 +58,12 @@ def test_cli_eval_writes_tables_plots_trajectories_and_a_gif(tmp_path: Path, cap
     assert "| policy | localizer | crowd |" in md and "| spin | candidate_sets | 3 |" in md
     # the consistency columns, right after the error columns
     assert (
-        "| heading error RMS [deg] | NEES median (consistent: 2.37) | inside 95% region (consistent: 0.95) | failure rate" in md
+        "| heading error RMS [deg] | singular covariance (share of steps) | NEES median (consistent: 2.37) "
+        "| inside 95% region (consistent: 0.95) | failure rate" in md
     )
+    assert "nees_mean" not in rows[0]  # inf after one singular step: not reported
     for r in rows:
-        assert float(r["nees_mean"]) >= 0.0 and 0.0 <= float(r["inside_95"]) <= 1.0 and float(r["nees_median"]) >= 0.0
+        assert 0.0 <= float(r["singular_share"]) <= 1.0 and 0.0 <= float(r["inside_95"]) <= 1.0 and float(r["nees_median"]) >= 0.0
     assert all(0.0 <= float(r["covariance_missing"]) <= 1.0 for r in rows)
     for r in summary:
         assert float(r["inside_95_ci_low"]) <= float(r["inside_95"]) <= float(r["inside_95_ci_high"])
@@ -124,12 +128,31 @@ def test_consistency_metrics_of_a_hand_made_episode() -> None:
     track = Track(np.arange(4.0), truth, est, np.array([False, True, True, True]), [0] * 4, np.zeros((3, 3)), [0.0] * 3, covs)
     m = episode_metrics(track)
     far = 81 / 0.04 + 81 / 0.09
-    assert m["nees_mean"] == pytest.approx((3.0 + far) / 2)  # step 0 is not valid, step 3 has no covariance
-    assert m["nees_median"] == pytest.approx((3.0 + far) / 2)
-    assert m["inside_95"] == 0.5 and m["covariance_missing"] == pytest.approx(1 / 3)
+    assert "nees_mean" not in m
+    assert m["nees_median"] == pytest.approx((3.0 + far) / 2)  # step 0 is not valid, step 3 has no covariance
+    assert m["inside_95"] == 0.5 and m["covariance_missing"] == pytest.approx(1 / 3) and m["singular_share"] == 0.0
     np.testing.assert_allclose(track.position_spreads_m, [np.nan, math.sqrt(0.13), math.sqrt(0.13), np.nan])
     with pytest.raises(ValueError, match=r"Track.covariances must have shape \(4, 3, 3\)"):
         Track(np.arange(4.0), truth, est, np.ones(4, bool), [0] * 4, np.zeros((3, 3)), [0.0] * 3, covs[:3])
+
+
+def test_singular_covariances_are_counted_and_not_averaged() -> None:
+    """A collapsed particle set (a zero covariance) claims certainty: its steps are counted as singular and
+    lie outside the 95 % region, and an episode that is mostly singular has an infinite NEES median, which
+    the summary leaves out of its mean (with the count of episodes that had a finite one)."""
+    truth, est = np.zeros((5, 3)), np.full((5, 3), 0.1)
+    cov, collapsed = np.diag([0.04, 0.09, 0.01]), np.zeros((3, 3))
+    covs = np.stack([cov, collapsed, collapsed, collapsed, cov])
+    track = Track(np.arange(5.0), truth, est, np.ones(5, bool), [0] * 5, np.zeros((4, 3)), [0.0] * 4, covs)
+    m = episode_metrics(track)
+    assert m["singular_share"] == pytest.approx(3 / 5) and m["nees_median"] == math.inf
+    assert m["inside_95"] == pytest.approx(2 / 5) and m["covariance_missing"] == 0.0 and "nees_mean" not in m
+    finite = {**m, "singular_share": 0.0, "nees_median": 2.0}
+    eps = [SimpleNamespace(cell=Cell("spin", "mcl_bearing", 0, seed), metrics=v) for seed, v in enumerate((m, finite))]
+    (row,) = summarize(eps, resamples=20, metrics=CORE_METRICS)
+    assert (row.stats["nees_median"].mean, row.stats["nees_median"].n) == (2.0, 1)
+    assert (row.stats["singular_share"].mean, row.stats["singular_share"].n) == (pytest.approx(0.3), 2)
+    assert "nees_mean" not in {info.key for info in CORE_METRICS}
 
 
 @pytest.fixture
@@ -148,16 +171,17 @@ def test_a_localizer_without_covariance_says_so(resection_without_covariance: st
     result = evaluate(spec, workers=1, progress=False)
     plain, marked = result.episodes
     assert plain.metrics["position_error_mean_m"] == marked.metrics["position_error_mean_m"]  # the same localizer
-    assert np.isfinite(plain.metrics["nees_mean"]) and np.isfinite(plain.covariances[1:]).all()
-    assert math.isnan(marked.metrics["nees_mean"]) and np.isnan(marked.covariances).all()
+    assert np.isfinite(plain.metrics["nees_median"]) and np.isfinite(plain.covariances[1:]).all()
+    assert math.isnan(marked.metrics["nees_median"]) and np.isnan(marked.covariances).all()
     write_outputs(result, tmp_path, gif=False)
     md = (tmp_path / "summary.md").read_text()
     row = next(line for line in md.splitlines() if f"| {resection_without_covariance} |" in line)
-    assert row.split(" | ").count("no covariance") == 2 and "nan" not in row  # NEES median and inside 95%
+    assert row.split(" | ").count("no covariance") == 3 and "nan" not in row  # singular share, NEES median, inside 95%
+    assert "singular covariance: share of steps whose covariance is singular" in md and "collapsed onto one pose" in md
     with open(tmp_path / "summary.csv") as f:
         by_name = {r["localizer"]: r for r in csv.DictReader(f)}
-    assert by_name[resection_without_covariance]["nees_mean"] == "no covariance"
-    assert float(by_name["resection"]["nees_mean"]) >= 0.0
+    assert by_name[resection_without_covariance]["singular_share"] == "no covariance"
+    assert float(by_name["resection"]["singular_share"]) >= 0.0
     with open(tmp_path / "episodes.csv") as f:
         assert [r["inside_95"] == "no covariance" for r in csv.DictReader(f)] == [False, True]
     assert (tmp_path / "plots" / "error_vs_spread.png").is_file()
@@ -173,7 +197,7 @@ def test_an_episode_without_a_fix_has_nan_errors_and_first_fix() -> None:
     for key in ("position_error_mean_m", "heading_error_rms_deg", "failure_rate", "first_fix_s", "first_fix_distance_m",
                 "fix_after_third_s", "error_bound_ratio"):  # fmt: skip
         assert math.isnan(m[key]), key
-    for key in ("nees_mean", "nees_median", "inside_95", "covariance_missing"):  # no valid step at all
+    for key in ("singular_share", "nees_median", "inside_95", "covariance_missing"):  # no valid step at all
         assert math.isnan(m[key]), key
 
 

@@ -143,13 +143,16 @@ def test_nees_of_hand_made_errors() -> None:
     assert np.isnan(metrics.pose_nees(est[1:2], truth[1:2], broken[None])[0])
     counted = metrics.consistency([1.0, np.inf, np.nan])
     assert (counted.steps, counted.excluded, counted.inside_95, counted.nees_mean) == (2, 1, 0.5, np.inf)
+    assert (counted.singular, counted.singular_share, counted.nees_median) == (1, 0.5, np.inf)  # what reports show
     correlated = np.array([[1.0, 0.8, 0.0], [0.8, 1.0, 0.0], [0.0, 0.0, 1.0]])
     e = np.array([0.3, -0.2, 0.1])
     assert metrics.pose_nees(e[None], np.zeros((1, 3)), correlated[None])[0] == pytest.approx(e @ np.linalg.solve(correlated, e))
     fit = metrics.consistency(nees, mask=[True, True, True, True, False])
     assert (fit.steps, fit.excluded) == (3, 1)
     assert fit.nees_mean == pytest.approx(4.0 / 3) and fit.inside_95 == 1.0
-    assert math.isnan(metrics.consistency([np.nan, np.nan]).nees_mean)
+    assert (fit.singular, fit.singular_share) == (0, 0.0)
+    nothing = metrics.consistency([np.nan, np.nan])
+    assert math.isnan(nothing.nees_mean) and nothing.singular == 0 and math.isnan(nothing.singular_share)
     with pytest.raises(ValueError, match=r"\(T, 3, 3\) covariances"):
         metrics.pose_nees(est, truth, cov)
 

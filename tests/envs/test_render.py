@@ -278,3 +278,42 @@ def test_whole_world_frames_are_the_ones_recorded_before_the_follow_mode() -> No
         env.close()
         assert list(frame_shape(env.unwrapped.config)) == pinned["worlds"][world]["shape"]
         assert [hashlib.sha256(f.tobytes()).hexdigest() for f in frames] == pinned["worlds"][world]["sha256"], world
+
+
+def test_a_narrow_world_gets_a_frame_wide_enough_for_its_caption() -> None:
+    from envs.view import MIN_FRAME_WIDTH_PX, fit
+
+    layout = fit(3.2, 25.0)  # the corridor as one whole-world frame: was 104 px wide
+    assert layout.width == MIN_FRAME_WIDTH_PX and layout.height == 600
+    assert layout.left == pytest.approx((layout.width - 3.2 * layout.scale) / 2)  # the corridor in the middle
+    assert fit(6.0, 11.0).width == 332  # robocup_static's frame, as before
+
+
+def test_the_corridor_frame_is_legible_and_shows_its_whole_caption(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The eval GIF of CeilingCorridor-v0 (ceiling_target): a follow window of 46 px/m, and every
+    part of the caption (world, time, crowd, the localizer's two texts) drawn whole, on two lines."""
+    env = gym.make("crowdloc/CeilingCorridor-v0", render_mode="rgb_array", localizer="ceiling_target", crowd_size=20)
+    renderer_cls = Renderer
+    laid_out: list[tuple[list[tuple[str, Any]], list[list[tuple[int, str, Any]]], int]] = []
+    original = renderer_cls.caption_lines
+
+    def spy(self: Renderer, parts: Any) -> list[list[tuple[int, str, Any]]]:
+        lines = original(self, parts)
+        laid_out.append((list(parts), lines, self.width))
+        return lines
+
+    monkeypatch.setattr(renderer_cls, "caption_lines", spy)
+    env.reset(seed=1)
+    for _ in range(60):
+        env.step(np.array([0.5, 0.0], dtype=np.float32))
+    frame = env.render()
+    renderer = env.unwrapped._renderer
+    scale, font = renderer.scale, renderer._font
+    assert isinstance(frame, np.ndarray) and frame.shape == (600, 398, 3)
+    assert scale == pytest.approx(548 / 12)  # 12 m of corridor in view
+    parts, lines, width = laid_out[-1]
+    assert len(parts) == 3 and parts[0][0].startswith("ceiling_corridor  t=3.00 s  crowd=20")
+    assert [text.strip() for line in lines for _, text, _ in line] == [text for text, _ in parts]  # every part, whole
+    assert all(x + font.size(text)[0] <= width for line in lines for x, text, _ in line)  # none runs off the frame
+    assert len(lines) == 2
+    env.close()

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from agents.policies import make_policy
 from envs.localization_env import LocalizationEnv
+from envs.render import Renderer
 from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
 from localizers.ceiling_vision import CameraIntrinsics, Sighting
 from localizers.registry import make_localizer
@@ -73,16 +74,17 @@ def top_view(path: Path, seed: int = 0) -> None:
         if info["true_pose"][1] >= y_goal - 0.01 or terminated or truncated:
             break
     frame = np.asarray(env.render())
-    # the corridor is long: keep the 8 m around the robot
+    # the frame follows the robot through 12 m of the corridor (its view_m): keep the corridor's width
+    # and the 8 m around the robot, located by a renderer of the same world looking where the frame's did
     base = env.unwrapped
     assert isinstance(base, LocalizationEnv)
-    _, ymin, _, ymax = base.config.arena_m
-    rows = frame.shape[0]
-    y = float(info["true_pose"][1])
-    centre = int(rows * (1 - (y - ymin) / (ymax - ymin)))
-    half = int(rows * 4.0 / (ymax - ymin))
-    crop = frame[max(0, centre - half) : centre + half]
-    crop = cv2.resize(np.ascontiguousarray(crop), None, fx=3, fy=3, interpolation=cv2.INTER_NEAREST)
+    renderer = Renderer(base.config, "rgb_array", 30)
+    x, y = (float(v) for v in info["true_pose"][:2])
+    renderer.look_at((x, y))
+    xmin, _, xmax, _ = base.config.arena_m
+    (left, top), (right, bottom) = renderer.to_pixel([[xmin, y + 4.0], [xmax, y - 4.0]])
+    crop = frame[max(0, top) : bottom, max(0, left - 8) : right + 8]
+    crop = cv2.resize(np.ascontiguousarray(crop), None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
     cv2.imwrite(str(path), cv2.cvtColor(crop, cv2.COLOR_RGB2BGR))
     env.close()
 

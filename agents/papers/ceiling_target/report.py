@@ -256,8 +256,9 @@ def figures(out: Path, results: dict[str, Any]) -> list[Path]:
                 label=name,
             )
         ax.axhline(0, color="grey", lw=0.5)
-        ax.set_xlabel(f"set {quantity}")
-        ax.set_ylabel("measured - set")
+        what, unit = quantity.rsplit("_", 1)  # rotation_deg, x_cm, y_cm
+        ax.set_xlabel(f"set {what} [{unit}]")
+        ax.set_ylabel(f"measured - set {what} [{unit}]")
         ax.legend(fontsize=7)
     paths.append(save_figure(fig, out / "tables_2_4.png", "Tables 2-4: measured minus set value"))
     fig, ax = plt.subplots(figsize=(6, 4))
