@@ -10,12 +10,14 @@ the key and the file in the message; ranges are checked in ``__post_init__``.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from numbers import Real
+from numbers import Integral, Real
 from pathlib import Path
-from typing import Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,10 +37,12 @@ from envs.view import (
     drawn_bounds,
     fit,
 )
-from localizers.schema import ConfigError, check, from_mapping, load_yaml
+from localizers.schema import ConfigError, check, check_ranges, from_mapping, load_yaml
 
 #: the first this-many rows of :meth:`WorldConfig.wall_segments` are the arena boundary
 BOUNDARY_SEGMENTS = 4
+#: the half thickness of an interior wall (and a floor-standing piece of furniture's side) in the physics
+WALL_RADIUS_M = 0.02
 CONFIG_DIR = crowdloc_configs.path()  # package data (configs/ in the checkout)
 WORLD_DIR = CONFIG_DIR / "worlds"
 
@@ -51,6 +55,9 @@ class LandmarkConfig:
     and building edges); ``collides`` whether it is a physical obstacle (a pole is; a target
     on the ceiling or an edge far away need not be).
     """
+
+    #: the fields that may be ``inf`` (:func:`non_finite_numbers`): no range limit
+    unbounded_fields: ClassVar[frozenset[str]] = frozenset({"max_range_m"})
 
     name: str
     x_m: float
@@ -111,10 +118,18 @@ class RobotConfig:
         check(self.mass_kg > 0, f"robot.mass_kg must be > 0, got {self.mass_kg}")
         check(self.max_speed_mps > 0, f"robot.max_speed_mps must be > 0, got {self.max_speed_mps}")
         check(self.max_turn_rate_rps > 0, f"robot.max_turn_rate_rps must be > 0, got {self.max_turn_rate_rps}")
+        check_ranges(self, "robot", non_negative=("friction",))  # (finite: pymunk aborts the process on a NaN)
         check(
             self.start_pose is not None or self.start_region_m is not None,
             "robot: give start_pose or start_region_m",
         )
+        if self.start_region_m is not None:
+            x0, y0, x1, y1 = self.start_region_m
+            check(
+                x0 <= x1 and y0 <= y1,
+                f"robot.start_region_m must be (xmin, ymin, xmax, ymax) with xmin <= xmax and ymin <= ymax, "
+                f"got {list(self.start_region_m)}",
+            )
         check(0 <= self.slip_probability <= 1, f"robot.slip_probability must be in [0, 1], got {self.slip_probability}")
         check(0 <= self.slip_max_fraction <= 1, f"robot.slip_max_fraction must be in [0, 1], got {self.slip_max_fraction}")
         for name, unit in (("slip_per_accel_s2", " s^2/m"), ("slip_per_angular_accel_s2", " s^2/rad"), ("slip_in_contact", "")):
@@ -259,7 +274,19 @@ def _outline(corners: NDArray[np.float64], bottom: float, top: float) -> list[Se
 
 @dataclass(frozen=True)
 class WorldConfig:
-    """One scenario: geometry, landmarks, robot, its sensors (in observation order) and the crowds."""
+    """One scenario: geometry, landmarks, robot, its sensors (in observation order) and the crowds.
+
+    Every number in it, down to the sensors', crowds' and features' fields, must be finite
+    (:func:`non_finite_numbers`; the few fields that mean "no limit" may be ``inf``): an
+    infinite or NaN mass or friction aborts the whole process inside pymunk, and one in a
+    sensor puts NaN or infinite bounds in the observation. The robot's start (``start_pose``,
+    or every corner of ``start_region_m``) must be a place its disc fits, by the rule that a
+    reset's ``robot_pose`` option follows (:meth:`robot_placement_problem`), and each crowd's
+    bodies must fit in the field.
+    """
+
+    #: the fields that may be ``inf`` (:func:`non_finite_numbers`): walls as high as anything
+    unbounded_fields: ClassVar[frozenset[str]] = frozenset({"wall_height_m"})
 
     name: str
     description: str
@@ -283,6 +310,11 @@ class WorldConfig:
     view_m: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
+        for path, value, may_be_inf in non_finite_numbers(self):
+            raise ConfigError(
+                f"world {self.name!r}: {path} must be {'a number or inf' if may_be_inf else 'finite'}, got {value!r} "
+                "(a world's numbers reach the physics and the sensors)"
+            )
         w, h = self.size_m
         check(w > 0 and h > 0, f"world {self.name!r}: size_m must be positive, got {self.size_m}")
         check(self.dt_s > 0, f"world {self.name!r}: dt_s must be > 0, got {self.dt_s}")
@@ -316,6 +348,7 @@ class WorldConfig:
         object.__setattr__(self, "sensors", dict(self.sensors))  # a copy: the caller's dict may change
         for name, crowd in self.crowds.items():
             check(isinstance(crowd, CrowdConfig), f"world {self.name!r}: crowd {name!r} is not a crowd config: {crowd!r}")
+            self._check_crowd_fits(name, crowd)
         clash = sorted(set(self.crowds) & set(self.sensors))
         check(not clash, f"world {self.name!r}: {clash} name both a sensor and a crowd (env kwargs address them by name)")
         object.__setattr__(self, "crowds", dict(self.crowds))
@@ -335,7 +368,36 @@ class WorldConfig:
         clash = sorted(set(self.features) & (set(self.crowds) | set(self.sensors)))
         check(not clash, f"world {self.name!r}: {clash} name a feature and a sensor or crowd")
         object.__setattr__(self, "features", dict(self.features))
+        self._check_robot_start()
         self._check_view()
+
+    def _check_robot_start(self) -> None:
+        """The robot's start must be a place its disc fits (:meth:`robot_placement_problem`, the
+        rule of a reset's ``robot_pose`` option): ``start_pose``, or each corner of ``start_region_m``
+        (the start is drawn uniformly in the region)."""
+        rc = self.robot
+        if rc.start_pose is not None:
+            x, y, _ = rc.start_pose
+            problem = self.robot_placement_problem(x, y)
+            check(problem is None, f"world {self.name!r}: robot.start_pose = {list(rc.start_pose)}: {problem}")
+        if rc.start_region_m is not None:
+            x0, y0, x1, y1 = rc.start_region_m
+            problem = self._robot_outside(x0, y0) or self._robot_outside(x1, y1)
+            check(
+                problem is None,
+                f"world {self.name!r}: robot.start_region_m = {list(rc.start_region_m)} (the start is drawn in it): {problem}",
+            )
+
+    def _check_crowd_fits(self, name: str, crowd: CrowdConfig) -> None:
+        """Each kind of body of a crowd (:meth:`CrowdConfig.top_speeds` lists them with their
+        radii) must fit in the field, where its members are placed."""
+        fx0, fy0, fx1, fy1 = self.field_m
+        for body, _, radius in crowd.top_speeds():
+            check(
+                2 * radius <= min(fx1 - fx0, fy1 - fy0),
+                f"world {self.name!r}: crowd {name!r}: its {body} of radius {radius:g} m ({2 * radius:g} m across) cannot fit "
+                f"in the {fx1 - fx0:g} m x {fy1 - fy0:g} m field, the space it places them in; give a smaller radius",
+            )
 
     def _check_view(self) -> None:
         """``view_m``: two finite sizes > 0, and not so small against the world that the follow
@@ -431,6 +493,71 @@ class WorldConfig:
         xmin, ymin, xmax, ymax = self.field_m
         return (xmin - m, ymin - m, xmax + m, ymax + m)
 
+    def robot_placement_problem(self, x: float, y: float) -> str | None:
+        """Why our robot's disc cannot be placed at ``(x, y)``, or None where it fits.
+
+        The disc (``robot.radius_m``) must lie inside the boundary walls, that is the field
+        (:attr:`field_m`) and its ``boundary_margin_m`` (:attr:`arena_m`, the field itself where
+        the margin is 0: the soccer robot may stand on the touch line), and clear every interior
+        wall's and floor-standing furniture segment's thickness (:data:`WALL_RADIUS_M` a side),
+        its centre outside every box (under a table is open floor) and every solid standing on
+        the floor (a building, a pole, a trunk); a disc placed over a wall would be pushed out
+        on either side, or trapped in it. The one rule for a reset's ``robot_pose`` option and
+        the config's ``robot.start_pose`` and ``start_region_m``.
+        """
+        outside = self._robot_outside(x, y)
+        if outside:
+            return outside
+        r = self.robot.radius_m
+        for piece in self.furniture:
+            corners = piece.footprint()
+            if piece.kind == "box" and inside_convex(corners, x, y):  # under a table is open floor
+                return f"the robot's centre ({x:g}, {y:g}) would be inside furniture {piece.name!r} (corners {np.round(corners, 3).tolist()})"
+        for name, feature in self.features.items():
+            for solid in feature.solids():
+                if solid.bottom_m <= 0.0 and inside_convex(solid.corners, x, y):  # (a tree's crown is overhead)
+                    return (
+                        f"the robot's centre ({x:g}, {y:g}) would be inside {solid.kind or 'solid'} {solid.name!r} of feature "
+                        f"{name!r} (corners {np.round(solid.corners, 3).tolist()})"
+                    )
+        a, b = self._interior_floor_walls
+        if a.shape[0]:
+            d = b - a
+            length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+            t = np.clip(np.einsum("ij,ij->i", np.array([x, y]) - a, d) / length2, 0.0, 1.0)
+            gap = np.hypot(*(a + t[:, None] * d - (x, y)).T)
+            i = int(np.argmin(gap))
+            if gap[i] < r + WALL_RADIUS_M:
+                return (
+                    f"the robot (radius {r:g} m) would overlap wall {tuple(float(v) for v in (*a[i], *b[i]))} "
+                    f"(thickness {2 * WALL_RADIUS_M:g} m): its centre is {gap[i]:.3g} m from the wall's line, "
+                    f"it must be at least {r + WALL_RADIUS_M:g} m"
+                )
+        return None
+
+    @functools.cached_property
+    def _interior_floor_walls(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(seg_a, seg_b)`` of the interior segments standing on the floor (they collide), made once."""
+        segments = self.static_segments()[BOUNDARY_SEGMENTS:]
+        segments = segments[segments[:, 4] <= 0.0]
+        return segments[:, 0:2], segments[:, 2:4]
+
+    def _robot_outside(self, x: float, y: float) -> str | None:
+        """Why the robot's disc centred at ``(x, y)`` does not lie inside the boundary walls, or None."""
+        r = self.robot.radius_m
+        xmin, ymin, xmax, ymax = self.arena_m
+        if xmin + r <= x <= xmax - r and ymin + r <= y <= ymax - r:
+            return None
+        fx0, fy0, fx1, fy1 = self.field_m
+        margin = f" and its {self.boundary_margin_m:g} m margin" if self.boundary_margin_m else ""
+        where = (
+            f"the robot (radius {r:g} m) must fit inside world {self.name!r}'s field (x in [{fx0:g}, {fx1:g}], "
+            f"y in [{fy0:g}, {fy1:g}] m){margin}, x in [{xmin:g}, {xmax:g}] and y in [{ymin:g}, {ymax:g}] m"
+        )
+        if 2 * r > min(xmax - xmin, ymax - ymin):
+            return f"{where}: its disc, {2 * r:g} m across, is larger than that"
+        return f"{where}: its centre must be in x [{xmin + r:g}, {xmax - r:g}], y [{ymin + r:g}, {ymax - r:g}]"
+
     def static_segments(self, in_map: bool = False) -> NDArray[np.float64]:
         """``(S, 6)`` every static segment ``(x1, y1, x2, y2, bottom, top)``: the arena boundary
         (counter-clockwise, the first :data:`BOUNDARY_SEGMENTS` rows) and the extra walls, from the
@@ -456,6 +583,43 @@ class WorldConfig:
     def features_of_type(self, type_name: str) -> dict[str, FeatureConfig]:
         """The features of one registered type (``"ceiling"``), by name, in config order."""
         return {name: f for name, f in self.features.items() if f.type_name == type_name}
+
+
+def non_finite_numbers(value: Any, path: str = "") -> Iterator[tuple[str, float, bool]]:
+    """``(path, number, may_be_inf)`` of every number inside ``value`` that is not finite.
+
+    Walks dataclass fields, mappings (a world's sensors, crowds and features by name) and
+    tuples, naming each number by its path (``"robot.mass_kg"``, ``"crowds.soccer.mass_kg"``,
+    ``"walls[2][0]"``). A config class lists the fields in which ``inf`` means "no limit"
+    (a landmark's ``max_range_m``, a column's ``height_m``) in its ``unbounded_fields``; there
+    ``inf`` passes and NaN or ``-inf`` is reported with ``may_be_inf`` true. Integers are
+    always finite.
+    """
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        unbounded: frozenset[str] = getattr(type(value), "unbounded_fields", frozenset())
+        for f in dataclasses.fields(value):
+            item = getattr(value, f.name)
+            inner = f"{path}.{f.name}" if path else f.name
+            if f.name in unbounded and isinstance(item, Real):
+                if not (math.isfinite(item) or item == math.inf):
+                    yield inner, float(item), True
+                continue
+            yield from non_finite_numbers(item, inner)
+    elif isinstance(value, Mapping):
+        for key, item in value.items():
+            yield from non_finite_numbers(item, f"{path}.{key}" if path else str(key))
+    elif isinstance(value, (tuple, list)):
+        for i, item in enumerate(value):
+            yield from non_finite_numbers(item, f"{path}[{i}]")
+    elif isinstance(value, Real) and not isinstance(value, Integral) and not math.isfinite(value):
+        yield path, float(value), False
+
+
+def inside_convex(corners: NDArray[np.float64], x: float, y: float) -> bool:
+    """Whether ``(x, y)`` lies inside the convex polygon ``corners`` ``(K, 2)`` (counter-clockwise)."""
+    edges = np.roll(corners, -1, axis=0) - corners
+    rel = np.array([x, y]) - corners
+    return bool(np.all(edges[:, 0] * rel[:, 1] - edges[:, 1] * rel[:, 0] > 0.0))
 
 
 def world_path(name: str) -> Path:

@@ -25,7 +25,7 @@ import pymunk.batch as pbatch
 from numpy.typing import NDArray
 
 from envs.bodies import FigureModel, Figures, consecutive, turn_to_travel
-from envs.config import BOUNDARY_SEGMENTS, WorldConfig
+from envs.config import BOUNDARY_SEGMENTS, WALL_RADIUS_M, WorldConfig
 from envs.crowds import BodySpec, Crowd, build_crowd
 from envs.state import Rows, WorldState, robot_pose
 
@@ -33,7 +33,6 @@ from envs.state import Rows, WorldState, robot_pose
 ROBOT, CROWD, BALL, WALL, LANDMARK = 1, 2, 3, 4, 5
 KIND_NAMES = {ROBOT: "robot", CROWD: "crowd", BALL: "ball", WALL: "wall", LANDMARK: "landmark"}
 
-_WALL_RADIUS_M = 0.02  # extra (interior) walls
 _BOUNDARY_RADIUS_M = 0.15  # boundary walls, laid outside the arena edge
 _COLLISION_SLOP_M = 0.002
 _COLLISION_BIAS = 1e-30  # fraction of an overlap left after one second
@@ -176,7 +175,7 @@ class World:
         for i, (a, b) in enumerate(zip(self.seg_a, self.seg_b)):
             if not self._colliding[i]:
                 continue
-            radius = _WALL_RADIUS_M
+            radius = WALL_RADIUS_M
             if i < self._boundary_count:
                 # thick boundary walls whose inner face is the arena edge: nothing is squeezed through
                 radius = _BOUNDARY_RADIUS_M
@@ -264,53 +263,9 @@ class World:
         self.figure_model.reset(rng, self.velocities)
 
     def robot_placement_problem(self, x: float, y: float) -> str | None:
-        """Why our robot's disc cannot be placed at ``(x, y)``, or None where it fits.
-
-        The disc (``robot.radius_m``) must lie inside the boundary walls, that is the field
-        (:attr:`WorldConfig.field_m`) and its ``boundary_margin_m`` (:attr:`WorldConfig.arena_m`,
-        the field itself where the margin is 0: the soccer robot may stand on the touch line),
-        and clear every interior wall's and floor-standing furniture segment's thickness, its
-        centre outside every box (under a table is open floor) and every solid standing on the
-        floor (a building, a pole, a trunk); a disc placed over a wall would be pushed out on
-        either side, or trapped in it.
-        """
-        config = self.config
-        r = config.robot.radius_m
-        xmin, ymin, xmax, ymax = config.arena_m
-        if not (xmin + r <= x <= xmax - r and ymin + r <= y <= ymax - r):
-            fx0, fy0, fx1, fy1 = config.field_m
-            margin = f" and its {config.boundary_margin_m:g} m margin" if config.boundary_margin_m else ""
-            return (
-                f"the robot (radius {r:g} m) must fit inside world {config.name!r}'s field (x in [{fx0:g}, {fx1:g}], "
-                f"y in [{fy0:g}, {fy1:g}] m){margin}, x in [{xmin:g}, {xmax:g}] and y in [{ymin:g}, {ymax:g}] m: "
-                f"its centre must be in x [{xmin + r:g}, {xmax - r:g}], y [{ymin + r:g}, {ymax - r:g}]"
-            )
-        for piece in config.furniture:
-            corners = piece.footprint()
-            if piece.kind == "box" and _inside_convex(corners, x, y):  # under a table is open floor
-                return f"the robot's centre ({x:g}, {y:g}) would be inside furniture {piece.name!r} (corners {np.round(corners, 3).tolist()})"
-        for name, feature in config.features.items():
-            for solid in feature.solids():
-                if solid.bottom_m <= 0.0 and _inside_convex(solid.corners, x, y):  # (a tree's crown is overhead)
-                    return (
-                        f"the robot's centre ({x:g}, {y:g}) would be inside {solid.kind or 'solid'} {solid.name!r} of feature "
-                        f"{name!r} (corners {np.round(solid.corners, 3).tolist()})"
-                    )
-        interior = np.flatnonzero(self._colliding[self._boundary_count :]) + self._boundary_count
-        a, b = self.seg_a[interior], self.seg_b[interior]
-        if a.shape[0]:
-            d = b - a
-            length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
-            t = np.clip(np.einsum("ij,ij->i", np.array([x, y]) - a, d) / length2, 0.0, 1.0)
-            gap = np.hypot(*(a + t[:, None] * d - (x, y)).T)
-            i = int(np.argmin(gap))
-            if gap[i] < r + _WALL_RADIUS_M:
-                return (
-                    f"the robot (radius {r:g} m) would overlap wall {tuple(float(v) for v in (*a[i], *b[i]))} "
-                    f"(thickness {2 * _WALL_RADIUS_M:g} m): its centre is {gap[i]:.3g} m from the wall's line, "
-                    f"it must be at least {r + _WALL_RADIUS_M:g} m"
-                )
-        return None
+        """Why our robot's disc cannot be placed at ``(x, y)``, or None where it fits
+        (:meth:`WorldConfig.robot_placement_problem`: the one rule for reset poses and the config's start)."""
+        return self.config.robot_placement_problem(x, y)
 
     def set_robot_pose(self, pose: tuple[float, float, float] | NDArray[np.float64]) -> None:
         """Teleport our robot (tests and scripted set-ups only; odometry does not see it)."""
@@ -491,13 +446,6 @@ class World:
         point = arbiter.contact_point_set.points[0].point_a if arbiter.contact_point_set.points else self.robot_body.position
         self.contacts.append(ContactEvent(self.step_count + 1, kind, index, (float(point[0]), float(point[1]))))
         self.contact_count += 1
-
-
-def _inside_convex(corners: NDArray[np.float64], x: float, y: float) -> bool:
-    """Whether ``(x, y)`` lies inside the convex polygon ``corners`` ``(K, 2)`` (counter-clockwise)."""
-    edges = np.roll(corners, -1, axis=0) - corners
-    rel = np.array([x, y]) - corners
-    return bool(np.all(edges[:, 0] * rel[:, 1] - edges[:, 1] * rel[:, 0] > 0.0))
 
 
 def _as_slice(rows: NDArray[np.int64]) -> Rows:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -112,11 +113,24 @@ class LandmarkMap:
 
 @dataclass(frozen=True)
 class OdometryDelta:
-    """Motion since the previous step, in the frame of the previous (odometry) pose."""
+    """Motion since the previous step, in the frame of the previous (odometry) pose.
+
+    Each field must be a real number (numpy's included; not a bool or a string), else
+    :class:`MeasurementError` names the field at construction; finiteness and size are checked
+    where a localizer takes it (:func:`checked_increment`).
+    """
 
     dx_m: float
     dy_m: float
     dtheta_rad: float
+
+    def __post_init__(self) -> None:
+        if type(self.dx_m) is float and type(self.dy_m) is float and type(self.dtheta_rad) is float:
+            return  # the usual case, every step: nothing more to look at
+        for name in ("dx_m", "dy_m", "dtheta_rad"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise MeasurementError(f"OdometryDelta.{name} must be a number, got {type(value).__name__} {value!r}")
 
     def as_array(self) -> NDArray[np.float64]:
         return np.array([self.dx_m, self.dy_m, self.dtheta_rad], dtype=np.float64)

@@ -2,8 +2,8 @@
 
 A leaf module shared by the world configs (``envs.config``) and the localizer parameter
 files (``configs/localizers/*.yaml``). Every error names the offending key, the value and
-where it came from; nothing is silently coerced (an ``int`` is accepted where a ``float``
-is declared, nothing else is widened).
+where it came from; nothing is silently coerced (an integer is accepted where a ``float``
+is declared, and numpy's numbers where Python's are; nothing else is widened).
 """
 
 from __future__ import annotations
@@ -196,12 +196,15 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
         if len(value) != len(args):
             raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}: {value!r}")
         return tuple(_convert(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if tp is float:  # any real number, numpy's included (np.float32(0.5), np.int64(2)); never a bool
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
             raise ConfigError(f"{where}: expected a number, got {type(value).__name__} {value!r}")
-        return float(value)
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
+        try:
+            return float(value)
+        except OverflowError:  # an integer beyond any float (10**400)
+            raise ConfigError(f"{where}: {value!r} is too large for a number") from None
+    if tp is int:  # any integer, numpy's included (np.int64(5): a count taken from an array); never a bool
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
             raise ConfigError(f"{where}: expected an integer, got {type(value).__name__} {value!r}")
         return int(value)
     if tp is bool:

@@ -57,6 +57,8 @@ class CrowdConfig:
     """
 
     type_name: ClassVar[str] = ""
+    #: the fields that may be ``inf`` (:func:`envs.config.non_finite_numbers`): a column taller than any sensor
+    unbounded_fields: ClassVar[frozenset[str]] = frozenset({"height_m"})
     count: int = 0
     max_count: int = 14
     radius_m: float = 0.25
@@ -257,6 +259,12 @@ class Crowd:
         field less ``radius`` (:meth:`field_box`).
         """
         x0, y0, x1, y1 = self.field_box(radius) if box is None else box
+        check(
+            count == 0 or (x0 <= x1 and y0 <= y1),
+            f"world {self.world_config.name!r}: crowd {self.name!r}: members of radius {radius:g} m do not fit in the space "
+            f"where their centres are drawn, x [{x0:g}, {x1:g}], y [{y0:g}, {y1:g}] (the region less the radius); "
+            "give a smaller radius_m",
+        )
         out = np.zeros((count, 2))
         for i in range(count):
             for _ in range(1000):

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from envs.crowds.base import BodySpec, Commands, Crowd, CrowdConfig, Taken, register_crowd
 from envs.crowds.steering import ARRIVE_RADIUS_M, seek
 from envs.state import Rows, WorldState
-from localizers.schema import check
+from localizers.schema import check, check_ranges
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -50,6 +50,7 @@ class SoccerConfig(CrowdConfig):
         super().__post_init__()
         check(0 <= self.chaser_fraction <= 1, f"soccer.chaser_fraction must be in [0, 1], got {self.chaser_fraction}")
         check(self.ball_radius_m > 0, f"soccer.ball_radius_m must be > 0, got {self.ball_radius_m}")
+        check_ranges(self, "soccer", positive=("ball_mass_kg",))  # (a pymunk body: a mass <= 0 aborts the process)
         check(0 <= self.ball_decay_per_s < 1, f"soccer.ball_decay_per_s must be in [0, 1), got {self.ball_decay_per_s}")
         check(self.kick_speed_mps > 0, f"soccer.kick_speed_mps must be > 0, got {self.kick_speed_mps}")
 

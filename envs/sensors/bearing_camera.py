@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numba
 import numpy as np
@@ -82,6 +82,9 @@ class DistractorConfig:
         max_range_m: beyond this distance (metres) the camera does not see it (on top of the camera's ``max_range_m``).
     """
 
+    #: the fields that may be ``inf`` (:func:`envs.config.non_finite_numbers`): no range limit
+    unbounded_fields: ClassVar[frozenset[str]] = frozenset({"max_range_m"})
+
     landmark: str
     x_m: float
     y_m: float
@@ -114,6 +117,9 @@ class BearingCameraConfig(SensorConfig):
     things. Their landmark names and places are checked against the world in
     :meth:`check_world`. None by default.
     """
+
+    #: the fields that may be ``inf`` (:func:`envs.config.non_finite_numbers`): a bearing has no range limit
+    unbounded_fields: ClassVar[frozenset[str]] = frozenset({"max_range_m"})
 
     key: str = "landmarks"
     noise_std_rad: float = math.radians(1.0)

@@ -63,6 +63,9 @@ if TYPE_CHECKING:
     from envs.config import WorldConfig
 
 _NOISE_POOL = 1 << 20  # noise offsets drawn per frame (the pool holds this plus one frame)
+#: the most memory the rendered ceiling may take (an RGB and a label byte per texel over the arena):
+#: the corridor's 3.2 m x 25 m at the default 2.5 mm texel takes 49 MiB
+MAX_TEXTURE_BYTES = 1 << 30
 _HAIR_RGB = (45, 35, 30)
 _BLUR_TILE_PX = 40  # the motion blur's kernel is one per tile of about this many pixels a side
 
@@ -137,6 +140,14 @@ class CeilingCameraConfig(SensorConfig):
             self.head_height_m == 0 or self.mount_height_m < self.head_height_m < ceiling.height_m,
             f"world {world.name!r}: sensor {name!r}: head_height_m {self.head_height_m} must lie between the camera "
             f"({self.mount_height_m} m) and the ceiling ({ceiling.height_m} m), or be 0 (no heads)",
+        )
+        xmin, ymin, xmax, ymax = world.arena_m
+        cols, rows = math.ceil((xmax - xmin) / self.texel_m), math.ceil((ymax - ymin) / self.texel_m)
+        check(
+            4 * cols * rows <= MAX_TEXTURE_BYTES,
+            f"world {world.name!r}: sensor {name!r}: texel_m {self.texel_m} over the {xmax - xmin:g} m x {ymax - ymin:g} m "
+            f"arena renders a ceiling of {cols} x {rows} texels, {4 * cols * rows / 2**30:.3g} GiB (RGB and labels), more than "
+            f"{MAX_TEXTURE_BYTES / 2**30:g} GiB; give a larger texel_m",
         )
 
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from envs.sensors.base import SensorConfig, register_sensor
-from envs.sensors.ranging import RangeSensor
+from envs.sensors.ranging import RangeSensor, check_ray_count
 from envs.state import WorldState
 from localizers.schema import check
 
@@ -31,6 +31,7 @@ class LidarConfig(SensorConfig):
     def __post_init__(self) -> None:
         check(0 < self.fov_rad <= 2 * math.pi, f"lidar.fov_rad must be in (0, 2 pi], got {self.fov_rad}")
         check(self.beams >= 1, f"lidar.beams must be >= 1, got {self.beams}")
+        check_ray_count(self.beams, "lidar.beams")
         check(self.max_range_m > 0, f"lidar.max_range_m must be > 0, got {self.max_range_m}")
         check(self.range_std_m >= 0, f"lidar.range_std_m must be >= 0, got {self.range_std_m}")
         check(math.isfinite(self.height_m) and self.height_m >= 0, f"lidar.height_m must be finite and >= 0, got {self.height_m}")

@@ -17,6 +17,21 @@ from numpy.typing import NDArray
 from envs.sensors.base import SensorBase
 from envs.state import WorldState
 from localizers.raycast import cast_rays
+from localizers.schema import check
+
+#: the most rays a range sensor may cast: one every 0.05 deg over a full turn, finer than 2-D
+#: scanning range finders resolve (the Hokuyo UTM-30LX: 0.25 deg); every ray is cast every step,
+#: so a count far beyond it only makes the env slow (10**8 beams hang it)
+MAX_RAYS = 7200
+
+
+def check_ray_count(count: int, what: str) -> None:
+    """Raise :class:`ConfigError` unless ``count`` rays (``what`` names the fields) is in ``1..MAX_RAYS``."""
+    check(
+        1 <= count <= MAX_RAYS,
+        f"{what} must be in 1..{MAX_RAYS} (one ray every 0.05 deg over a full turn, finer than 2-D scanning range "
+        f"finders resolve; every ray is cast every step), got {count}",
+    )
 
 
 class RangeConfig(Protocol):

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envs.sensors.base import SensorConfig, register_sensor
-from envs.sensors.ranging import RangeSensor
+from envs.sensors.ranging import RangeSensor, check_ray_count
 from envs.state import WorldState
 from localizers.geometry import ring_directions
 from localizers.schema import check
@@ -40,12 +40,15 @@ class SonarConfig(SensorConfig):
 
     def __post_init__(self) -> None:
         check(self.sensors >= 1, f"sonar.sensors must be >= 1, got {self.sensors}")
+        check(self.rays_per_cone >= 1, f"sonar.rays_per_cone must be >= 1, got {self.rays_per_cone}")
+        check_ray_count(
+            self.sensors * self.rays_per_cone, f"sonar.sensors x sonar.rays_per_cone ({self.sensors} x {self.rays_per_cone})"
+        )
         spacing = 2 * math.pi / self.sensors
         check(
             0 < self.cone_rad <= spacing + 1e-12,
             f"sonar.cone_rad must be in (0, 2 pi / sensors = {spacing:.4f}] (cones may not overlap), got {self.cone_rad}",
         )
-        check(self.rays_per_cone >= 1, f"sonar.rays_per_cone must be >= 1, got {self.rays_per_cone}")
         check(self.max_range_m > 0, f"sonar.max_range_m must be > 0, got {self.max_range_m}")
         check(self.range_std_m >= 0, f"sonar.range_std_m must be >= 0, got {self.range_std_m}")
         check(math.isfinite(self.height_m) and self.height_m >= 0, f"sonar.height_m must be finite and >= 0, got {self.height_m}")

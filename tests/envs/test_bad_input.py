@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from pathlib import Path
+from typing import ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -12,7 +14,7 @@ import pytest
 import yaml
 
 import envs
-from envs.config import load_world, world_path
+from envs.config import load_world, non_finite_numbers, world_path
 from envs.localization_env import LocalizationEnv
 from localizers.schema import ConfigError
 
@@ -281,3 +283,118 @@ def test_place_crowd_member_checks_the_index() -> None:
     env.reset(seed=0)
     with pytest.raises(IndexError, match="crowd member 1 does not exist"):
         env.world.place_crowd_member(1, (1.0, 1.0))
+
+
+# ---------------------------------------------------------------------------- values that reach pymunk or the sensors
+
+INF, NAN = float("inf"), float("nan")
+
+
+@pytest.mark.parametrize(
+    ("env_id", "kwargs", "fragments"),
+    [
+        # a non-finite mass or friction aborted the process inside Chipmunk (exit 134)
+        ("RoboCupCrowded", {"robot": {"mass_kg": INF}}, ["robot.mass_kg must be finite, got inf"]),
+        ("RoboCupCrowded", {"crowd": {"soccer": {"mass_kg": INF}}}, ["crowds.soccer.mass_kg must be finite, got inf"]),
+        ("RoboCupCrowded", {"robot": {"friction": NAN}}, ["robot.friction must be finite and >= 0, got nan"]),
+        ("RoboCupCrowded", {"robot": {"friction": -0.5}}, ["robot.friction must be finite and >= 0, got -0.5"]),
+        ("RoboCupCrowded", {"crowd": {"soccer": {"ball_mass_kg": 0}}}, ["soccer.ball_mass_kg must be finite and > 0, got 0.0"]),
+        (
+            "CrowdedRoom",
+            {"crowd": {"walkers": {"repulsion_strength_mps2": NAN}}},
+            ["crowds.walkers.repulsion_strength_mps2", "nan"],
+        ),
+        # sensors: NaN in the observation, infinite bounds, ranges of 0 or the maximum
+        ("RoboCupCrowded", {"camera": {"noise_std_rad": INF}}, ["sensors.camera.noise_std_rad must be finite, got inf"]),
+        ("RoboCupCrowded", {"lidar": {"max_range_m": INF}}, ["sensors.lidar.max_range_m must be finite, got inf"]),
+        ("RoboCupCrowded", {"sonar": {"max_range_m": INF}}, ["sensors.sonar.max_range_m must be finite, got inf"]),
+        ("RoboCupCrowded", {"lidar": {"range_std_m": INF}}, ["sensors.lidar.range_std_m must be finite, got inf"]),
+        ("RoboCupCrowded", {"odometry": {"alpha1": INF}}, ["odometry.alpha1 must be finite and >= 0, got inf"]),
+        ("CrowdedRoom", {"lidar": {"fov_rad": NAN}}, ["lidar.fov_rad", "got nan"]),
+        # errors that blamed the crowd, or came from deep inside
+        ("RoboCupCrowded", {"robot": {"radius_m": INF}}, ["robot.radius_m must be finite, got inf"]),
+        ("RoboCupCrowded", {"robot": {"radius_m": 100}}, ["robot.start_region_m", "radius 100 m", "200 m across, is larger"]),
+        ("RoboCupStatic", {"robot": {"start_pose": [NAN, 2.0, 0.0]}}, ["robot.start_pose[0] must be finite, got nan"]),
+        ("RoboCupCrowded", {"robot": {"max_turn_rate_rps": INF}}, ["robot.max_turn_rate_rps must be finite, got inf"]),
+        (
+            "RoboCupCrowded",
+            {"robot": {"start_region_m": [4.0, 1.0, 1.0, 4.0]}},
+            ["robot.start_region_m must be (xmin, ymin, xmax, ymax) with xmin <= xmax", "[4.0, 1.0, 1.0, 4.0]"],
+        ),
+        (
+            "RoboCupCrowded",
+            {"crowd": {"soccer": {"radius_m": 5}}},
+            ["crowd 'soccer'", "robots of radius 5 m (10 m across) cannot fit in the 5 m x 5 m field"],
+        ),
+        # sizes: bounded by what a real sensor resolves and what memory holds
+        ("RoboCupCrowded", {"lidar": {"beams": 10**8}}, ["lidar.beams must be in 1..7200", "0.05 deg", "got 100000000"]),
+        ("RoboCupCrowded", {"sonar": {"sensors": 10**6}}, ["sonar.sensors x sonar.rays_per_cone (1000000 x 5)", "1..7200"]),
+        ("CeilingCorridor", {"camera": {"texel_m": 1e-5}}, ["texel_m 1e-05", "320000 x 2500000 texels", "more than 1 GiB"]),
+    ],
+)
+def test_values_that_killed_hung_or_misled_are_config_errors(env_id: str, kwargs: dict, fragments: list[str]) -> None:
+    with pytest.raises(ConfigError) as exc:
+        gym.make(f"crowdloc/{env_id}-v0", **kwargs)
+    for fragment in fragments:
+        assert fragment in str(exc.value), (fragment, str(exc.value))
+
+
+def test_numpy_integers_are_integers() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", crowd_size=np.int64(5), lidar={"beams": np.int32(91)})
+    assert env.unwrapped.config.crowd.count == 5 and type(env.unwrapped.config.crowd.count) is int
+    assert env.unwrapped.config.sensors["lidar"].beams == 91
+    env.close()
+    with pytest.raises(ConfigError, match="expected an integer, got bool np.True_"):
+        gym.make("crowdloc/RoboCupCrowded-v0", crowd_size=np.bool_(True))
+
+
+def test_an_unbounded_field_still_takes_inf() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", camera={"max_range_m": INF}, crowd={"soccer": {"height_m": INF}})
+    assert env.unwrapped.config.sensors["camera"].max_range_m == INF
+    env.close()
+
+
+def test_non_finite_numbers_names_each_by_its_path() -> None:
+    @dataclasses.dataclass
+    class Inner:
+        unbounded_fields: ClassVar[frozenset[str]] = frozenset({"reach_m"})
+        reach_m: float = INF
+        size_m: tuple[float, float] = (1.0, NAN)
+
+    found = list(non_finite_numbers({"a": Inner(), "b": Inner(reach_m=NAN, size_m=(1.0, 2.0)), "n": [3, 10**400, -INF]}))
+    assert [(p, str(v), inf_ok) for p, v, inf_ok in found] == [
+        ("a.size_m[1]", "nan", False),
+        ("b.reach_m", "nan", True),
+        ("n[2]", "-inf", False),
+    ]
+
+
+@pytest.mark.parametrize("pose", [[100.0, 100.0, 0.0], [-0.4, 5.0, 0.0], [2.5, 10.4, 1.0]])
+def test_a_start_pose_follows_the_reset_option_rule(pose: list[float]) -> None:
+    env = LocalizationEnv("robocup_static")
+    with pytest.raises(ValueError, match="robot_pose") as refused:
+        env.reset(seed=0, options={"robot_pose": pose})
+    problem = str(refused.value).split(": ", 1)[1]
+    with pytest.raises(ConfigError) as exc:
+        gym.make("crowdloc/RoboCupStatic-v0", robot={"start_pose": pose})
+    assert f"robot.start_pose = {pose}: {problem}" in str(exc.value)
+
+
+def test_a_start_region_must_lie_where_the_robot_fits() -> None:
+    with pytest.raises(ConfigError, match=r"robot.start_region_m = \[5.0, 5.0, 6.0, 6.0\].*x \[-0.27, 5.27\]"):
+        gym.make("crowdloc/RoboCupStatic-v0", robot={"start_pose": None, "start_region_m": [5.0, 5.0, 6.0, 6.0]})
+    # inside a building on the campus: the same rule, the same words as a reset option
+    with pytest.raises(ConfigError, match=r"robot.start_pose = \[.*\]: the robot's centre .* would be inside"):
+        config = load_world("stereo_campus")
+        building = next(s for f in config.features.values() for s in f.solids() if s.bottom_m <= 0.0)
+        x, y = building.corners.mean(axis=0)
+        gym.make("crowdloc/StereoCampus-v0", robot={"start_pose": [float(x), float(y), 0.0]})
+    # a region that just fits is accepted
+    gym.make("crowdloc/RoboCupStatic-v0", robot={"start_pose": None, "start_region_m": [-0.27, -0.27, 5.27, 10.27]}).close()
+
+
+def test_a_crowd_region_too_small_for_its_radius_says_so() -> None:
+    env = LocalizationEnv("robocup_crowded")
+    crowd = env.world.crowd_named("soccer")
+    with pytest.raises(ConfigError, match=r"crowd 'soccer': members of radius 0.6 m do not fit .* x \[1.6, 1.4\], y \[0, 2\]"):
+        crowd.free_positions(np.random.default_rng(0), 2, 0.6, [], box=(1.6, 0.0, 1.4, 2.0))

@@ -90,6 +90,23 @@ def test_non_finite_odometry_raises_and_leaves_the_estimate(name: str, bad: tupl
     assert loc.estimate == before
 
 
+@pytest.mark.parametrize(
+    ("values", "fragment"),
+    [(("a", 0.0, 0.0), "OdometryDelta.dx_m must be a number, got str 'a'"),
+     ((0.0, None, 0.0), "OdometryDelta.dy_m must be a number, got NoneType None"),
+     ((0.0, 0.0, True), "OdometryDelta.dtheta_rad must be a number, got bool True"),
+     ((0.0, 0.0, "0.1"), "OdometryDelta.dtheta_rad must be a number, got str '0.1'")],
+)  # fmt: skip
+def test_odometry_delta_of_non_numbers_names_the_field(values: tuple[object, object, object], fragment: str) -> None:
+    with pytest.raises(MeasurementError, match=re.escape(fragment)):
+        OdometryDelta(*values)  # type: ignore[arg-type]
+    assert OdometryDelta(np.float32(0.1), np.int64(0), 0).as_array().tolist() == [
+        np.float32(0.1),
+        0.0,
+        0.0,
+    ]  # numpy's numbers are numbers
+
+
 @pytest.mark.parametrize("name", NAMES)
 @pytest.mark.parametrize(
     "bad",
