@@ -77,6 +77,8 @@ from localizers.base import (
 from localizers.beam_model import BeamModel, LikelihoodFieldModel, beam_likelihood, p_hit, p_max, p_rand, p_short
 from localizers.geometry import compose, wrap_angle
 from localizers.particles import (
+    MAX_PARTICLES,
+    PARTICLE_MEMORY,
     LikelihoodAverages,
     gaussian_poses,
     motion_covariance,
@@ -88,7 +90,7 @@ from localizers.particles import (
     weighted_pose_mean,
 )
 from localizers.range_table import CACHE_ENV, RangeTable, build_range_table, cache_dir, range_table_key, wall_distance_field
-from localizers.schema import check, check_ranges
+from localizers.schema import check, check_at_most, check_ranges
 
 __all__ = [
     "CACHE_ENV",
@@ -113,6 +115,9 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
+
+#: the most directions per cell of the ray-cast table (0.1 deg)
+MAX_TABLE_DIRECTIONS = 3600
 
 
 # --------------------------------------------------------------------------------------
@@ -259,8 +264,21 @@ class LidarMCLParams:
             abs(total - 1.0) <= 1e-6,
             f"{name}: z_hit + z_short + z_max + z_rand must be 1 (Probabilistic Robotics Table 6.1), got {total!r}",
         )
+        check_at_most(
+            self,
+            name,
+            dict.fromkeys(("n_particles", "min_particles", "max_particles", "recovery_candidates"), MAX_PARTICLES),
+            PARTICLE_MEMORY,
+        )
         check(self.beam_stride >= 1, f"{name}.beam_stride must be >= 1, got {self.beam_stride!r}")
         check(self.table_directions >= 8, f"{name}.table_directions must be >= 8, got {self.table_directions!r}")
+        check_at_most(
+            self,
+            name,
+            {"table_directions": MAX_TABLE_DIRECTIONS},
+            "0.1 deg, finer than a LIDAR's beam step (the UTM-30LX's is 0.25 deg), and memory: the ray-cast table holds a "
+            "range per cell and direction",
+        )
         check(
             0.0 < self.resample_ess_fraction <= 1.0,
             f"{name}.resample_ess_fraction must be in (0, 1], got {self.resample_ess_fraction!r}",
