@@ -33,11 +33,12 @@ class LocalizerSpec:
             uncertainty (a filter's covariance, a particle or candidate set's sample covariance,
             however heuristic), so that ``crowdloc eval`` scores its consistency (NEES); false for
             one that reports none (NaN) or a placeholder: its tables say "no covariance".
-        prepare: for a localizer that needs data made from its world (a map from a drive), a
-            function ``"module:name"`` that the env wrapper calls as ``prepare(env, sensor,
-            params)`` before building it, and that returns the parameters to build it with
-            (``far_landmark_pf``: the world's default scene map, made on first use). Named, not
-            imported: ``localizers`` does not import the code that drives a world.
+        prepare: for a localizer that needs data made from its world (a map from a drive) or
+            parameters fitted to it, a function ``"module:name"`` that the env wrapper calls as
+            ``prepare(env, sensor, params)`` before building it, and that returns the parameters
+            to build it with (``far_landmark_pf``: the world's default scene map, made on first
+            use; ``mcl_lidar``: the likelihood field in a world too large for the beam model's
+            table). Named, not imported: ``localizers`` does not import the code that drives a world.
     """
 
     module: str
@@ -106,6 +107,7 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         "scan",
         True,
         "LIDAR MCL on the raw scan: beam model on a ray-cast table, alphas scaled by the sampling parameter (paper B's MCL)",
+        prepare="localizers.mcl_lidar:large_map_params",
     ),
     "far_point_mcl": LocalizerSpec(
         "localizers.scan_filter",
