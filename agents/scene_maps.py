@@ -191,8 +191,15 @@ def default_map_path(env: LocalizationEnv) -> Path:
 
 
 def default_scene_map(env: LocalizationEnv) -> Path:
-    """The world's default scene map (seed 0, the crowd size of the world's file), made and cached on first use."""
+    """The world's default scene map (seed 0, the crowd size of the world's file), made and cached on first use,
+    and made again (saying so) when the cached file cannot be read (left truncated by a writer of an older version)."""
     path = default_map_path(env)
+    if path.is_file():
+        try:
+            SceneMap.load(path)
+        except ConfigError as exc:
+            _log.warning("the cached default scene map cannot be read, making it again: %s", exc)
+            path.unlink(missing_ok=True)
     if not path.is_file():
         _log.warning("making the default scene map of %s (the route driven once; cached in %s)", env.config.name, path)
         build_scene_map(env.config, MappingDrive(crowd_size=env.file_crowd_size), progress=True).save(path)
