@@ -388,8 +388,9 @@ def validated_scan(scan: ScanMeasurement, source: str = "scan") -> tuple[Array, 
     """``(ranges, angles, max_range)`` of a scan as float64, or a :class:`MeasurementError`.
 
     Checked: a finite positive ``max_range_m``; 1-D ranges and angles of equal length;
-    finite angles; ranges finite and in ``[0, max_range_m]``. The message names the first
-    bad value and its beam index.
+    finite angles, strictly ascending (as :class:`~localizers.base.ScanMeasurement` requires);
+    ranges finite and in ``[0, max_range_m]``. The message names the first bad value and its
+    beam index.
     """
     if not isinstance(scan, ScanMeasurement):
         raise MeasurementError(f"{source}: expected a ScanMeasurement, got {type(scan).__name__}")
@@ -406,6 +407,13 @@ def validated_scan(scan: ScanMeasurement, source: str = "scan") -> tuple[Array, 
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise MeasurementError(f"{source}: beam angle {float(angles[i])!r} rad at index {i} is not finite")
+    bad = ~(np.diff(angles) > 0.0)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0]) + 1
+        raise MeasurementError(
+            f"{source}: beam angles must ascend (ScanMeasurement.angles_rad), got {float(angles[i])!r} rad at index {i} "
+            f"after {float(angles[i - 1])!r} rad"
+        )
     bad = ~((ranges >= 0.0) & (ranges <= max_range))  # NaN fails both comparisons
     if bad.any():
         i = int(np.flatnonzero(bad)[0])

@@ -193,3 +193,18 @@ def test_the_largest_allowed_particle_set_is_accepted() -> None:
     from localizers.particles import MAX_PARTICLES
 
     assert load_params("mcl_lidar", {"n_particles": MAX_PARTICLES}).n_particles == MAX_PARTICLES
+
+
+@pytest.mark.parametrize("name", ["far_point_mcl", "mcl_lidar"])
+@pytest.mark.parametrize("order", ["descending", "repeated"])
+def test_a_scan_whose_beam_angles_do_not_ascend_is_refused_naming_them(name: str, order: str) -> None:
+    from localizers.base import ScanMeasurement
+
+    loc = make_localizer(name, MAP, dt_s=0.1, params={"n_particles": 20} if name == "mcl_lidar" else {"mcl": {"n_particles": 20}})
+    loc.reset(np.random.default_rng(0), START)
+    angles = np.linspace(-1.0, 1.0, 11)
+    angles = angles[::-1] if order == "descending" else np.r_[angles[:5], angles[4:-1]]
+    source = "scan filter" if name == "far_point_mcl" else name  # far_point_mcl's scan filter reads the scan first
+    message = rf"{source}: beam angles must ascend \(ScanMeasurement.angles_rad\), got -?[\d.]+ rad at index \d+ after"
+    with pytest.raises(MeasurementError, match=message):
+        loc.update(ScanMeasurement(np.full(11, 3.0), angles, 10.0))
