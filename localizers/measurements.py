@@ -6,8 +6,10 @@ sensor's metadata: beam angles, maximum range, ...) into a measurement dataclass
 :mod:`localizers.base`. The localizer wrapper, the recordings of ``agents.replay`` and
 ``crowdloc eval`` go through :func:`decode`, so they handle any registered kind without a
 branch on observation keys. Built in: ``bearings`` (a bearing camera's slots), ``scan``
-(a LIDAR's ranges), ``ceiling_image`` (an upward camera's image) and ``stereo_edges`` (a
-stereo camera's typed vertical edges). This module imports nothing from ``envs``: metadata are plain values.
+(a LIDAR's ranges), ``ceiling_image`` (an upward camera's image), ``stereo_edges`` (a
+stereo camera's typed vertical edges) and ``odometry`` (the increment itself, what dead
+reckoning reads in a world without a bearing camera). Each decode checks the observation's
+shape against the sensor's metadata (:func:`checked_shape`). This module imports nothing from ``envs``: metadata are plain values.
 """
 
 from __future__ import annotations
@@ -183,4 +185,9 @@ CEILING_IMAGE = register_measurement(
 )
 STEREO_EDGES = register_measurement(
     MeasurementKind("stereo_edges", "stereo_camera", edge_measurement, "typed vertical edges of a stereo camera")
+)
+#: the odometry increment itself (every world has the sensor): what a localizer that needs no other
+#: sensor reads in a world without its own kind's (``LocalizerSpec.fallback``: dead reckoning)
+ODOMETRY = register_measurement(
+    MeasurementKind("odometry", "odometry", odometry_delta, "the odometry increment alone (no exteroceptive sensor)")
 )

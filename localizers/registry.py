@@ -39,6 +39,10 @@ class LocalizerSpec:
             to build it with (``far_landmark_pf``: the world's default scene map, made on first
             use; ``mcl_lidar``: the likelihood field in a world too large for the beam model's
             table). Named, not imported: ``localizers`` does not import the code that drives a world.
+        fallback: a measurement kind it reads instead in a world without a sensor of
+            ``measurement``'s kind (dead reckoning, which uses odometry only and merely validates
+            the bearings it is given: ``"odometry"``, so that it runs in every world);
+            :func:`measurement_in` resolves it.
     """
 
     module: str
@@ -49,6 +53,7 @@ class LocalizerSpec:
     summary: str
     covariance: bool = True
     prepare: str = ""
+    fallback: str = ""
 
 
 LOCALIZERS: dict[str, LocalizerSpec] = {
@@ -59,6 +64,7 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         "bearings",
         True,
         "odometry only, from the known start pose (paper A, baseline 1)",
+        fallback="odometry",
     ),
     "resection": LocalizerSpec(
         "localizers.resection",
@@ -166,6 +172,20 @@ def spec(name: str) -> LocalizerSpec:
         return LOCALIZERS[name]
     except KeyError:
         raise ConfigError(f"unknown localizer {name!r}; known localizers: {', '.join(sorted(LOCALIZERS))}") from None
+
+
+def measurement_in(name: str, sensors: Mapping[str, Mapping[str, Any]]) -> str:
+    """The measurement kind localizer ``name`` reads in a world with these ``sensors`` (name ->
+    metadata with a ``type``): its own, or its :attr:`LocalizerSpec.fallback` where the world has
+    no sensor of its own kind."""
+    from localizers.measurements import measurement_kind
+
+    s = spec(name)
+    if s.fallback:
+        own = measurement_kind(s.measurement).sensor_type
+        if not any(meta.get("type") == own for meta in sensors.values()):
+            return s.fallback
+    return s.measurement
 
 
 def _attr(module: str, name: str) -> Any:

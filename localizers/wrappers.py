@@ -45,7 +45,7 @@ from localizers.measurements import (
     readable_kinds,
     sensor_map,
 )
-from localizers.registry import make_localizer, prepared_params, spec
+from localizers.registry import make_localizer, measurement_in, prepared_params, spec
 from localizers.schema import ConfigError
 
 __all__ = ["LocalizationObservation", "bearing_measurement", "decode_estimate", "encode_estimate", "hypothesis_spread"]
@@ -157,7 +157,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         sensors: dict[str, dict[str, Any]] = base.sensor_metadata  # type: ignore[attr-defined]
         if isinstance(localizer, str):
             entry = spec(localizer)
-            self.measurement = entry.measurement
+            self.measurement = measurement_in(localizer, sensors) if sensor is None else entry.measurement
             self.localizer_name = localizer
             self._sensor = find_sensor(self.measurement, sensors, f"localizer {localizer!r}", sensor)
             self.landmark_map = sensor_map(self.landmark_map, sensors[self._sensor])
