@@ -67,7 +67,7 @@ def test_a_likelihood_field_too_fine_for_its_map_is_refused_naming_the_resolutio
         wall_distance_field(CAMPUS.walls_m, (0.0, 0.0), 0.001, (150_000, 100_000))
 
 
-def test_a_larger_bound_lets_the_table_through() -> None:
+def test_the_bound_is_max_table_mb() -> None:
     params = LidarMCLParams(model="likelihood_field", table_resolution_m=0.5, max_table_mb=0.1)
     with pytest.raises(ConfigError, match="0 MB|max_table_mb"):
         LikelihoodFieldModel(CAMPUS, params)
