@@ -34,7 +34,7 @@ from agents.scenarios import Driver
 from envs.localization_env import LocalizationEnv
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
 from localizers.measurements import decode, find_sensor, measurement_kind, readable_kinds, sensor_map
-from localizers.registry import make_localizer, spec
+from localizers.registry import make_localizer, measurement_in, spec
 from localizers.wrappers import _SEED_SALT
 
 #: the covariance of the known start pose handed to localizers that need it (as the wrapper does)
@@ -534,14 +534,15 @@ def replay(
         raise ValueError(f"prior must be 'auto', 'start' or 'none', got {prior!r}")
     entry = spec(name)
     needs = entry.needs_prior if prior == "auto" else prior == "start"
-    localizer = make_localizer(name, recording.localizer_map(entry.measurement, sensor), dt_s=recording.dt_s, params=params)
+    kind = entry.measurement if sensor is not None else measurement_in(name, recording.sensors)
+    localizer = make_localizer(name, recording.localizer_map(kind, sensor), dt_s=recording.dt_s, params=params)
     return replay_into(
         localizer,
         recording,
         np.random.default_rng(rng_seed),
         prior=start_prior(recording) if needs else None,
         landmark_subset=landmark_subset,
-        measurement=entry.measurement,
+        measurement=kind,
         read=read,
         sensor=sensor,
     )

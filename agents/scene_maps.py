@@ -33,6 +33,7 @@ from tqdm import tqdm
 
 from envs.config import WorldConfig
 from envs.localization_env import LocalizationEnv
+from localizers.mcl_lidar import LARGE_MAP_PARAMS
 from localizers.measurements import edge_measurement, sensor_map
 from localizers.range_table import cache_dir
 from localizers.scene_map import SceneMap, geometry_fingerprint
@@ -43,14 +44,7 @@ _log = logging.getLogger(__name__)
 #: the LIDAR reference: mcl_lidar as ROS amcl runs it (likelihood field, amcl's 1.0 sampling,
 #: no recovery or lost test: injection drawn over a campus almost never lands near the robot, and
 #: a lost test that fires when people pass would stop a robot that drives on the estimate)
-AMCL_LIKE: dict[str, Any] = {
-    "model": "likelihood_field",
-    "table_resolution_m": 0.1,
-    "beam_stride": 8,
-    "sampling": 1.0,
-    "recovery": False,
-    "lost_ratio": 0.0,
-}
+AMCL_LIKE: dict[str, Any] = dict(LARGE_MAP_PARAMS)  # mcl_lidar's own defaults for a world too large for its beam model
 #: what of the stereo camera's metadata a map's edges depend on (a map made with another is refused)
 CAMERA_KEYS = (
     "width_px",
@@ -197,8 +191,15 @@ def default_map_path(env: LocalizationEnv) -> Path:
 
 
 def default_scene_map(env: LocalizationEnv) -> Path:
-    """The world's default scene map (seed 0, the crowd size of the world's file), made and cached on first use."""
+    """The world's default scene map (seed 0, the crowd size of the world's file), made and cached on first use,
+    and made again (saying so) when the cached file cannot be read (left truncated by a writer of an older version)."""
     path = default_map_path(env)
+    if path.is_file():
+        try:
+            SceneMap.load(path)
+        except ConfigError as exc:
+            _log.warning("the cached default scene map cannot be read, making it again: %s", exc)
+            path.unlink(missing_ok=True)
     if not path.is_file():
         _log.warning("making the default scene map of %s (the route driven once; cached in %s)", env.config.name, path)
         build_scene_map(env.config, MappingDrive(crowd_size=env.file_crowd_size), progress=True).save(path)

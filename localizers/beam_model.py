@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import LandmarkMap
-from localizers.range_table import RangeTable, wall_distance_field
+from localizers.range_table import RangeTable, check_table_size, wall_distance_field
 
 if TYPE_CHECKING:  # mcl_lidar imports this module
     from localizers.mcl_lidar import LidarMCLParams
@@ -32,6 +32,7 @@ _CHUNK = 16  # beams multiplied before one log (16 * log10(1e-12) stays far abov
 _GAUSS_U_MAX = 32.0  # the tabulated Gaussian exp(-u), u = d^2 / (2 sigma^2), is 0 beyond (e^-32 ~ 1e-14)
 _GAUSS_SIZE = 8192  # entries over [0, _GAUSS_U_MAX]: nearest entry, relative error <= 0.2 %
 _FIELD_MARGIN_M = 1.0  # the likelihood field extends this far beyond the map bounds
+_FIELD_BYTES_PER_CELL = 12  # the distance (float64) and the log field of one maximum range (float32)
 
 
 # --------------------------------------------------------------------------------------
@@ -268,6 +269,9 @@ class LikelihoodFieldModel:
     ``d_b`` is the distance from the end point of beam ``b`` to the nearest wall, read from a
     grid over the map bounds plus 1 m at ``table_resolution_m``; end points off the grid
     score ``log(z_rand / z_max)``. Max-range beams are skipped (Table 6.3, line 3).
+
+    Raises:
+        ConfigError: a grid above ``max_table_mb`` (12 bytes a cell), before it is built.
     """
 
     def __init__(self, landmarks: LandmarkMap, params: LidarMCLParams) -> None:
@@ -279,7 +283,14 @@ class LikelihoodFieldModel:
             max(1, math.ceil((xmax - xmin + 2 * _FIELD_MARGIN_M) / res - 1e-9)),
             max(1, math.ceil((ymax - ymin + 2 * _FIELD_MARGIN_M) / res - 1e-9)),
         )
-        self.distance_m = wall_distance_field(landmarks.walls_m, self.origin_xy_m, res, shape)
+        check_table_size(
+            "the likelihood field (cells x cells)",
+            shape,
+            _FIELD_BYTES_PER_CELL,
+            params.max_table_mb,
+            f"a coarser table_resolution_m than {res!r} m (the campus's LIDAR reference uses 0.1 m) or a larger max_table_mb",
+        )
+        self.distance_m = wall_distance_field(landmarks.walls_m, self.origin_xy_m, res, shape, max_mb=params.max_table_mb)
         self._fields: dict[float, NDArray[np.float32]] = {}
 
     def log_field(self, max_range_m: float) -> NDArray[np.float32]:

@@ -123,8 +123,9 @@ from localizers.candidate_kernels import (
 )
 from localizers.contradiction import Contradiction
 from localizers.geometry import between, circular_std, compose
+from localizers.particles import MAX_PARTICLES
 from localizers.resection import inscribed_arc_poses, triple_indices
-from localizers.schema import check, check_ranges
+from localizers.schema import check, check_at_most, check_ranges
 
 
 @dataclass(frozen=True)
@@ -203,6 +204,13 @@ class CandidateSetParams:
         for name in ("candidates_per_arc", "max_sets", "determine_below", "max_live_candidates"):
             value = getattr(self, name)
             check(value >= 1, f"CandidateSetParams.{name} must be an integer >= 1, got {value!r}")
+        # each arc is computed at _ARC_OVERSAMPLING points per kept candidate; every set holds up to N candidates
+        check_at_most(
+            self,
+            "CandidateSetParams",
+            {"candidates_per_arc": MAX_PARTICLES // _ARC_OVERSAMPLING, "max_live_candidates": MAX_PARTICLES, "max_sets": 10_000},
+            "memory: each candidate is a pose and its accumulated error, about 50 bytes, updated at every frame",
+        )
         check_ranges(
             self,
             "CandidateSetParams",

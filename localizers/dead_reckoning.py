@@ -171,10 +171,13 @@ class DeadReckoningLocalizer:
             pose, self._cov, d, p.position_var_m2_per_m, p.heading_var_rad2_per_m, p.heading_var_rad2_per_rad
         )
 
-    def update(self, measurement: BearingMeasurement) -> None:
-        """Validate (bad bearings still raise) and otherwise ignore the measurement."""
+    def update(self, measurement: BearingMeasurement | OdometryDelta) -> None:
+        """Validate (bad bearings still raise) and otherwise ignore the measurement. In a world
+        without a bearing camera the env wrapper hands it the odometry increment instead (its
+        registry entry's ``fallback`` kind), which :meth:`predict` has already integrated."""
         self._require_reset()
-        checked_bearings(self.name, measurement, self._map.count)
+        if not isinstance(measurement, OdometryDelta):
+            checked_bearings(self.name, measurement, self._map.count)
 
     @property
     def estimate(self) -> PoseEstimate:

@@ -63,6 +63,8 @@ from localizers.base import (
     within_spread,
 )
 from localizers.particles import (
+    MAX_PARTICLES,
+    PARTICLE_MEMORY,
     gaussian_poses,
     prior_covariance,
     propagate_particles,
@@ -71,7 +73,7 @@ from localizers.particles import (
     weighted_pose_mean,
 )
 from localizers.scene_map import SceneMap
-from localizers.schema import ConfigError, check, check_ranges
+from localizers.schema import ConfigError, check, check_at_most, check_ranges
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -130,6 +132,7 @@ class FarLandmarkParams:
     def __post_init__(self) -> None:
         name = "FarLandmarkParams"
         check(self.n_particles >= 2, f"{name}.n_particles must be >= 2, got {self.n_particles!r}")
+        check_at_most(self, name, {"n_particles": MAX_PARTICLES}, PARTICLE_MEMORY)
         check(
             len(self.alphas) == 4 and all(math.isfinite(a) and a >= 0.0 for a in self.alphas),
             f"{name}.alphas must be four finite values >= 0, got {self.alphas!r}",

@@ -50,6 +50,8 @@ from localizers.base import (
 from localizers.contradiction import Contradiction
 from localizers.geometry import compose, wrap_angle
 from localizers.particles import (
+    MAX_PARTICLES,
+    PARTICLE_MEMORY,
     LikelihoodAverages,
     gaussian_poses,
     motion_covariance,
@@ -61,7 +63,7 @@ from localizers.particles import (
 )
 from localizers.particles import prior_covariance as _prior_covariance
 from localizers.resection import inscribed_arc_poses, resect_all_triples
-from localizers.schema import check, check_ranges
+from localizers.schema import check, check_at_most, check_ranges
 
 Array = NDArray[np.float64]
 _TWO_PI = 2.0 * math.pi
@@ -243,6 +245,7 @@ class PaperMCLParams:
             f"PaperMCLParams.min_survival_fraction must be in [0, 1], got {self.min_survival_fraction!r}",
         )
         check(self.n_particles >= 1, f"PaperMCLParams.n_particles must be >= 1, got {self.n_particles!r}")
+        check_at_most(self, "PaperMCLParams", {"n_particles": MAX_PARTICLES}, PARTICLE_MEMORY)
         check(
             math.isfinite(self.gate_rad) and 0.0 < self.gate_rad <= math.pi,
             f"PaperMCLParams.gate_rad must be in (0, pi], got {self.gate_rad!r}",
@@ -468,6 +471,7 @@ class BearingMCLParams:
 
     def __post_init__(self) -> None:
         check(self.n_particles >= 2, f"BearingMCLParams.n_particles must be >= 2, got {self.n_particles!r}")
+        check_at_most(self, "BearingMCLParams", {"n_particles": MAX_PARTICLES}, PARTICLE_MEMORY)
         check(
             math.isfinite(self.lost_residual_rad) and 0.0 < self.lost_residual_rad <= math.pi,
             f"BearingMCLParams.lost_residual_rad must be in (0, pi] rad, got {self.lost_residual_rad!r}",

@@ -24,7 +24,12 @@ likelihood field is the only map model a ``likelihood_field`` filter builds (the
 table is built by :meth:`LidarMCL.beam_model` alone, for ``model: beam``); at 5 cm it is
 6.2 M cells, 8 bytes each for the distances and 4 for the log field of each maximum range
 (75 MB), built in about 0.4 s plus 0.4 s for the log field. The beam model's table of the
-same grid at 720 directions would be 17 GB: the beam model is for rooms. What does not
+same grid at 720 directions would be 17 GB: the beam model is for rooms. Every table's memory
+is estimated before it is built and one above ``max_table_mb`` refused (a beam model whose
+table would be, when the filter is made); in such a world the env wrapper gives ``mcl_lidar``
+:data:`LARGE_MAP_PARAMS`, the campus reference's likelihood field at 0.1 m (:func:`large_map_params`;
+``crowdloc eval --env-id crowdloc/StereoCampus-v0 --localizers mcl_lidar``: peak RSS about
+0.5 GB, errors of 6 cm, a pose on every step over 300 steps of ``route_follower``). What does not
 scale: ``recovery_candidates`` (and the particles of a reset without a prior) are uniform
 over the map bounds, so their density falls with the area: 20,000 candidates put about 4
 within 0.25 m and 10 deg of the true pose in the 7 m x 7 m room, and 0.015 on the campus,
@@ -51,10 +56,12 @@ of 20-24. Between updates the covariance grows with the odometry not yet applied
 
 from __future__ import annotations
 
+import logging
 import math
 import statistics
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -77,6 +84,8 @@ from localizers.base import (
 from localizers.beam_model import BeamModel, LikelihoodFieldModel, beam_likelihood, p_hit, p_max, p_rand, p_short
 from localizers.geometry import compose, wrap_angle
 from localizers.particles import (
+    MAX_PARTICLES,
+    PARTICLE_MEMORY,
     LikelihoodAverages,
     gaussian_poses,
     motion_covariance,
@@ -87,8 +96,18 @@ from localizers.particles import (
     weighted_pose_covariance,
     weighted_pose_mean,
 )
-from localizers.range_table import CACHE_ENV, RangeTable, build_range_table, cache_dir, range_table_key, wall_distance_field
-from localizers.schema import check, check_ranges
+from localizers.range_table import (
+    CACHE_ENV,
+    MAX_TABLE_MB,
+    RangeTable,
+    build_range_table,
+    cache_dir,
+    check_range_table_size,
+    range_table_key,
+    range_table_shape,
+    wall_distance_field,
+)
+from localizers.schema import check, check_at_most, check_ranges
 
 __all__ = [
     "CACHE_ENV",
@@ -113,6 +132,25 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
+_log = logging.getLogger(__name__)
+
+#: mcl_lidar's parameters where the beam model's ray-cast table of the world's map would exceed
+#: ``max_table_mb`` (a campus) and the user did not choose ``model``: ROS amcl's likelihood-field
+#: configuration at 0.1 m, as the campus's LIDAR reference runs it (:mod:`agents.scene_maps`; no recovery or
+#: lost test: injection drawn over a campus almost never lands near the robot, and the lost test fires
+#: when people pass). With the beam model's defaults on the likelihood field, the campus filter spreads
+#: along the sidewalk and claims a pose on 7 % of the steps (measured, 300 steps of route_follower)
+LARGE_MAP_PARAMS: dict[str, Any] = {
+    "model": "likelihood_field",
+    "table_resolution_m": 0.1,
+    "beam_stride": 8,
+    "sampling": 1.0,
+    "recovery": False,
+    "lost_ratio": 0.0,
+}
+
+#: the most directions per cell of the ray-cast table (0.1 deg)
+MAX_TABLE_DIRECTIONS = 3600
 
 
 # --------------------------------------------------------------------------------------
@@ -141,6 +179,13 @@ class LidarMCLParams:
         beam_stride: use every ``beam_stride``-th beam (1: all).
         table_resolution_m: cell size of the ray-cast table and of the likelihood field.
         table_directions: directions per cell of the ray-cast table (720: 0.5 deg).
+        max_table_mb: the most memory (MB, per process) one map table may take: the ray-cast
+            table (4 bytes per cell and direction) or the likelihood field (about 12 bytes a
+            cell). A table above it is refused with a :class:`~localizers.schema.ConfigError`
+            when the filter is made (the beam model's) or its field built, giving the estimate
+            and what to change. The beam model's table of a 150 m x 100 m campus at 5 cm and 720
+            directions would be 17 GB: in such a world the env wrapper picks
+            :data:`LARGE_MAP_PARAMS` unless ``model`` is given (:func:`large_map_params`).
         resample_ess_fraction: resample when the effective sample size falls below this
             fraction of the set (1.0: after every update, as Table 8.2).
         kld: adapt the set size by KLD-sampling (Fox 2003).
@@ -200,6 +245,7 @@ class LidarMCLParams:
     beam_stride: int = 1
     table_resolution_m: float = 0.05
     table_directions: int = 720
+    max_table_mb: float = MAX_TABLE_MB
     resample_ess_fraction: float = 1.0
     kld: bool = False
     kld_epsilon: float = 0.05
@@ -236,6 +282,7 @@ class LidarMCLParams:
                 "hit_std_m",
                 "lambda_short",
                 "table_resolution_m",
+                "max_table_mb",
                 "kld_epsilon",
                 "kld_bin_xy_m",
                 "kld_bin_theta_rad",
@@ -259,8 +306,21 @@ class LidarMCLParams:
             abs(total - 1.0) <= 1e-6,
             f"{name}: z_hit + z_short + z_max + z_rand must be 1 (Probabilistic Robotics Table 6.1), got {total!r}",
         )
+        check_at_most(
+            self,
+            name,
+            dict.fromkeys(("n_particles", "min_particles", "max_particles", "recovery_candidates"), MAX_PARTICLES),
+            PARTICLE_MEMORY,
+        )
         check(self.beam_stride >= 1, f"{name}.beam_stride must be >= 1, got {self.beam_stride!r}")
         check(self.table_directions >= 8, f"{name}.table_directions must be >= 8, got {self.table_directions!r}")
+        check_at_most(
+            self,
+            name,
+            {"table_directions": MAX_TABLE_DIRECTIONS},
+            "0.1 deg, finer than a LIDAR's beam step (the UTM-30LX's is 0.25 deg), and memory: the ray-cast table holds a "
+            "range per cell and direction",
+        )
         check(
             0.0 < self.resample_ess_fraction <= 1.0,
             f"{name}.resample_ess_fraction must be in (0, 1], got {self.resample_ess_fraction!r}",
@@ -290,6 +350,36 @@ class LidarMCLParams:
         return (a1, a2, a3, a4)
 
 
+def large_map_params(env: Any, sensor: str, params: Mapping[str, Any] | None) -> Mapping[str, Any] | None:
+    """``mcl_lidar``'s preparation (its registry entry names it): in a world whose map would give
+    the beam model a ray-cast table above ``max_table_mb`` (``env.landmark_map`` cut at the
+    sensor's height), :data:`LARGE_MAP_PARAMS` under the user's ``params``, logged; otherwise, or
+    when ``params`` names a ``model``, ``params`` unchanged (an explicit beam model is then
+    refused when the filter is made, with the table's estimate)."""
+    from localizers.measurements import sensor_map
+    from localizers.registry import load_params
+
+    if (params is not None and not isinstance(params, Mapping)) or "model" in (params or {}):
+        return params
+    p = load_params("mcl_lidar", params)
+    if p.model != "beam":
+        return params
+    bounds = sensor_map(env.landmark_map, env.sensor_metadata[sensor]).bounds_m
+    shape = range_table_shape(bounds, p.table_resolution_m, p.table_directions)
+    megabytes = math.prod(shape) * 4 / 1e6
+    if megabytes <= p.max_table_mb:
+        return params
+    chosen = {**LARGE_MAP_PARAMS, **(params or {})}
+    _log.warning(
+        "mcl_lidar: the beam model's ray-cast table of this %g m x %g m map would be %d x %d cells x %d directions "
+        "(%.0f MB, above max_table_mb %g): using %s (the campus reference's likelihood field; give localizer_params "
+        "model=... to choose)",
+        bounds[2] - bounds[0], bounds[3] - bounds[1], *shape, megabytes, p.max_table_mb,
+        ", ".join(f"{k} {v}" for k, v in chosen.items() if k in LARGE_MAP_PARAMS),
+    )  # fmt: skip
+    return chosen
+
+
 # --------------------------------------------------------------------------------------
 # Scan validation
 
@@ -298,8 +388,9 @@ def validated_scan(scan: ScanMeasurement, source: str = "scan") -> tuple[Array, 
     """``(ranges, angles, max_range)`` of a scan as float64, or a :class:`MeasurementError`.
 
     Checked: a finite positive ``max_range_m``; 1-D ranges and angles of equal length;
-    finite angles; ranges finite and in ``[0, max_range_m]``. The message names the first
-    bad value and its beam index.
+    finite angles, strictly ascending (as :class:`~localizers.base.ScanMeasurement` requires);
+    ranges finite and in ``[0, max_range_m]``. The message names the first bad value and its
+    beam index.
     """
     if not isinstance(scan, ScanMeasurement):
         raise MeasurementError(f"{source}: expected a ScanMeasurement, got {type(scan).__name__}")
@@ -316,6 +407,13 @@ def validated_scan(scan: ScanMeasurement, source: str = "scan") -> tuple[Array, 
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise MeasurementError(f"{source}: beam angle {float(angles[i])!r} rad at index {i} is not finite")
+    bad = ~(np.diff(angles) > 0.0)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0]) + 1
+        raise MeasurementError(
+            f"{source}: beam angles must ascend (ScanMeasurement.angles_rad), got {float(angles[i])!r} rad at index {i} "
+            f"after {float(angles[i - 1])!r} rad"
+        )
     bad = ~((ranges >= 0.0) & (ranges <= max_range))  # NaN fails both comparisons
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
@@ -401,6 +499,8 @@ class LidarMCL:
         self._step_limit_m = landmarks.step_limit_m
         self._params = params
         self._alphas = np.asarray(params.alphas, dtype=np.float64)
+        if params.model == "beam":  # refused here, not at the first scan: the table's size depends on the map only
+            check_range_table_size(landmarks.bounds_m, params.table_resolution_m, params.table_directions, params.max_table_mb)
         self._beam_models: dict[float, BeamModel] = {}
         self._field: LikelihoodFieldModel | None = None
         self._rng: np.random.Generator | None = None
@@ -423,7 +523,11 @@ class LidarMCL:
         if model is None:
             p = self._params
             table = build_range_table(
-                self._map, resolution_m=p.table_resolution_m, directions=p.table_directions, max_range_m=max_range_m
+                self._map,
+                resolution_m=p.table_resolution_m,
+                directions=p.table_directions,
+                max_range_m=max_range_m,
+                max_mb=p.max_table_mb,
             )
             model = self._beam_models[max_range_m] = BeamModel(table, p)
         return model

@@ -6,8 +6,10 @@ sensor's metadata: beam angles, maximum range, ...) into a measurement dataclass
 :mod:`localizers.base`. The localizer wrapper, the recordings of ``agents.replay`` and
 ``crowdloc eval`` go through :func:`decode`, so they handle any registered kind without a
 branch on observation keys. Built in: ``bearings`` (a bearing camera's slots), ``scan``
-(a LIDAR's ranges), ``ceiling_image`` (an upward camera's image) and ``stereo_edges`` (a
-stereo camera's typed vertical edges). This module imports nothing from ``envs``: metadata are plain values.
+(a LIDAR's ranges), ``ceiling_image`` (an upward camera's image), ``stereo_edges`` (a
+stereo camera's typed vertical edges) and ``odometry`` (the increment itself, what dead
+reckoning reads in a world without a bearing camera). Each decode checks the observation's
+shape against the sensor's metadata (:func:`checked_shape`). This module imports nothing from ``envs``: metadata are plain values.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.base import BearingMeasurement, EdgeMeasurement, LandmarkMap, ScanMeasurement
+from localizers.base import BearingMeasurement, EdgeMeasurement, LandmarkMap, MeasurementError, OdometryDelta, ScanMeasurement
 from localizers.schema import ConfigError
 
 Decoder = Callable[[NDArray[np.float32], Mapping[str, Any]], Any]
@@ -109,35 +111,67 @@ def sensor_map(landmarks: LandmarkMap, metadata: Mapping[str, Any]) -> LandmarkM
     return landmarks if height is None else landmarks.at_height(float(height))
 
 
+def checked_shape(
+    observation: Any, metadata: Mapping[str, Any] | None, expected: tuple[int, ...] | None, what: str, multiple_of: int = 1
+) -> NDArray[Any]:
+    """``observation`` as an array of the ``expected`` shape (from the sensor's metadata), or a
+    :class:`MeasurementError` naming the observation key (``metadata["key"]``), ``what`` it holds,
+    the expected and the actual shape. Without an expected shape (no metadata), a 1-D array whose
+    length is a multiple of ``multiple_of`` (the values of one slot)."""
+    a = np.asarray(observation)
+    ok = a.shape == expected if expected is not None else a.ndim == 1 and a.size % multiple_of == 0
+    if not ok:
+        key = (metadata or {}).get("key", what)
+        want = str(expected) if expected is not None else f"(n,) with n a multiple of {multiple_of}"
+        raise MeasurementError(f"observation {key!r} ({what}): expected shape {want}, got {a.shape}")
+    return a
+
+
+def odometry_delta(observation: Any, metadata: Mapping[str, Any] | None = None) -> OdometryDelta:
+    """An odometry sensor's ``(3,)`` increment ``(dx, dy, dtheta)`` (robot frame) as an :class:`OdometryDelta`."""
+    d = checked_shape(observation, metadata, (3,), "odometry dx, dy, dtheta")
+    return OdometryDelta(float(d[0]), float(d[1]), float(d[2]))
+
+
 def bearing_measurement(landmarks_obs: NDArray[np.float32], metadata: Mapping[str, Any] | None = None) -> BearingMeasurement:
-    """Turn the camera's flat ``(3 L,)`` slots ``(visible, cos, sin)`` into a :class:`BearingMeasurement`."""
-    slots = np.asarray(landmarks_obs, dtype=np.float64).reshape(-1, 3)
+    """Turn the camera's flat ``(3 L,)`` slots ``(visible, cos, sin)`` into a :class:`BearingMeasurement`
+    (checked: ``L`` is the metadata's ``landmark_count`` when given)."""
+    count = (metadata or {}).get("landmark_count")
+    expected = None if count is None else (3 * int(count),)
+    slots = checked_shape(landmarks_obs, metadata, expected, "bearing slots: visible, cos, sin per landmark", 3)
+    slots = np.asarray(slots, dtype=np.float64).reshape(-1, 3)
     seen = np.flatnonzero(slots[:, 0] > 0.5)
     slots = slots[seen]
     return BearingMeasurement(seen.astype(np.int64), np.arctan2(slots[:, 2], slots[:, 1]))
 
 
 def scan_measurement(ranges: NDArray[np.float32], metadata: Mapping[str, Any]) -> ScanMeasurement:
-    """A LIDAR's ``(B,)`` ranges with the beam angles and maximum range of its metadata."""
+    """A LIDAR's ``(B,)`` ranges with the beam angles and maximum range of its metadata (checked: ``B`` beams)."""
+    beams = np.asarray(metadata["beam_angles_rad"]).shape
     return ScanMeasurement(
-        np.asarray(ranges, dtype=np.float64),
+        np.asarray(checked_shape(ranges, metadata, beams, "ranges, one per beam"), dtype=np.float64),
         np.asarray(metadata["beam_angles_rad"], dtype=np.float64),
         float(metadata["max_range_m"]),
     )
 
 
 def ceiling_image_measurement(image: NDArray[Any], metadata: Mapping[str, Any]) -> Any:
-    """An upward camera's RGB image with its camera (:class:`localizers.ceiling_target.CeilingImage`)."""
+    """An upward camera's RGB image with its camera (:class:`localizers.ceiling_target.CeilingImage`;
+    checked: ``(height_px, width_px, 3)`` of the metadata)."""
     from localizers.ceiling_target import ceiling_image  # OpenCV is imported only where images are read
 
-    return ceiling_image(image, metadata)
+    shape = (int(metadata["height_px"]), int(metadata["width_px"]), 3) if "height_px" in metadata else None
+    return ceiling_image(checked_shape(image, metadata, shape, "RGB image"), metadata)
 
 
 def edge_measurement(slots: NDArray[np.float32], metadata: Mapping[str, Any] | None = None) -> EdgeMeasurement:
     """A stereo camera's flat slots ``(valid, type, inverse range, bearing)`` as an
     :class:`EdgeMeasurement` of its valid ones (checked: a NaN or non-positive inverse range
-    is a :class:`MeasurementError` naming it)."""
-    rows = np.asarray(slots, dtype=np.float64).reshape(-1, 4)
+    is a :class:`MeasurementError` naming it; the metadata's ``slots`` count when given)."""
+    count = (metadata or {}).get("slots")
+    expected = None if count is None else (4 * int(count),)
+    rows = checked_shape(slots, metadata, expected, "stereo edge slots: valid, type, inverse range, bearing", 4)
+    rows = np.asarray(rows, dtype=np.float64).reshape(-1, 4)
     rows = rows[rows[:, 0] > 0.5]
     return EdgeMeasurement(np.rint(rows[:, 1]).astype(np.int64), rows[:, 2], rows[:, 3]).validated("stereo_edges slots")
 
@@ -151,4 +185,9 @@ CEILING_IMAGE = register_measurement(
 )
 STEREO_EDGES = register_measurement(
     MeasurementKind("stereo_edges", "stereo_camera", edge_measurement, "typed vertical edges of a stereo camera")
+)
+#: the odometry increment itself (every world has the sensor): what a localizer that needs no other
+#: sensor reads in a world without its own kind's (``LocalizerSpec.fallback``: dead reckoning)
+ODOMETRY = register_measurement(
+    MeasurementKind("odometry", "odometry", odometry_delta, "the odometry increment alone (no exteroceptive sensor)")
 )

@@ -21,6 +21,13 @@ from localizers.motion import odometry_noise_std, to_rot_trans_rot
 Array = NDArray[np.float64]
 _HEADING_REWRAP_RAD = 32.0  # particle headings are re-wrapped once they exceed this magnitude
 
+#: the most particles (or candidate poses) a localizer's parameters may ask for: each is a pose and
+#: its weights, about 50 bytes, weighed at every update; 10**6 is a thousand times the papers' sets
+#: and about 50 MB (10**9 would need about 50 GB). Checked with :func:`localizers.schema.check_at_most`.
+MAX_PARTICLES = 1_000_000
+#: why :data:`MAX_PARTICLES` (the reason the parameter errors give)
+PARTICLE_MEMORY = "memory: each particle is a pose and its weights, about 50 bytes, weighed at every update"
+
 
 def propagate_particles(
     particles: Array,

@@ -7,6 +7,12 @@ What the LIDAR MCL (:mod:`localizers.mcl_lidar`) precomputes once per map:
   :func:`localizers.raycast.cast_rays` and cached on disk (:func:`build_range_table`);
 - likelihood field: the distance from each cell centre to the nearest wall
   (:func:`wall_distance_field`).
+
+Both grow with the map's area: a table's memory is estimated before anything is allocated
+(:func:`check_table_size`) and a table above its bound (:data:`MAX_TABLE_MB` by default) is
+refused with a :class:`~localizers.schema.ConfigError` that gives the estimate and what to
+change. The beam model's table of a 150 m x 100 m campus at 5 cm and 720 directions would be
+17 GB; its likelihood field, 75 MB.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ import logging
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import LandmarkMap
 from localizers.raycast import cast_rays
+from localizers.schema import ConfigError
 
 Array = NDArray[np.float64]
 _log = logging.getLogger(__name__)
@@ -33,9 +41,71 @@ CACHE_ENV = "CROWDLOC_CACHE"
 _TABLE_FORMAT = b"crowdloc-range-table-v1"
 
 
+#: the default bound of one map table's memory, MB: a 7 m x 7 m room's ray-cast table at 5 cm and 720
+#: directions is 56 MB, a campus's likelihood field 75 MB; the campus's ray-cast table (17 GB) is refused
+MAX_TABLE_MB = 1024.0
+
+
+def check_table_size(what: str, shape: tuple[int, ...], bytes_per_entry: float, max_mb: float, advice: str) -> float:
+    """The memory of a table of ``shape`` at ``bytes_per_entry`` in MB (10**6 bytes), estimated
+    before it is allocated.
+
+    Raises:
+        ConfigError: when it exceeds ``max_mb``, naming ``what``, its shape, the estimate, the
+            bound and ``advice`` (what to change).
+    """
+    megabytes = math.prod(shape) * bytes_per_entry / 1e6
+    if not megabytes <= max_mb:
+        raise ConfigError(
+            f"{what} of {' x '.join(f'{n:,}' for n in shape)} entries would need about {megabytes:,.0f} MB, above the bound "
+            f"of {max_mb:,.0f} MB (memory, per process): {advice}"
+        )
+    return megabytes
+
+
+def range_table_shape(bounds_m: tuple[float, float, float, float], resolution_m: float, directions: int) -> tuple[int, int, int]:
+    """``(nx, ny, D)`` of the ray-cast table of a map with these bounds (``ceil(extent / resolution)`` cells a side)."""
+    xmin, ymin, xmax, ymax = bounds_m
+    nx = max(1, math.ceil((xmax - xmin) / resolution_m - 1e-9))
+    ny = max(1, math.ceil((ymax - ymin) / resolution_m - 1e-9))
+    return nx, ny, int(directions)
+
+
+def check_range_table_size(
+    bounds_m: tuple[float, float, float, float], resolution_m: float, directions: int, max_mb: float
+) -> tuple[int, int, int]:
+    """The ray-cast table's shape (:func:`range_table_shape`), or a :class:`ConfigError` when it
+    would take more than ``max_mb`` (4 bytes an entry), saying what to change."""
+    shape = range_table_shape(bounds_m, resolution_m, directions)
+    check_table_size(
+        "the beam model's ray-cast table (cells x cells x directions)",
+        shape,
+        4,
+        max_mb,
+        "use the likelihood field (model: likelihood_field), a coarser table_resolution_m, fewer table_directions or a "
+        "larger max_table_mb",
+    )
+    return shape
+
+
 def cache_dir() -> Path:
     """Where precomputed tables live: ``$CROWDLOC_CACHE``, default ``~/.cache/crowdloc``."""
     return Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "crowdloc")
+
+
+def write_atomically(path: Path, write: Callable[[Path], object]) -> Path:
+    """Write a file by ``write(tmp)`` to a temporary file beside ``path`` (same folder, same suffix),
+    then rename it over ``path`` (``os.replace``, atomic): a killed or concurrent writer never
+    leaves a truncated ``path``, and readers see the old file or the new one. The folder is made
+    if needed; the temporary file is removed if ``write`` fails. Returns ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.stem}.{os.getpid()}.{time.monotonic_ns()}.tmp{path.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
 
 
 def range_table_key(
@@ -121,7 +191,13 @@ def _fill_range_table(
 
 
 def build_range_table(
-    landmarks: LandmarkMap, *, resolution_m: float, directions: int, max_range_m: float, cache: Path | None = None
+    landmarks: LandmarkMap,
+    *,
+    resolution_m: float,
+    directions: int,
+    max_range_m: float,
+    cache: Path | None = None,
+    max_mb: float = MAX_TABLE_MB,
 ) -> RangeTable:
     """The ray-cast table of a map's walls, loaded from the disk cache when present.
 
@@ -135,13 +211,15 @@ def build_range_table(
         directions: world directions per cell, evenly spaced from 0.
         max_range_m: the sensor's maximum range.
         cache: cache directory (default: :func:`cache_dir`).
+        max_mb: the most memory the table may take (4 bytes an entry), checked first.
+
+    Raises:
+        ConfigError: a table above ``max_mb`` (:func:`check_table_size`), before anything is allocated.
     """
     xmin, ymin, xmax, ymax = landmarks.bounds_m
-    nx = max(1, math.ceil((xmax - xmin) / resolution_m - 1e-9))
-    ny = max(1, math.ceil((ymax - ymin) / resolution_m - 1e-9))
+    nx, ny, _ = shape = check_range_table_size(landmarks.bounds_m, resolution_m, directions, max_mb)
     key = range_table_key(landmarks.walls_m, landmarks.bounds_m, resolution_m, directions, max_range_m)
     path = (cache or cache_dir()) / f"range_table_{key}.npy"
-    shape = (nx, ny, directions)
     meta = ((xmin, ymin), float(resolution_m), float(max_range_m), key)
     if path.is_file():
         try:
@@ -159,10 +237,7 @@ def build_range_table(
         np.ascontiguousarray(walls[:, :2]), np.ascontiguousarray(walls[:, 2:]),
     )  # fmt: skip
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.stem}.{os.getpid()}.{time.monotonic_ns()}.tmp.npy")
-        np.save(tmp, ranges)
-        os.replace(tmp, path)
+        write_atomically(path, lambda tmp: np.save(tmp, ranges))
     except OSError as exc:
         _log.warning("could not cache the range table in %s: %s", path.parent, exc)
     ranges.setflags(write=False)
@@ -236,7 +311,11 @@ def _fill_distance_field(walls: Array, x0: float, y0: float, res: float, nx: int
 
 
 def wall_distance_field(
-    walls_m: ArrayLike, origin_xy_m: tuple[float, float], resolution_m: float, shape: tuple[int, int]
+    walls_m: ArrayLike,
+    origin_xy_m: tuple[float, float],
+    resolution_m: float,
+    shape: tuple[int, int],
+    max_mb: float = MAX_TABLE_MB,
 ) -> Array:
     """``(nx, ny)`` distance from each cell centre to the nearest wall segment (inf without walls).
 
@@ -254,7 +333,8 @@ def wall_distance_field(
 
     Raises:
         ValueError: for a wall coordinate, origin or resolution that is not finite, a
-            resolution <= 0 or a negative shape.
+            resolution <= 0 or a negative shape; a :class:`ConfigError` (a ``ValueError``) for
+            a field above ``max_mb`` (8 bytes a cell), before it is allocated.
     """
     walls = np.ascontiguousarray(np.asarray(walls_m, dtype=np.float64).reshape(-1, 4))
     nx, ny = (int(n) for n in shape)
@@ -267,6 +347,7 @@ def wall_distance_field(
         )
     if nx < 0 or ny < 0:
         raise ValueError(f"wall_distance_field: shape must be two counts >= 0, got {shape!r}")
+    check_table_size("the wall-distance field (cells x cells)", (nx, ny), 8, max_mb, "use a coarser resolution")
     # rounding of the distances compared against the block bound: ~1e-16 of the coordinates' size, taken generously
     size = max(abs(x0), abs(y0), abs(x0 + nx * res), abs(y0 + ny * res), float(np.abs(walls).max(initial=0.0)))
     slack = 1e-9 * (1.0 + size)

@@ -33,11 +33,16 @@ class LocalizerSpec:
             uncertainty (a filter's covariance, a particle or candidate set's sample covariance,
             however heuristic), so that ``crowdloc eval`` scores its consistency (NEES); false for
             one that reports none (NaN) or a placeholder: its tables say "no covariance".
-        prepare: for a localizer that needs data made from its world (a map from a drive), a
-            function ``"module:name"`` that the env wrapper calls as ``prepare(env, sensor,
-            params)`` before building it, and that returns the parameters to build it with
-            (``far_landmark_pf``: the world's default scene map, made on first use). Named, not
-            imported: ``localizers`` does not import the code that drives a world.
+        prepare: for a localizer that needs data made from its world (a map from a drive) or
+            parameters fitted to it, a function ``"module:name"`` that the env wrapper calls as
+            ``prepare(env, sensor, params)`` before building it, and that returns the parameters
+            to build it with (``far_landmark_pf``: the world's default scene map, made on first
+            use; ``mcl_lidar``: the likelihood field in a world too large for the beam model's
+            table). Named, not imported: ``localizers`` does not import the code that drives a world.
+        fallback: a measurement kind it reads instead in a world without a sensor of
+            ``measurement``'s kind (dead reckoning, which uses odometry only and merely validates
+            the bearings it is given: ``"odometry"``, so that it runs in every world);
+            :func:`measurement_in` resolves it.
     """
 
     module: str
@@ -48,6 +53,7 @@ class LocalizerSpec:
     summary: str
     covariance: bool = True
     prepare: str = ""
+    fallback: str = ""
 
 
 LOCALIZERS: dict[str, LocalizerSpec] = {
@@ -58,6 +64,7 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         "bearings",
         True,
         "odometry only, from the known start pose (paper A, baseline 1)",
+        fallback="odometry",
     ),
     "resection": LocalizerSpec(
         "localizers.resection",
@@ -106,6 +113,7 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         "scan",
         True,
         "LIDAR MCL on the raw scan: beam model on a ray-cast table, alphas scaled by the sampling parameter (paper B's MCL)",
+        prepare="localizers.mcl_lidar:large_map_params",
     ),
     "far_point_mcl": LocalizerSpec(
         "localizers.scan_filter",
@@ -164,6 +172,20 @@ def spec(name: str) -> LocalizerSpec:
         return LOCALIZERS[name]
     except KeyError:
         raise ConfigError(f"unknown localizer {name!r}; known localizers: {', '.join(sorted(LOCALIZERS))}") from None
+
+
+def measurement_in(name: str, sensors: Mapping[str, Mapping[str, Any]]) -> str:
+    """The measurement kind localizer ``name`` reads in a world with these ``sensors`` (name ->
+    metadata with a ``type``): its own, or its :attr:`LocalizerSpec.fallback` where the world has
+    no sensor of its own kind."""
+    from localizers.measurements import measurement_kind
+
+    s = spec(name)
+    if s.fallback:
+        own = measurement_kind(s.measurement).sensor_type
+        if not any(meta.get("type") == own for meta in sensors.values()):
+            return s.fallback
+    return s.measurement
 
 
 def _attr(module: str, name: str) -> Any:

@@ -50,9 +50,16 @@ from localizers.base import (
 from localizers.bounds import odometry_process_noise
 from localizers.geometry import between, compose, wrap_angle
 from localizers.mcl_lidar import LidarMCL, LidarMCLParams, informative, validated_scan
-from localizers.schema import check
+from localizers.schema import check, check_at_most
 
 Array = NDArray[np.float64]
+
+
+#: the most points the window may keep (ten times the default): about 60 bytes a point (its coordinates,
+#: their buffer and the extraction's scratch), 300 MB at the bound
+MAX_WINDOW_POINTS = 5_000_000
+#: the most angular bins (0.01 deg): far finer than any LIDAR's beam step, and an array of each size per extraction
+MAX_BINS = 36_000
 
 
 @dataclass(frozen=True)
@@ -80,6 +87,12 @@ class ScanFilterParams:
             f"ScanFilterParams.bin_width_rad must be in (0, pi], got {self.bin_width_rad!r}",
         )
         check(self.max_points >= 1, f"ScanFilterParams.max_points must be >= 1, got {self.max_points!r}")
+        check_at_most(self, "ScanFilterParams", {"max_points": MAX_WINDOW_POINTS}, "memory: about 60 bytes a point")
+        check(
+            self.bins <= MAX_BINS,
+            f"ScanFilterParams.bin_width_rad must be at least 2 pi / {MAX_BINS:,} (0.01 deg: finer than any LIDAR's beam "
+            f"step, and memory: arrays of one entry per bin), got {self.bin_width_rad!r}",
+        )
 
     @property
     def bins(self) -> int:

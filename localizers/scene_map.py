@@ -18,6 +18,8 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import zipfile
+import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import EDGE_TYPES, LandmarkMap
+from localizers.range_table import write_atomically
 from localizers.schema import ConfigError
 
 Array = NDArray[np.float64]
@@ -151,28 +154,34 @@ class SceneMap:
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | Path) -> Path:
-        """Write the map to ``path`` (``.npz``); returns the path."""
-        out = Path(path)
-        out.parent.mkdir(parents=True, exist_ok=True)
+        """Write the map to ``path`` (``.npz``); returns the path.
+
+        Written atomically (:func:`localizers.range_table.write_atomically`: a temporary file in
+        the same folder, then renamed): a killed or concurrent first build never leaves a
+        truncated map behind."""
         meta = {"format": FORMAT, "world": self.world, "fingerprint": self.fingerprint, "camera": dict(self.camera),
                 "source": dict(self.source)}  # fmt: skip
-        with out.open("wb") as f:
-            np.savez_compressed(f, poses=self.poses, first=self.first, types=self.types, relative_xy=self.relative_xy,
-                                pose_covariances=self._covariances(), meta=np.array(json.dumps(meta, sort_keys=True)))  # fmt: skip
-        return out
+
+        def write(tmp: Path) -> None:
+            with tmp.open("wb") as f:
+                np.savez_compressed(f, poses=self.poses, first=self.first, types=self.types, relative_xy=self.relative_xy,
+                                    pose_covariances=self._covariances(), meta=np.array(json.dumps(meta, sort_keys=True)))  # fmt: skip
+
+        return write_atomically(Path(path), write)
 
     @staticmethod
     def load(path: str | Path) -> SceneMap:
         """Read a map written by :meth:`save`.
 
         Raises:
-            ConfigError: naming the file when it is missing or not a scene map.
+            ConfigError: naming the file when it is missing, not a scene map or unreadable (a
+                truncated or corrupt file: remove it and make it again).
         """
         src = Path(path)
         if not src.is_file():
             raise ConfigError(f"scene map {str(src)!r} does not exist (make one with `crowdloc map WORLD`)")
         try:
-            with np.load(src, allow_pickle=False) as data:
+            with src.open("rb") as fh, np.load(fh, allow_pickle=False) as data:  # the file is closed if it is no zip
                 meta = json.loads(str(data["meta"]))
                 if meta.get("format") != FORMAT:
                     raise ConfigError(
@@ -180,8 +189,12 @@ class SceneMap:
                         "with `crowdloc map WORLD`"
                     )
                 arrays = {k: data[k] for k in ("poses", "first", "types", "relative_xy", "pose_covariances")}
-        except (OSError, ValueError, KeyError) as exc:
-            raise ConfigError(f"{str(src)!r} is not a scene map: {exc}") from None
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+            raise ConfigError(
+                f"{str(src)!r} is not a scene map or cannot be read ({type(exc).__name__}: {exc}); a truncated or corrupt "
+                "file: remove it and make it again (`crowdloc map WORLD`; a world's default map in the cache is made again on "
+                "next use)"
+            ) from None
         return SceneMap(
             **arrays, world=meta["world"], fingerprint=meta["fingerprint"], camera=meta["camera"], source=meta["source"]
         )

@@ -251,3 +251,16 @@ def check_rgb(value: Any, where: str) -> None:
         and all(isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 255 for c in value),
         f"{where} must be three integers 0-255, got {value!r}",
     )
+
+
+def check_at_most(obj: object, where: str, limits: Mapping[str, float], why: str) -> None:
+    """Raise :class:`ConfigError` unless each field of ``obj`` named in ``limits`` is at most its limit,
+    naming ``where.field``, its value, the limit and ``why`` (what the bound protects: memory, a
+    sensor's resolution).
+
+    Used in dataclass ``__post_init__`` range checks beside :func:`check_ranges` (which checks the
+    lower end and finiteness): a size of ``10**9`` is refused here, before anything is allocated.
+    """
+    for name, limit in limits.items():
+        value = getattr(obj, name)
+        check(value <= limit, f"{where}.{name} must be at most {limit:,} ({why}), got {value!r}")

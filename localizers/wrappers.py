@@ -35,10 +35,17 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from localizers.base import LandmarkMap, Localizer, OdometryDelta, Overlay, PoseEstimate
+from localizers.base import LandmarkMap, Localizer, Overlay, PoseEstimate
 from localizers.geometry import circular_std
-from localizers.measurements import bearing_measurement, find_sensor, measurement_kind, readable_kinds, sensor_map
-from localizers.registry import make_localizer, prepared_params, spec
+from localizers.measurements import (
+    bearing_measurement,
+    find_sensor,
+    measurement_kind,
+    odometry_delta,
+    readable_kinds,
+    sensor_map,
+)
+from localizers.registry import make_localizer, measurement_in, prepared_params, spec
 from localizers.schema import ConfigError
 
 __all__ = ["LocalizationObservation", "bearing_measurement", "decode_estimate", "encode_estimate", "hypothesis_spread"]
@@ -150,7 +157,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
         sensors: dict[str, dict[str, Any]] = base.sensor_metadata  # type: ignore[attr-defined]
         if isinstance(localizer, str):
             entry = spec(localizer)
-            self.measurement = entry.measurement
+            self.measurement = measurement_in(localizer, sensors) if sensor is None else entry.measurement
             self.localizer_name = localizer
             self._sensor = find_sensor(self.measurement, sensors, f"localizer {localizer!r}", sensor)
             self.landmark_map = sensor_map(self.landmark_map, sensors[self._sensor])
@@ -180,6 +187,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
                 f"localizer {self.localizer_name!r} needs exactly one odometry sensor; this world has {len(odometry)}"
             )
         self._odometry_key = str(odometry[0])
+        self._odometry_meta = next(meta for meta in sensors.values() if meta.get("type") == "odometry")
         self.prior = prior or default_prior
         if self.prior not in ("start", "none"):
             raise ConfigError(f"prior must be 'start' or 'none', got {self.prior!r}")
@@ -214,8 +222,7 @@ class LocalizationObservation(gym.ObservationWrapper, gym.utils.RecordConstructo
 
     def _update(self, obs: Mapping[str, NDArray[np.float32]], first: bool) -> None:
         if not first:
-            d = obs[self._odometry_key]
-            self.localizer.predict(OdometryDelta(float(d[0]), float(d[1]), float(d[2])))
+            self.localizer.predict(odometry_delta(obs[self._odometry_key], self._odometry_meta))
         self.localizer.update(self._decode(obs[self._sensor_key], self._sensor_meta))
         self._estimate = self.localizer.estimate
 

@@ -176,7 +176,9 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
     sensors = base.sensor_metadata  # type: ignore[attr-defined]
     context = EpisodeContext(sensors, base.landmark_map, float(base.config.dt_s), spec.known_start(cell.localizer))  # type: ignore[attr-defined]
     odometry_key = _odometry_key(sensors)
-    recorder = _Recorder(metric_plugins(localizer_kind(cell.localizer)), context, localizer_spec(cell.localizer).covariance)
+    recorder = _Recorder(
+        metric_plugins(localizer_kind(cell.localizer, sensors)), context, localizer_spec(cell.localizer).covariance
+    )
     frames: list[NDArray[np.uint8]] = []
 
     def keep(step: int, info: Mapping[str, Any]) -> None:
@@ -234,7 +236,7 @@ def run_episode(spec: EvalSpec, cell: Cell) -> Episode:
     if spec.kidnap is not None:
         values.update(kidnap_metrics(track, spec.kidnap, played.jump_index))
     series: dict[str, NDArray[Any]] = dict(played.collected)
-    for plugin in metric_plugins(localizer_kind(cell.localizer)):
+    for plugin in metric_plugins(localizer_kind(cell.localizer, played.context.sensors)):
         got, arrays = plugin.compute(track, played.collected, played.context)
         if set(got) != set(plugin.keys):
             raise ValueError(f"metric plug-in {plugin.name!r} returned {sorted(got)}, not its metrics {sorted(plugin.keys)}")

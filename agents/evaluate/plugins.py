@@ -262,11 +262,12 @@ def plugins_for(kinds: Iterable[str] | None = None) -> tuple[MetricPlugin, ...]:
     return all_plugins() if kinds is None else tuple(p for k in dict.fromkeys(kinds) for p in metric_plugins(k))
 
 
-def localizer_kind(localizer: str) -> str:
-    """The measurement kind a registered localizer consumes."""
-    from localizers.registry import spec
+def localizer_kind(localizer: str, sensors: Mapping[str, Mapping[str, Any]] | None = None) -> str:
+    """The measurement kind a registered localizer consumes (in a world with these ``sensors``:
+    its fallback where it has none of its own, ``localizers.registry.measurement_in``)."""
+    from localizers.registry import measurement_in, spec
 
-    return spec(localizer).measurement
+    return spec(localizer).measurement if sensors is None else measurement_in(localizer, sensors)
 
 
 def metric_infos(kinds: Iterable[str] | None = None) -> tuple[MetricInfo, ...]:

@@ -145,7 +145,7 @@ class EvalSpec:
         """Each localizer's world has the sensor its measurement kind reads; each fixed policy the one it reads."""
         have = {name: {"type": s.type_name} for name, s in world.sensors.items()}
         for name in self.localizers:
-            find_sensor(localizer_kind(name), have, f"localizer {name!r} in {where}")  # raises, naming what is missing
+            find_sensor(localizer_kind(name, have), have, f"localizer {name!r} in {where}")  # raises, naming what is missing
         for policy in self.policies:
             check_policy(policy)
             unmet = None if policy.startswith(PPO_PREFIX) else FIXED_POLICIES[policy].unmet_need(world)

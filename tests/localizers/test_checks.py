@@ -179,3 +179,49 @@ def test_far_point_mcls_claim_limit_is_its_mcls() -> None:
     assert load_params("far_point_mcl", {"mcl": {"max_spread_m": 0.3}}).mcl.max_spread_m == 0.3
     with pytest.raises(ConfigError, match="max_spread_m"):
         load_params("far_point_mcl", {"max_spread_m": 0.3})  # no second limit at the top level
+
+
+# a size per localizer and its path in the parameters: each is refused at construction with the reason of
+# its bound (issue 27: n_particles 10**9 used to end in numpy's MemoryError without naming the parameter)
+SIZES = [
+    ("mcl_lidar", {"n_particles": 10**9}, "LidarMCLParams.n_particles", "memory"),
+    ("mcl_lidar", {"max_particles": 10**9}, "LidarMCLParams.max_particles", "memory"),
+    ("mcl_lidar", {"recovery_candidates": 10**9}, "LidarMCLParams.recovery_candidates", "memory"),
+    ("mcl_lidar", {"table_directions": 10**6}, "LidarMCLParams.table_directions", "beam step"),
+    ("far_point_mcl", {"mcl": {"n_particles": 10**9}}, "LidarMCLParams.n_particles", "memory"),
+    ("far_point_mcl", {"filter": {"max_points": 10**9}}, "ScanFilterParams.max_points", "memory"),
+    ("far_point_mcl", {"filter": {"bin_width_rad": 1e-9}}, "ScanFilterParams.bin_width_rad", "memory"),
+    ("mcl_bearing", {"n_particles": 10**9}, "BearingMCLParams.n_particles", "memory"),
+    ("mcl_bearing_paper", {"n_particles": 10**9}, "PaperMCLParams.n_particles", "memory"),
+    ("far_landmark_pf", {"n_particles": 10**9}, "FarLandmarkParams.n_particles", "memory"),
+    ("candidate_sets", {"candidates_per_arc": 10**9}, "CandidateSetParams.candidates_per_arc", "memory"),
+    ("candidate_sets", {"max_live_candidates": 10**9}, "CandidateSetParams.max_live_candidates", "memory"),
+    ("candidate_sets", {"max_sets": 10**9}, "CandidateSetParams.max_sets", "memory"),
+]
+
+
+@pytest.mark.parametrize(("name", "overrides", "field", "why"), SIZES)
+def test_a_huge_size_is_refused_at_construction_naming_it_and_why(name: str, overrides: dict, field: str, why: str) -> None:
+    with pytest.raises(ConfigError, match=rf"{re.escape(field)} must be at (most|least) [\d,]+.*\(.*{why}.*got"):
+        load_params(name, overrides)
+
+
+def test_the_largest_allowed_particle_set_is_accepted() -> None:
+    from localizers.particles import MAX_PARTICLES
+
+    assert load_params("mcl_lidar", {"n_particles": MAX_PARTICLES}).n_particles == MAX_PARTICLES
+
+
+@pytest.mark.parametrize("name", ["far_point_mcl", "mcl_lidar"])
+@pytest.mark.parametrize("order", ["descending", "repeated"])
+def test_a_scan_whose_beam_angles_do_not_ascend_is_refused_naming_them(name: str, order: str) -> None:
+    from localizers.base import ScanMeasurement
+
+    loc = make_localizer(name, MAP, dt_s=0.1, params={"n_particles": 20} if name == "mcl_lidar" else {"mcl": {"n_particles": 20}})
+    loc.reset(np.random.default_rng(0), START)
+    angles = np.linspace(-1.0, 1.0, 11)
+    angles = angles[::-1] if order == "descending" else np.r_[angles[:5], angles[4:-1]]
+    source = "scan filter" if name == "far_point_mcl" else name  # far_point_mcl's scan filter reads the scan first
+    message = rf"{source}: beam angles must ascend \(ScanMeasurement.angles_rad\), got -?[\d.]+ rad at index \d+ after"
+    with pytest.raises(MeasurementError, match=message):
+        loc.update(ScanMeasurement(np.full(11, 3.0), angles, 10.0))

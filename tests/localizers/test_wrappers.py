@@ -263,3 +263,53 @@ def test_a_sensor_can_carry_the_bearings_under_another_key() -> None:
         a, *_ = moved.step(np.array([0.5, 0.3], dtype=np.float32))
         b, *_ = usual.step(np.array([0.5, 0.3], dtype=np.float32))
     assert b["estimate_valid"][0] == 1.0
+
+
+# --- observations of the wrong shape (issue 27: numpy's reshape or IndexError, or 27 values accepted) ----------
+
+
+class _Cut(gym.ObservationWrapper):
+    """Hands the localizer wrapper one observation key with ``values`` in place of the sensor's."""
+
+    def __init__(self, env: gym.Env, key: str, values: np.ndarray) -> None:
+        super().__init__(env)
+        self.key, self.values = key, values
+
+    def observation(self, observation: dict) -> dict:
+        return {**observation, self.key: self.values}
+
+
+@pytest.mark.parametrize(
+    ("env_id", "localizer", "key", "values", "expected"),
+    [
+        ("crowdloc/RoboCupCrowded-v0", "candidate_sets", "landmarks", np.ones(5, np.float32), r"\(24,\), got \(5,\)"),
+        ("crowdloc/RoboCupCrowded-v0", "candidate_sets", "landmarks", np.zeros(27, np.float32), r"\(24,\), got \(27,\)"),
+        ("crowdloc/RoboCupCrowded-v0", "dead_reckoning", "odometry", np.zeros(2, np.float32), r"\(3,\), got \(2,\)"),
+        ("crowdloc/CrowdedRoom-v0", "mcl_lidar", "lidar", np.ones(1080, np.float32), r"\(1081,\), got \(1080,\)"),
+    ],
+)
+def test_an_observation_of_the_wrong_shape_is_refused_naming_its_key_and_both_shapes(
+    env_id: str, localizer: str, key: str, values: np.ndarray, expected: str
+) -> None:
+    from localizers.base import MeasurementError
+
+    base = gym.make(env_id).unwrapped
+    env = LocalizationObservation(_Cut(base, key, values), localizer, {"n_particles": 20} if "mcl" in localizer else None)
+    with pytest.raises(MeasurementError, match=rf"observation '{key}' \(.*\): expected shape {expected}"):
+        env.reset(seed=0)
+        env.step(np.zeros(2, np.float32))
+
+
+def test_the_decoders_check_the_metadata_shapes() -> None:
+    from localizers.base import MeasurementError
+    from localizers.measurements import edge_measurement, odometry_delta
+
+    with pytest.raises(
+        MeasurementError, match=r"observation 'stereo' \(stereo edge slots.*\): expected shape \(384,\), got \(8,\)"
+    ):
+        edge_measurement(np.zeros(8), {"key": "stereo", "slots": 96})
+    with pytest.raises(MeasurementError, match=r"expected shape \(n,\) with n a multiple of 4, got \(6,\)"):
+        edge_measurement(np.zeros(6))  # no metadata: whole slots
+    with pytest.raises(MeasurementError, match=r"expected shape \(n,\) with n a multiple of 3, got \(5,\)"):
+        bearing_measurement(np.zeros(5))
+    assert odometry_delta(np.array([0.1, 0.0, 0.2], np.float32)).dtheta_rad == pytest.approx(0.2)

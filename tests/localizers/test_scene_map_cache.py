@@ -1,0 +1,64 @@
+"""The scene-map file and its cache (issue 27): written atomically, and an unreadable file named with how to
+make it again (the world's default map in the cache is made again, saying so)."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from agents import scene_maps
+from localizers import scene_map
+from localizers.scene_map import SceneMap
+from localizers.schema import ConfigError
+
+
+def _map(world: str = "box") -> SceneMap:
+    return SceneMap(np.array([[3.0, 4.0, 0.5]]), np.array([0, 2]), np.array([1, 4]), np.array([[4.0, 1.0], [5.0, -2.0]]), world,
+                    "0123456789abcdef")  # fmt: skip
+
+
+@pytest.mark.parametrize("keep", [0, 10, 0.5, -5])
+def test_a_truncated_map_is_refused_naming_the_file_and_how_to_make_it_again(tmp_path: Path, keep: float) -> None:
+    data = _map().save(tmp_path / "full.npz").read_bytes()
+    cut = tmp_path / "cut.npz"
+    cut.write_bytes(data[: int(keep * len(data)) if isinstance(keep, float) else keep])
+    with pytest.raises(ConfigError, match=rf"{cut}.*is not a scene map or cannot be read.*truncated.*crowdloc map WORLD"):
+        SceneMap.load(cut)
+
+
+def test_a_write_killed_midway_leaves_the_old_map_and_no_temporary_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = _map("old").save(tmp_path / "scenes.npz")
+
+    def killed(f: object, **arrays: object) -> None:
+        f.write(b"PK\x03\x04 half a zip")  # type: ignore[attr-defined]
+        raise KeyboardInterrupt  # the process is stopped in the middle of the write
+
+    monkeypatch.setattr(scene_map.np, "savez_compressed", killed)
+    with pytest.raises(KeyboardInterrupt):
+        _map("new").save(path)
+    monkeypatch.undo()
+    assert SceneMap.load(path).world == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scenes.npz"]
+    assert SceneMap.load(_map("new").save(path)).world == "new"
+
+
+def test_an_unreadable_default_map_is_made_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    path = tmp_path / "scene_maps" / "campus.npz"
+    path.parent.mkdir()
+    path.write_bytes(b"PK\x03\x04 truncated")
+    built: list[object] = []
+    monkeypatch.setattr(scene_maps, "default_map_path", lambda env: path)
+    monkeypatch.setattr(scene_maps, "build_scene_map", lambda *args, **kwargs: built.append(args) or _map("campus"))
+    env = SimpleNamespace(config=SimpleNamespace(name="campus"), file_crowd_size=0)
+    with caplog.at_level(logging.WARNING, logger=scene_maps.__name__):
+        assert scene_maps.default_scene_map(env) == path  # type: ignore[arg-type]
+    assert len(built) == 1 and SceneMap.load(path).world == "campus"
+    assert "cannot be read, making it again" in caplog.text and str(path) in caplog.text
+    scene_maps.default_scene_map(env)  # type: ignore[arg-type]
+    assert len(built) == 1  # a readable map is kept
