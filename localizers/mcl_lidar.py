@@ -356,25 +356,35 @@ def large_map_params(env: Any, sensor: str, params: Mapping[str, Any] | None) ->
     sensor's height), :data:`LARGE_MAP_PARAMS` under the user's ``params``, logged; otherwise, or
     when ``params`` names a ``model``, ``params`` unchanged (an explicit beam model is then
     refused when the filter is made, with the table's estimate)."""
-    from localizers.measurements import sensor_map
     from localizers.registry import load_params
 
-    if (params is not None and not isinstance(params, Mapping)) or "model" in (params or {}):
-        return params
-    p = load_params("mcl_lidar", params)
-    if p.model != "beam":
+    if params is not None and not isinstance(params, Mapping):
+        return params  # refused by name when the parameters are loaded
+    return large_map_mcl(env, sensor, params, load_params("mcl_lidar", params), "mcl_lidar")
+
+
+def large_map_mcl(
+    env: Any, sensor: str, params: Mapping[str, Any] | None, resolved: LidarMCLParams, who: str
+) -> Mapping[str, Any] | None:
+    """The LIDAR MCL parameters ``params`` (which resolve to ``resolved``) for the world of ``env``:
+    :data:`LARGE_MAP_PARAMS` under ``params`` where the beam model's table would exceed
+    ``max_table_mb`` and ``params`` names no ``model``, logged as ``who``'s choice; else ``params``
+    itself (the same object). Shared by ``mcl_lidar`` and ``far_point_mcl`` (its ``mcl`` section)."""
+    from localizers.measurements import sensor_map
+
+    if "model" in (params or {}) or resolved.model != "beam":
         return params
     bounds = sensor_map(env.landmark_map, env.sensor_metadata[sensor]).bounds_m
-    shape = range_table_shape(bounds, p.table_resolution_m, p.table_directions)
+    shape = range_table_shape(bounds, resolved.table_resolution_m, resolved.table_directions)
     megabytes = math.prod(shape) * 4 / 1e6
-    if megabytes <= p.max_table_mb:
+    if megabytes <= resolved.max_table_mb:
         return params
     chosen = {**LARGE_MAP_PARAMS, **(params or {})}
     _log.warning(
-        "mcl_lidar: the beam model's ray-cast table of this %g m x %g m map would be %d x %d cells x %d directions "
+        "%s: the beam model's ray-cast table of this %g m x %g m map would be %d x %d cells x %d directions "
         "(%.0f MB, above max_table_mb %g): using %s (the campus reference's likelihood field; give localizer_params "
         "model=... to choose)",
-        bounds[2] - bounds[0], bounds[3] - bounds[1], *shape, megabytes, p.max_table_mb,
+        who, bounds[2] - bounds[0], bounds[3] - bounds[1], *shape, megabytes, resolved.max_table_mb,
         ", ".join(f"{k} {v}" for k, v in chosen.items() if k in LARGE_MAP_PARAMS),
     )  # fmt: skip
     return chosen

@@ -122,6 +122,7 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         "scan",
         True,
         "LIDAR MCL on scans accumulated over 0.5 m of travel, far point per angular bin (paper B's method)",
+        prepare="localizers.scan_filter:large_map_params",
     ),
     "ceiling_target": LocalizerSpec(
         "localizers.ceiling_target",

@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numba
 import numpy as np
@@ -49,7 +50,7 @@ from localizers.base import (
 )
 from localizers.bounds import odometry_process_noise
 from localizers.geometry import between, compose, wrap_angle
-from localizers.mcl_lidar import LidarMCL, LidarMCLParams, informative, validated_scan
+from localizers.mcl_lidar import LidarMCL, LidarMCLParams, informative, large_map_mcl, validated_scan
 from localizers.schema import check, check_at_most
 
 Array = NDArray[np.float64]
@@ -381,6 +382,22 @@ class FarPointMCLParams:
     mcl: LidarMCLParams = field(default_factory=LidarMCLParams)
     filter: ScanFilterParams = field(default_factory=ScanFilterParams)
     window_error: bool = True
+
+
+def large_map_params(env: Any, sensor: str, params: Mapping[str, Any] | None) -> Mapping[str, Any] | None:
+    """``far_point_mcl``'s preparation (its registry entry names it): its ``mcl`` section gets what
+    ``mcl_lidar`` gets in a world too large for the beam model's table
+    (:func:`localizers.mcl_lidar.large_map_mcl`: the campus reference's likelihood field, logged);
+    elsewhere, or when the section names a ``model``, ``params`` unchanged."""
+    from localizers.registry import load_params
+
+    section = (params or {}).get("mcl") if isinstance(params, Mapping) else None
+    if (params is not None and not isinstance(params, Mapping)) or (section is not None and not isinstance(section, Mapping)):
+        return params  # refused by name when the parameters are loaded
+    resolved = load_params("far_point_mcl", params)
+    assert isinstance(resolved, FarPointMCLParams)
+    chosen = large_map_mcl(env, sensor, section, resolved.mcl, "far_point_mcl")
+    return params if chosen is section else {**(params or {}), "mcl": chosen}
 
 
 class FarPointMCL:

@@ -18,6 +18,7 @@ from localizers.beam_model import LikelihoodFieldModel
 from localizers.mcl_lidar import LARGE_MAP_PARAMS, LidarMCL, LidarMCLParams, large_map_params
 from localizers.range_table import MAX_TABLE_MB, build_range_table, check_table_size, wall_distance_field
 from localizers.registry import spec
+from localizers.scan_filter import large_map_params as far_point_large_map_params
 from localizers.schema import ConfigError
 from tests.localizers.campus import campus_walls
 
@@ -100,15 +101,33 @@ def test_a_room_keeps_its_parameters() -> None:
     assert large_map_params(_env(ROOM), "lidar", None) is None
 
 
+def test_far_point_mcl_gets_the_same_choice_in_its_mcl_section(caplog: pytest.LogCaptureFixture) -> None:
+    assert spec("far_point_mcl").prepare == "localizers.scan_filter:large_map_params"
+    with caplog.at_level(logging.WARNING, logger=mcl_lidar.__name__):
+        chosen = far_point_large_map_params(_env(CAMPUS), "lidar", {"filter": {"travel_m": 1.0}})
+    assert chosen == {"filter": {"travel_m": 1.0}, "mcl": LARGE_MAP_PARAMS}
+    assert "far_point_mcl: the beam model's ray-cast table" in caplog.text
+    assert far_point_large_map_params(_env(CAMPUS), "lidar", {"mcl": {"sampling": 0.5}}) == {
+        "mcl": {**LARGE_MAP_PARAMS, "sampling": 0.5}
+    }
+    named = {"mcl": {"model": "beam"}}
+    assert far_point_large_map_params(_env(CAMPUS), "lidar", named) is named
+    params = {"mcl": {"n_particles": 200}}
+    assert far_point_large_map_params(_env(ROOM), "lidar", params) is params
+    assert far_point_large_map_params(_env(ROOM), "lidar", None) is None
+
+
 @pytest.mark.slow
-def test_mcl_lidar_runs_on_the_campus() -> None:
-    env = gym.make("crowdloc/StereoCampus-v0", localizer="mcl_lidar", crowd_size=5)
+@pytest.mark.parametrize("name", ["mcl_lidar", "far_point_mcl"])
+def test_lidar_mcls_run_on_the_campus(name: str) -> None:
+    env = gym.make("crowdloc/StereoCampus-v0", localizer=name, crowd_size=5)
     try:
         _, info = env.reset(seed=0)
         for _ in range(20):
             _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
         loc = env.get_wrapper_attr("localizer")
-        assert loc.params.model == "likelihood_field" and loc.params.table_resolution_m == 0.1
+        mcl = loc.params if name == "mcl_lidar" else loc.params.mcl
+        assert mcl.model == "likelihood_field" and mcl.table_resolution_m == 0.1
         assert info["estimate"].valid
     finally:
         env.close()
