@@ -232,6 +232,30 @@ def test_people_ahead_slow_it_down_stop_it_and_after_the_patience_time_it_steers
     assert p.lateral_position(ranges, pose) == pytest.approx(0.1)
 
 
+def test_lost_after_a_pose_it_searches_by_the_sonar_and_starts_over_from_the_next_fix() -> None:
+    policy = _policy()
+    lost = {**_observation(ahead=3.0), "estimate_valid": np.zeros(1, np.float32)}
+    assert np.all(policy.predict(lost)[0] == 0.0)  # no pose yet (before a first fix): it stands still
+    policy.predict(_observation(ahead=3.0))
+    assert policy.target_index == 0
+    # the localizer gives its pose up (it noticed the kidnap): on along the corridor, keeping to its middle
+    sonar = lost["sonar"].copy()
+    sonar[4], sonar[12] = 1.2, 0.8  # 20 cm right of the middle
+    action = policy.predict({**lost, "sonar": sonar})[0]
+    assert policy.phase == "search" and action[0] == pytest.approx(policy.params.cruise) and action[1] > 0
+    sonar[0] = 0.6  # a wall across its way: turn in place toward the freer side until the way is long
+    sonar[[13, 14, 15]] = 1.0
+    for ahead in (0.6, 1.5):
+        sonar[0] = ahead
+        action = policy.predict({**lost, "sonar": sonar})[0]
+        assert action[0] == 0.0 and action[1] > 0
+    sonar[0] = 3.0
+    assert policy.predict({**lost, "sonar": sonar})[0][0] > 0.0
+    # a fix again: the stop in progress is forgotten, the targets ahead of the new pose follow
+    policy.predict(_observation(ahead=3.0))
+    assert policy.phase == "drive" and policy.target_index == 0
+
+
 def test_what_is_missing_is_named() -> None:
     from envs import load_world
     from envs.localization_env import LocalizationEnv

@@ -14,7 +14,7 @@ from agents.papers.ceiling_target.fit import FitPlan, fit, inside, labelled_imag
 from envs.features.ceiling import LABEL_SIGN, PALETTE, CeilingConfig, colour_label
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
-from localizers.base import MeasurementError, OdometryDelta
+from localizers.base import MeasurementError, OdometryDelta, PoseEstimate
 from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
 from localizers.ceiling_vision import CameraIntrinsics, ColourRange, fit_colour_range, hsv8, paper_hsv
 from localizers.registry import load_params, make_localizer
@@ -242,3 +242,63 @@ def test_in_the_env_loop_it_is_deterministic_and_fixes_under_the_start_target() 
     a, b = run(), run()
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
     assert np.all(np.isfinite(a[0])) and abs(a[0][1]) < 0.03  # fixed on the first frame, under T0
+
+
+# ---------------------------------------------------------------------------- lost and found (issue 27)
+def _prior(x: float, y: float) -> PoseEstimate:
+    return PoseEstimate(x, y, math.pi / 2, np.diag([1e-3, 1e-3, 1e-3]))
+
+
+def test_after_a_kidnap_a_target_its_colours_fit_twice_makes_it_lost_and_the_next_one_fixes_it_by_colour() -> None:
+    env, cam, intr, loc = _setup(**CLEAN)
+    # carried from between T0 and T1 (the estimate) to beside T1: only a green end A and part of
+    # a yellow line in view, which T0 and T1 both fit, each reading more than lost_offset_m away
+    loc.reset(np.random.default_rng(0), _prior(-0.42, 3.5))
+    image, _ = cam.render(np.array([-0.42, 6.9, math.pi / 2])[None, :])
+    loc.update(CeilingImage(image, intr))
+    assert {r.name for r in loc.last_sightings[0]} == {"T0", "T1"}
+    assert loc.lost and not loc.estimate.valid and loc.last_fix is None  # the paper's rule took T1, the nearest
+    # under T2 (magenta A, red B: no other target has these colours): a full fix, far from the dead reckoning
+    truth = np.array([0.05, 13.95, 1.6])
+    image, _ = cam.render(truth[None, :])
+    loc.predict(OdometryDelta(0.5, 0.0, 0.0))
+    loc.update(CeilingImage(image, intr))
+    assert not loc.lost and loc.estimate.valid and loc.last_fix is not None and loc.last_fix.name == "T2"
+    position, heading = _error(loc, truth)
+    assert position < 0.03 and heading < 0.02
+
+
+def test_an_unambiguous_target_far_from_the_estimate_replaces_it_even_with_ekf_fusion() -> None:
+    env, cam, intr, _ = _setup(**CLEAN)
+    loc = make_localizer("ceiling_target", env.landmark_map, dt_s=0.05, params={"fusion": "ekf"})
+    loc.reset(np.random.default_rng(0), _prior(0.0, 3.0))
+    truth = np.array([0.0, 20.8, math.pi / 2])  # under T3 (cyan line): 17.8 m from the estimate
+    image, _ = cam.render(truth[None, :])
+    loc.update(CeilingImage(image, intr))
+    assert loc.estimate.valid and _error(loc, truth)[0] < 0.03  # fused, it would land half-way
+
+
+def test_a_target_the_estimate_puts_in_view_unseen_for_lost_after_s_makes_it_lost() -> None:
+    env, cam, intr, loc = _setup(**CLEAN)
+    loc.reset(np.random.default_rng(0), _prior(0.0, 6.9))  # under T1 by the estimate
+    blank, _ = cam.render(np.array([0.0, 10.0, math.pi / 2])[None, :])  # truth: tiles and a light, no target
+    valid = []
+    for _ in range(25):
+        loc.predict(OdometryDelta(0.0, 0.0, 0.0))
+        loc.update(CeilingImage(blank, intr))
+        valid.append(loc.estimate.valid)
+    frames = round(load_params("ceiling_target").lost_after_s / 0.05)  # 1 s at 20 Hz
+    assert all(valid[: frames - 1]) and not any(valid[frames - 1 :])
+    # a target not predicted in view says nothing: between targets the map has nothing to contradict
+    loc.reset(np.random.default_rng(0), _prior(0.0, 3.5))
+    for _ in range(25):
+        loc.update(CeilingImage(blank, intr))
+    assert loc.estimate.valid and not loc.lost
+
+
+@pytest.mark.parametrize("name", ["lost_offset_m", "lost_after_s"])
+@pytest.mark.parametrize("value", [0.0, -1.0, math.nan])
+def test_lost_detection_settings_are_checked(name: str, value: float) -> None:
+    params = load_params("ceiling_target")
+    with pytest.raises(ConfigError, match=f"ceiling_target.{name} must be > 0"):
+        dataclasses.replace(params, **{name: value})
