@@ -46,7 +46,16 @@ x = -``wall_distance_m``, the one nearest -90 deg (index 12) at the other.
 - ``done``: after the last target, stand still (the corridor world then terminates).
 
 Targets more than ``behind_m`` behind the first estimate are skipped. Without a valid
-estimate (before a first fix) the robot stands still.
+estimate before a first fix the robot stands still.
+
+**Lost** (ours, issue 27): when the localizer stops claiming a pose after it had one (it
+noticed that it was carried away, :attr:`localizers.ceiling_target.CeilingTargetLocalizer.lost`),
+the robot searches with the sonar alone (``search``): it drives on at ``cruise``, slowed as
+before a person, steering toward the middle between the side sonars when both see a wall, and
+turns in place toward the freer side while the straight-ahead sonar reads under
+``clearance_m``, until it reads ``slow_range_m`` (a wall across its way, the corridor's end,
+or people). Along the corridor it passes under a target, whose colours fix the pose again; the
+state machine then starts over from that pose, with the targets ahead of it.
 
 **People.** The front sonars are those within ``front_halfwidth_rad`` of the heading (15, 0
 and 1 of 16). When the one straight ahead reads closer than ``slow_range_m`` the robot slows
@@ -87,7 +96,7 @@ from localizers.geometry import ring_directions, wrap_angle
 #: the heading along the corridor (+y)
 ALONG_RAD = math.pi / 2
 #: the states of :attr:`CorridorFollower.phase`
-PHASES = ("drive", "settle", "turn", "sidestep", "done")
+PHASES = ("drive", "settle", "turn", "sidestep", "search", "done")
 
 
 @dataclass(frozen=True)
@@ -339,6 +348,7 @@ class CorridorFollower(FixedPolicy):
         self._turn_to, self._after_turn = ALONG_RAD, "drive"  # the turn in place: to which heading, then what
         self._sidestep_to = 0.0  # the side-step's goal x in the estimate's frame
         self._sonar_x: tuple[float, float] | None = None  # the last sonar x and the estimate's x then
+        self._search_turn = 0  # searching: +1 turning left, -1 right, 0 driving
 
     @property
     def target(self) -> CorridorTarget | None:
@@ -418,8 +428,13 @@ class CorridorFollower(FixedPolicy):
         pose = read_estimate(observation, self.bounds_m, type(self).__name__)
         ranges = self._sonar(observation)
         self.steps += 1
+        if pose is None and self.target_index is not None and self.phase != "done":
+            self.phase = "search"  # the localizer had a pose and gave it up: it knows it is lost
+            return self._search(ranges)
         if pose is None or self.phase == "done":
             return np.zeros(2)
+        if self.phase == "search":  # found again: start over from the new pose
+            self._start_over()
         if self.target_index is None:
             ahead = [i for i, t in enumerate(self.targets) if t.y_m >= pose[1] - self.params.behind_m]
             if not ahead:
@@ -481,6 +496,34 @@ class CorridorFollower(FixedPolicy):
                 return np.zeros(2)
         self._end_stop(pose, fixed=True)
         return np.zeros(2)
+
+    def _start_over(self) -> None:
+        """After a search: forget the stop in progress; the targets ahead of the next estimate follow."""
+        self.target_index, self.phase = None, "drive"
+        self._stopped_s, self._measures, self._remeasured_here = None, 0, 0
+        self._avoid_side, self._pass_y, self._blocked_s, self._blocked = 0, math.inf, 0.0, False
+        self._sonar_x, self._search_turn = None, 0
+
+    def _search(self, ranges: NDArray[np.float64]) -> NDArray[np.float64]:
+        """One step of the search without a pose (module docstring, **Lost**): the sonar alone."""
+        assert self._ring is not None
+        r, p = self._ring, self.params
+        ahead = float(ranges[r["ahead"]])
+        if self._search_turn or ahead < p.clearance_m:
+            if ahead >= p.slow_range_m:
+                self._search_turn = 0
+            else:
+                self._search_turn = self._search_turn or self._freer_side(ranges)
+                return np.array([0.0, self._search_turn * p.cruise])
+        left, right = float(ranges[r["left"]]), float(ranges[r["right"]])
+        bend = 0.0
+        if left + right <= 2 * p.wall_distance_m + p.slow_range_m / 4:  # both sides see a wall: keep to the middle
+            bend = float(np.clip(p.lateral_gain_rad_per_m * 0.5 * (left - right), -p.max_steer_rad, p.max_steer_rad))
+        speed = p.cruise
+        if ahead < p.slow_range_m:  # as in _drive: a constant deceleration toward the clearance
+            room = max(0.0, ahead - p.clearance_m) / (p.slow_range_m - p.clearance_m)
+            speed = max(p.creep, p.cruise * math.sqrt(room))
+        return np.array([speed, self._turn_command(bend)])
 
     def _turn(self, heading_rad: float, then: str) -> None:
         self.phase, self._turn_to, self._after_turn = "turn", heading_rad, then

@@ -515,3 +515,131 @@ def colour_ranges(values: Mapping[str, ColourRange], needed: Iterable[str], sour
     if missing:
         raise ValueError(f"{source}: no learned threshold for colour(s) {', '.join(missing)} (have: {', '.join(sorted(values))})")
     return {name: values[name] for name in needed}
+
+
+# ---------------------------------------------------------------------------- the ceiling plan (ours, issue 27)
+@dataclass(frozen=True)
+class CeilingPlan:
+    """The white parts of the ceiling as built (a ceiling feature's ``plan`` map data), for the lost test.
+
+    The light panels, ``light_half_m`` (across, along) half sizes, repeat every ``light_pitch_m``
+    along y at ``x = light_x_m`` from ``light_first_y_m`` on; ``rects`` ``(n, 4)`` are the other white
+    rectangles (the exit signs' lettering) as ``(x, y, half across, half along)``.
+    """
+
+    light_pitch_m: float
+    light_first_y_m: float
+    light_x_m: float
+    light_half_m: tuple[float, float]
+    rects: NDArray[np.float64]
+
+    @staticmethod
+    def from_map_data(data: Mapping[str, Any]) -> CeilingPlan | None:
+        """From a ceiling feature's map data; None when it holds no plan."""
+        plan = data.get("plan")
+        if plan is None:
+            return None
+        lights = plan["lights"]
+        rects = [(s["x_m"], s["y_m"], s["text_size_m"][0] / 2, s["text_size_m"][1] / 2) for s in plan.get("signs", ())]
+        return CeilingPlan(
+            float(lights["pitch_m"]),
+            float(lights["first_y_m"]),
+            float(lights["x_m"]),
+            (float(lights["size_m"][0]) / 2, float(lights["size_m"][1]) / 2),
+            np.asarray(rects, dtype=np.float64).reshape(-1, 4),
+        )
+
+    def white_distance(self, xy: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Signed distance (m) of the world points ``xy`` ``(n, 2)`` to the nearest white rectangle
+        (negative inside)."""
+        dy = xy[:, 1] - self.light_first_y_m
+        dy = dy - self.light_pitch_m * np.round(dy / self.light_pitch_m)  # to the nearest panel's centre
+        best = _rect_distance(xy[:, 0] - self.light_x_m, dy, *self.light_half_m)
+        for x, y, hx, hy in self.rects:
+            best = np.minimum(best, _rect_distance(xy[:, 0] - x, xy[:, 1] - y, hx, hy))
+        return best
+
+
+def _rect_distance(dx: NDArray[np.float64], dy: NDArray[np.float64], hx: float, hy: float) -> NDArray[np.float64]:
+    """Signed distance (m) of points ``(dx, dy)`` from a rectangle's centre to the rectangle of half sizes ``(hx, hy)``."""
+    ox, oy = np.abs(dx) - hx, np.abs(dy) - hy
+    outside = np.hypot(np.maximum(ox, 0.0), np.maximum(oy, 0.0))
+    return np.asarray(np.where((ox <= 0) & (oy <= 0), np.maximum(ox, oy), outside), dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class PlanSettings:
+    """The lost test's numbers (the localizer's ``plan_*`` parameters hand them over)."""
+
+    cell_px: int = 4  # the image is averaged over cells of this many pixels a side
+    white_saturation: float = 0.03  # a cell of at most this HSV saturation is white (a light panel)
+    plain_saturation: tuple[float, float] = (0.035, 0.15)  # a cell in this range shows the off-white ceiling
+    min_value: float = 90.0  # cells darker than this (0-255) say nothing: heads, hair, shadows
+    margin_out_m: float = 0.2  # white farther than this from the plan's white is unexplained
+    margin_in_m: float = 0.08  # cells this far inside the plan's white are expected white
+
+
+@dataclass(frozen=True)
+class PlanEvidence:
+    """What one image says of a pose against the ceiling plan (areas in m^2 of ceiling).
+
+    Attributes:
+        unexplained_m2: white seen more than ``margin_out_m`` from every white of the plan.
+        expected_m2: the plan's white, ``margin_in_m`` inside its edges, in view (not darkened).
+        missing_m2: of that, what shows plain ceiling.
+        matched_m2: white seen inside the plan's white.
+    """
+
+    unexplained_m2: float
+    expected_m2: float
+    missing_m2: float
+    matched_m2: float
+
+
+def cell_points(intrinsics: CameraIntrinsics, cell_px: int) -> NDArray[np.float64]:
+    """The robot-frame ceiling points ``(rows * cols, 2)`` of the centres of the image's cells of
+    ``cell_px`` pixels (lens distortion removed), in the order of :func:`cell_tint`'s arrays."""
+    rows, cols = intrinsics.height_px // cell_px, intrinsics.width_px // cell_px
+    u, v = np.meshgrid((np.arange(cols) + 0.5) * cell_px, (np.arange(rows) + 0.5) * cell_px)
+    return intrinsics.to_robot(np.stack([u.ravel(), v.ravel()], axis=1), undistort_points=True)
+
+
+def cell_tint(image: NDArray[np.uint8], cell_px: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """HSV saturation and value (0-255) of the image averaged over cells of ``cell_px`` pixels, flat.
+
+    The saturation does not change with the illumination's gain or the lens's vignetting (both
+    scale R, G and B alike), which is why a white light panel stands out of the off-white ceiling
+    by it wherever it is in the image; averaging the cells takes the pixel noise down.
+    """
+    h, w = image.shape[0] // cell_px, image.shape[1] // cell_px
+    small = cv2.resize(image[: h * cell_px, : w * cell_px], (w, h), interpolation=cv2.INTER_AREA).astype(np.float64)
+    value = small.max(axis=2)
+    saturation = (value - small.min(axis=2)) / np.maximum(value, 1.0)
+    return saturation.ravel(), value.ravel()
+
+
+def plan_evidence(
+    plan: CeilingPlan,
+    pose: NDArray[np.float64],
+    points: NDArray[np.float64],
+    tint: tuple[NDArray[np.float64], NDArray[np.float64]],
+    cell_m2: float,
+    settings: PlanSettings,
+) -> PlanEvidence:
+    """Compare the white cells of an image (:func:`cell_tint`, :func:`cell_points`) with the plan
+    seen from ``pose``. Dark cells (a head under the camera) count neither way: what is hidden is
+    neither missing nor unexplained."""
+    c, s = math.cos(float(pose[2])), math.sin(float(pose[2]))
+    xy = np.stack([pose[0] + c * points[:, 0] - s * points[:, 1], pose[1] + s * points[:, 0] + c * points[:, 1]], axis=1)
+    distance = plan.white_distance(xy)
+    saturation, value = tint
+    lit = value >= settings.min_value
+    white = lit & (saturation <= settings.white_saturation)
+    plain = lit & (saturation >= settings.plain_saturation[0]) & (saturation <= settings.plain_saturation[1])
+    inside = distance <= -settings.margin_in_m
+    return PlanEvidence(
+        float(np.count_nonzero(white & (distance > settings.margin_out_m))) * cell_m2,
+        float(np.count_nonzero(inside & lit)) * cell_m2,
+        float(np.count_nonzero(inside & plain)) * cell_m2,
+        float(np.count_nonzero(white & (distance <= 0.0))) * cell_m2,
+    )

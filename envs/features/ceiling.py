@@ -10,6 +10,10 @@ The ceiling is described once, here, as axis-aligned rectangles and discs with a
 label each (:meth:`CeilingConfig.primitives`): the upward camera
 (:mod:`envs.sensors.ceiling_camera`) renders them, the top view draws them, and the labels say
 which pixels belong to which colour when thresholds are learned from rendered images.
+
+A localizer's map (:meth:`CeilingConfig.map_data`) holds the targets and, under ``plan``, the
+ceiling as built (tiles, light panels, sprinklers, the signs with their lettering) as plain values:
+a building's ceiling plan, which ``ceiling_target``'s lost test checks its images against.
 """
 
 from __future__ import annotations
@@ -106,6 +110,11 @@ class SignConfig:
         )
         check_rgb(self.rgb, "sign rgb")
         check_rgb(self.text_rgb, "sign text_rgb")
+
+    @property
+    def text_size_m(self) -> tuple[float, float]:
+        """The white band of its pictogram and lettering (across, along), centred on the sign."""
+        return (0.6 * self.size_m[0], 0.3 * self.size_m[1])
 
 
 class Primitives(NamedTuple):
@@ -234,7 +243,7 @@ class CeilingConfig(FeatureConfig):
         for sign in self.signs:
             w, h = sign.size_m
             rect(sign.x_m, sign.y_m, w, h, sign.rgb, LABEL_SIGN)
-            rect(sign.x_m, sign.y_m, 0.6 * w, 0.3 * h, sign.text_rgb, LABEL_SIGN)
+            rect(sign.x_m, sign.y_m, *sign.text_size_m, sign.text_rgb, LABEL_SIGN)
         for t in self.targets:
             rect(t.x_m, t.y_m, self.line_length_m, self.line_width_m, PALETTE[t.c], colour_label(t.c))
             (ax, ay), (bx, by) = self.end_xy(t)
@@ -269,6 +278,27 @@ class CeilingConfig(FeatureConfig):
             "end_size_m": self.end_size_m,
             "targets": targets,
             "palette": {name: list(rgb) for name, rgb in PALETTE.items()},
+            # the ceiling as built (a building's ceiling plan), for a lost test by the scenery (issue 27)
+            "plan": {
+                "tile_m": self.tile_m,
+                "tile_origin_m": list(self.tile_origin_m),
+                "joint_width_m": self.joint_width_m,
+                "lights": {
+                    "pitch_m": self.light_pitch_m,
+                    "first_y_m": self.light_first_y_m,
+                    "x_m": self.light_x_m,
+                    "size_m": list(self.light_size_m),
+                },
+                "sprinklers": {
+                    "pitch_m": self.sprinkler_pitch_m,
+                    "first_y_m": self.sprinkler_first_y_m,
+                    "x_m": self.sprinkler_x_m,
+                    "radius_m": self.sprinkler_radius_m,
+                },
+                "signs": [
+                    {"x_m": s.x_m, "y_m": s.y_m, "size_m": list(s.size_m), "text_size_m": list(s.text_size_m)} for s in self.signs
+                ],
+            },
         }
 
     def draw(self, canvas: Any, world: WorldConfig) -> None:

@@ -97,8 +97,11 @@ def test_without_fixes_dead_reckoning_stops_about_45_cm_short() -> None:
     # the start pose is given and a gate no reading can pass refuses every fix: dead reckoning
     # alone, with the corridor's odometry reading 2.2 % long (the paper's Table 5); as the paper's
     # robot it keeps its pose however uncertain (the drift model alone reaches 0.78 m over a straight
-    # 20.8 m; the drive's turns and waits take it past the default max_spread_m of 1 m)
-    params = {"max_gate": 1e-9, "max_spread_m": float("inf")}
+    # 20.8 m; the drive's turns and waits take it past the default max_spread_m of 1 m), and it
+    # does not call itself lost when the target it stops for is out of view, nor when the light
+    # panels show its drift (the lost tests are off)
+    inf = float("inf")
+    params = {"max_gate": 1e-9, "max_spread_m": inf, "lost_offset_m": inf, "lost_after_s": inf, "plan_after_s": inf}
     env = gym.make(CORRIDOR, localizer="ceiling_target", prior="start", localizer_params=params)
     run = drive(env)
     env.close()
@@ -230,6 +233,30 @@ def test_people_ahead_slow_it_down_stop_it_and_after_the_patience_time_it_steers
     assert p.lateral_position(ranges, pose) == pytest.approx(0.1)
     ranges[4], ranges[12] = 1.1, 0.5  # a person on the right: the left wall alone says 10 cm right
     assert p.lateral_position(ranges, pose) == pytest.approx(0.1)
+
+
+def test_lost_after_a_pose_it_searches_by_the_sonar_and_starts_over_from_the_next_fix() -> None:
+    policy = _policy()
+    lost = {**_observation(ahead=3.0), "estimate_valid": np.zeros(1, np.float32)}
+    assert np.all(policy.predict(lost)[0] == 0.0)  # no pose yet (before a first fix): it stands still
+    policy.predict(_observation(ahead=3.0))
+    assert policy.target_index == 0
+    # the localizer gives its pose up (it noticed the kidnap): on along the corridor, keeping to its middle
+    sonar = lost["sonar"].copy()
+    sonar[4], sonar[12] = 1.2, 0.8  # 20 cm right of the middle
+    action = policy.predict({**lost, "sonar": sonar})[0]
+    assert policy.phase == "search" and action[0] == pytest.approx(policy.params.cruise) and action[1] > 0
+    sonar[0] = 0.6  # a wall across its way: turn in place toward the freer side until the way is long
+    sonar[[13, 14, 15]] = 1.0
+    for ahead in (0.6, 1.5):
+        sonar[0] = ahead
+        action = policy.predict({**lost, "sonar": sonar})[0]
+        assert action[0] == 0.0 and action[1] > 0
+    sonar[0] = 3.0
+    assert policy.predict({**lost, "sonar": sonar})[0][0] > 0.0
+    # a fix again: the stop in progress is forgotten, the targets ahead of the new pose follow
+    policy.predict(_observation(ahead=3.0))
+    assert policy.phase == "drive" and policy.target_index == 0
 
 
 def test_what_is_missing_is_named() -> None:

@@ -13,12 +13,12 @@ import yaml
 
 import envs  # noqa: F401  (registers the ids)
 from agents.papers.ceiling_target.fit import FitPlan, fit, inside, labelled_images
-from envs.features.ceiling import LABEL_SIGN, PALETTE, CeilingConfig, colour_label
+from envs.features.ceiling import LABEL_LIGHT, LABEL_SIGN, PALETTE, CeilingConfig, colour_label
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
-from localizers.base import MeasurementError, OdometryDelta
+from localizers.base import MeasurementError, OdometryDelta, PoseEstimate
 from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
-from localizers.ceiling_vision import CameraIntrinsics, ColourRange, fit_colour_range, hsv8, paper_hsv
+from localizers.ceiling_vision import CameraIntrinsics, CeilingPlan, ColourRange, cell_points, fit_colour_range, hsv8, paper_hsv
 from localizers.registry import load_params, make_localizer
 from localizers.schema import ConfigError
 
@@ -280,3 +280,169 @@ def test_in_the_env_loop_it_is_deterministic_and_fixes_under_the_start_target() 
     a, b = run(), run()
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
     assert np.all(np.isfinite(a[0])) and abs(a[0][1]) < 0.03  # fixed on the first frame, under T0
+
+
+# ---------------------------------------------------------------------------- lost and found (issue 27)
+def _prior(x: float, y: float) -> PoseEstimate:
+    return PoseEstimate(x, y, math.pi / 2, np.diag([1e-3, 1e-3, 1e-3]))
+
+
+def test_after_a_kidnap_a_target_its_colours_fit_twice_makes_it_lost_and_the_next_one_fixes_it_by_colour() -> None:
+    env, cam, intr, loc = _setup(**CLEAN)
+    # carried from between T0 and T1 (the estimate) to beside T1: only a green end A and part of
+    # a yellow line in view, which T0 and T1 both fit, each reading more than lost_offset_m away
+    loc.reset(np.random.default_rng(0), _prior(-0.42, 3.5))
+    image, _ = cam.render(np.array([-0.42, 6.9, math.pi / 2])[None, :])
+    loc.update(CeilingImage(image, intr))
+    assert {r.name for r in loc.last_sightings[0]} == {"T0", "T1"}
+    assert loc.lost and not loc.estimate.valid and loc.last_fix is None  # the paper's rule took T1, the nearest
+    # under T2 (magenta A, red B: no other target has these colours): a full fix, far from the dead reckoning
+    truth = np.array([0.05, 13.95, 1.6])
+    image, _ = cam.render(truth[None, :])
+    loc.predict(OdometryDelta(0.5, 0.0, 0.0))
+    loc.update(CeilingImage(image, intr))
+    assert not loc.lost and loc.estimate.valid and loc.last_fix is not None and loc.last_fix.name == "T2"
+    position, heading = _error(loc, truth)
+    assert position < 0.03 and heading < 0.02
+
+
+def test_an_unambiguous_target_far_from_the_estimate_replaces_it_even_with_ekf_fusion() -> None:
+    env, cam, intr, _ = _setup(**CLEAN)
+    loc = make_localizer("ceiling_target", env.landmark_map, dt_s=0.05, params={"fusion": "ekf"})
+    loc.reset(np.random.default_rng(0), _prior(0.0, 3.0))
+    truth = np.array([0.0, 20.8, math.pi / 2])  # under T3 (cyan line): 17.8 m from the estimate
+    image, _ = cam.render(truth[None, :])
+    loc.update(CeilingImage(image, intr))
+    assert loc.estimate.valid and _error(loc, truth)[0] < 0.03  # fused, it would land half-way
+
+
+def test_a_target_the_estimate_puts_in_view_unseen_for_lost_after_s_makes_it_lost() -> None:
+    env, cam, intr, loc = _setup(**CLEAN)
+    loc.reset(np.random.default_rng(0), _prior(0.0, 6.9))  # under T1 by the estimate
+    blank, _ = cam.render(np.array([0.0, 10.0, math.pi / 2])[None, :])  # truth: tiles and a light, no target
+    valid = []
+    for _ in range(25):
+        loc.predict(OdometryDelta(0.0, 0.0, 0.0))
+        loc.update(CeilingImage(blank, intr))
+        valid.append(loc.estimate.valid)
+    frames = round(load_params("ceiling_target").lost_after_s / 0.05)  # 1 s at 20 Hz
+    assert all(valid[: frames - 1]) and not any(valid[frames - 1 :])
+    # a target not predicted in view says nothing, nor does plain ceiling where the plan has no light
+    # panel either (4.8 m off: two light pitches, the ceiling looks the same)
+    loc.reset(np.random.default_rng(0), _prior(0.0, 5.2))
+    for _ in range(25):
+        loc.update(CeilingImage(blank, intr))
+    assert loc.estimate.valid and not loc.lost
+
+
+@pytest.mark.parametrize("name", ["lost_offset_m", "lost_after_s"])
+@pytest.mark.parametrize("value", [0.0, -1.0, math.nan])
+def test_lost_detection_settings_are_checked(name: str, value: float) -> None:
+    params = load_params("ceiling_target")
+    with pytest.raises(ConfigError, match=f"ceiling_target.{name} must be > 0"):
+        dataclasses.replace(params, **{name: value})
+
+
+# ---------------------------------------------------------------------------- lost by the ceiling plan (issue 27)
+def _drive(
+    loc: CeilingTargetLocalizer,
+    cam: CeilingCamera,
+    intr: CameraIntrinsics,
+    truth_y: np.ndarray,
+    offset_m: float,
+    heads_xy: np.ndarray | None = None,
+) -> list[bool]:
+    """Drive along the corridor's centre line at the truth's ``y`` (the default camera, its gain, noise
+    and blur) from an estimate ``offset_m`` ahead of it; whether a pose was claimed after each frame."""
+    cam.seed_noise(np.random.default_rng(1))
+    loc.reset(np.random.default_rng(0), _prior(0.0, float(truth_y[0]) + offset_m))
+    valid = []
+    for k, y in enumerate(truth_y):
+        pose = np.array([0.0, y, math.pi / 2])
+        step = float(truth_y[k] - truth_y[k - 1]) if k else 0.0
+        image, _ = cam.render(
+            pose, gain=cam.gain(pose, 0.05 * k), noise_offset=997 * k, previous=pose - (0.0, step, 0.0), heads_xy=heads_xy
+        )
+        loc.predict(OdometryDelta(step, 0.0, 0.0))
+        loc.update(CeilingImage(image, intr))
+        valid.append(loc.estimate.valid)
+    return valid
+
+
+def test_between_targets_a_jump_shows_in_the_light_panels_and_makes_it_lost() -> None:
+    env, cam, intr, loc = _setup()
+    truth_y = np.arange(2.4, 4.4, 0.04)  # under the light panel at 3.6 m, no target in view
+    assert all(_drive(loc, cam, intr, truth_y, 0.0))  # the estimate agrees with the panels: no false alarm
+    assert loc.last_plan is None or loc.last_plan.unexplained_m2 == 0.0
+    for jump in (0.9, -1.4, 3.0):  # the estimate 0.9 m ahead of the truth, 1.4 m behind it, 3 m ahead
+        valid = _drive(loc, cam, intr, truth_y, jump)
+        lost_at = valid.index(False) * 0.04
+        assert loc.lost and not any(valid[valid.index(False) :]), jump
+        assert lost_at < 1.5, (jump, lost_at)  # within 1.5 m of travel (3.75 s at the follower's 0.4 m/s)
+
+
+def test_people_under_the_camera_hide_panels_without_contradicting_the_estimate() -> None:
+    env, cam, intr, loc = _setup()
+    truth_y = np.arange(2.6, 4.6, 0.02)
+    heads = np.array([[0.0, 3.6], [0.1, 3.3], [-0.1, 3.9], [0.35, 3.0]])  # heads over the panel and beside it
+    valid = _drive(loc, cam, intr, truth_y, 0.0, heads_xy=heads)
+    assert all(valid) and not loc.lost
+    # counted as plain ceiling, the hair would contradict the panel it hides (the test's reason for plan_min_value)
+    loc = make_localizer(
+        "ceiling_target", env.landmark_map, dt_s=0.05, params={"plan_min_value": 0.0, "plan_plain_saturation_max": 1.0}
+    )
+    assert isinstance(loc, CeilingTargetLocalizer)
+    assert not all(_drive(loc, cam, intr, truth_y, 0.0, heads_xy=heads))
+
+
+def test_a_jump_of_a_light_pitch_looks_the_same_and_the_next_target_tells_it_by_its_colours() -> None:
+    env, cam, intr, _ = _setup()
+    loc = make_localizer("ceiling_target", env.landmark_map, dt_s=0.05, params={"fusion": "ekf"})
+    assert isinstance(loc, CeilingTargetLocalizer)
+    pitch = env.config.features["ceiling"].light_pitch_m
+    truth_y = np.arange(12.6, 13.4, 0.02)  # under the panel at 13.2 m, T2 (13.9 m) not yet in view
+    assert all(_drive(loc, cam, intr, truth_y, -pitch))  # the panels cannot tell the estimate from the truth
+    assert loc.last_plan is not None and loc.last_plan.matched_m2 > 0.01
+    # T2 in view where the estimate puts nothing: its colours fix the pose, whatever the (EKF) estimate
+    pose = np.array([0.0, 13.9, math.pi / 2])
+    image, _ = cam.render(pose, gain=1.0)
+    loc.update(CeilingImage(image, intr))
+    assert loc.estimate.valid and loc.last_fix is not None and loc.last_fix.name == "T2" and _error(loc, pose)[0] < 0.05
+
+
+def test_a_fix_after_the_plan_made_it_lost_replaces_the_pose_with_ekf_fusion() -> None:
+    env, cam, intr, _ = _setup()
+    loc = make_localizer("ceiling_target", env.landmark_map, dt_s=0.05, params={"fusion": "ekf"})
+    assert isinstance(loc, CeilingTargetLocalizer)
+    assert not all(_drive(loc, cam, intr, np.arange(12.4, 13.4, 0.02), -1.0)) and loc.lost
+    pose = np.array([0.05, 13.9, math.pi / 2])
+    image, _ = cam.render(pose, gain=1.0)
+    loc.update(CeilingImage(image, intr))
+    assert loc.estimate.valid and _error(loc, pose)[0] < 0.05  # fused with the wrong pose, it would land 0.5 m off
+
+
+def test_the_ceiling_plan_matches_the_rendered_light_panels_and_signs() -> None:
+    env, cam, intr, loc = _setup(**CLEAN)
+    plan = CeilingPlan.from_map_data(env.landmark_map.features["ceiling"])
+    assert plan is not None
+    points = cell_points(intr, 4)
+    for pose in ([0.0, 3.5, math.pi / 2], [0.4, 6.2, 1.3], [-0.3, 14.3, 2.0]):
+        _, labels = cam.render(np.array(pose), labels=True)
+        assert labels is not None
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        xy = np.stack([pose[0] + c * points[:, 0] - s * points[:, 1], pose[1] + s * points[:, 0] + c * points[:, 1]], axis=1)
+        label = labels[2::4, 2::4].ravel()
+        distance = plan.white_distance(xy)
+        white = (label == LABEL_LIGHT) | ((label == LABEL_SIGN) & (distance <= 0.01))
+        assert np.all(distance[label == LABEL_LIGHT] <= 0.01)  # every panel pixel lies in the plan's white
+        assert np.all(white[distance < -0.01])  # and the plan's white shows white (a panel or a sign's lettering)
+
+
+def test_plan_settings_are_checked() -> None:
+    params = load_params("ceiling_target")
+    with pytest.raises(ConfigError, match="plan_white_saturation < plan_plain_saturation"):
+        dataclasses.replace(params, plan_white_saturation=0.05)
+    with pytest.raises(ConfigError, match="ceiling_target.plan_after_s must be > 0"):
+        dataclasses.replace(params, plan_after_s=math.nan)
+    with pytest.raises(ConfigError, match="plan_cell_px must be in 1..16"):
+        dataclasses.replace(params, plan_cell_px=0)
