@@ -156,6 +156,13 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     kid = ev.add_argument_group("kidnapping", "carry the robot away mid-episode and score each localizer's recovery")
     kid.add_argument("--kidnap-at-s", type=float, metavar="S", help="teleport the robot at S s after the reset (default: never)")
     kid.add_argument("--kidnap-m", type=float, metavar="M", help="at least this far from where it stood (default 2.0)")
+    kid.add_argument("--kidnap-max-m", type=float, metavar="M", help="at most this far (default: anywhere in the arena)")
+    kid.add_argument(
+        "--kidnap-keep-heading",
+        action="store_true",
+        default=None,
+        help="keep the robot's heading: a pure translation (default: a random heading)",
+    )
     kid.add_argument("--recover-m", type=float, metavar="M", help="a pose this close to the truth is a recovery (default 0.2)")
     kid.add_argument("--recover-window-s", type=float, metavar="S", help="look for the recovery this long (default 30)")
     ev.add_argument("--workers", type=positive_int, help="local worker processes (default: the core count)")

@@ -561,34 +561,54 @@ class ShoveDriver:
         return self.inner.act(env)
 
 
-def kidnap(world: World, rng: np.random.Generator, min_distance_m: float = 2.0, attempts: int = 10_000) -> NDArray[np.float64]:
+def kidnap(
+    world: World,
+    rng: np.random.Generator,
+    min_distance_m: float = 2.0,
+    attempts: int = 10_000,
+    *,
+    max_distance_m: float = math.inf,
+    keep_heading: bool = False,
+) -> NDArray[np.float64]:
     """Carry our robot away: teleport it to a random free pose at least ``min_distance_m`` from
     where it stands, with a random heading (odometry does not see it). Returns the new pose.
 
     The pose is drawn uniformly over the arena (``WorldConfig.arena_m``), heading uniform,
     until the robot's disc fits there (:meth:`envs.world.World.robot_placement_problem`) and
-    no crowd member's footprint disc overlaps it.
+    no crowd member's footprint disc overlaps it. With a finite ``max_distance_m`` the position
+    is drawn over the arena's part within ``max_distance_m`` of the robot (along each axis) and
+    refused beyond it: a short jump (issue 27's 2-5 m), uniform over the ring's free part. With
+    ``keep_heading`` the robot keeps its heading (a pure translation; the heading is still drawn,
+    so the positions are those of the same draws). The defaults draw exactly as before these options.
 
     Raises:
-        ValueError: when ``min_distance_m`` is not a finite number >= 0, or no such pose was
-            found in ``attempts`` draws (the arena is too small for the distance).
+        ValueError: when ``min_distance_m`` is not a finite number >= 0, ``max_distance_m`` not a
+            number above it, or no such pose was found in ``attempts`` draws (the arena is too small
+            for the distance, or the ring too crowded).
     """
     if not (math.isfinite(min_distance_m) and min_distance_m >= 0.0):
         raise ValueError(f"kidnap: min_distance_m must be a finite number of metres >= 0, got {min_distance_m!r}")
-    here = world.positions[0].copy()
+    if not max_distance_m > min_distance_m:  # false for NaN
+        raise ValueError(f"kidnap: max_distance_m must be above min_distance_m {min_distance_m!r}, got {max_distance_m!r}")
+    here = world.robot_pose.copy()
     xmin, ymin, xmax, ymax = world.config.arena_m
+    if math.isfinite(max_distance_m):
+        xmin, xmax = max(xmin, here[0] - max_distance_m), min(xmax, here[0] + max_distance_m)
+        ymin, ymax = max(ymin, here[1] - max_distance_m), min(ymax, here[1] + max_distance_m)
     others, radii = world.positions[1:], world.radii_m[1:]
     r = world.config.robot.radius_m
     for _ in range(attempts):
         x, y, theta = rng.uniform(xmin, xmax), rng.uniform(ymin, ymax), rng.uniform(-math.pi, math.pi)
-        if math.hypot(x - here[0], y - here[1]) < min_distance_m or world.robot_placement_problem(x, y) is not None:
+        distance = math.hypot(x - here[0], y - here[1])
+        if not min_distance_m <= distance <= max_distance_m or world.robot_placement_problem(x, y) is not None:
             continue
         if others.shape[0] and np.any(np.hypot(others[:, 0] - x, others[:, 1] - y) < radii + r):
             continue
-        pose = np.array([x, y, theta])
+        pose = np.array([x, y, float(here[2]) if keep_heading else theta])
         world.set_robot_pose(pose)
         return pose
+    ring = f"{min_distance_m:g}-{max_distance_m:g} m" if math.isfinite(max_distance_m) else f"at least {min_distance_m:g} m"
     raise ValueError(
-        f"kidnap: no free pose at least {min_distance_m:g} m from {here.round(3).tolist()} in {attempts} draws "
+        f"kidnap: no free pose {ring} from {here[:2].round(3).tolist()} in {attempts} draws "
         f"over arena {world.config.arena_m} of world {world.config.name!r}"
     )

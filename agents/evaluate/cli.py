@@ -48,7 +48,13 @@ def spec_from_args(args: Any) -> EvalSpec:
 
 
 #: the kidnap's flags besides --kidnap-at-s, and the Kidnap fields they set
-_KIDNAP_FLAGS = {"kidnap_m": "min_distance_m", "recover_m": "recover_m", "recover_window_s": "window_s"}
+_KIDNAP_FLAGS = {
+    "kidnap_m": "min_distance_m",
+    "kidnap_max_m": "max_distance_m",
+    "kidnap_keep_heading": "keep_heading",
+    "recover_m": "recover_m",
+    "recover_window_s": "window_s",
+}
 
 
 def kidnap_from_args(args: Any) -> Kidnap | None:

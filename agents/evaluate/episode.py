@@ -193,7 +193,8 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
         keep(step, info)
         done = bool(terminated or truncated)
         if kidnap is not None and jump_index is None and not done and float(info["time_s"]) >= kidnap.at_s - 1e-9:
-            carry_away(base.world, kidnap_rng, kidnap.min_distance_m)  # type: ignore[attr-defined]
+            carry_away(base.world, kidnap_rng, kidnap.min_distance_m,  # type: ignore[attr-defined]
+                       max_distance_m=kidnap.max_distance_m, keep_heading=kidnap.keep_heading)  # fmt: skip
             jump_index = step + 1
     env.close()
     collected = {name: np.stack(values) for name, values in recorder.collected.items()}

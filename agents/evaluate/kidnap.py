@@ -2,7 +2,9 @@
 
 At the first step at or after ``at_s`` the robot is teleported to a random free pose at least
 ``min_distance_m`` from where it stood (:func:`agents.scenarios.kidnap`; odometry does not see
-it, the localizer is not told). From the jump on, over ``window_s``:
+it, the localizer is not told): by default anywhere in the arena with a random heading; with
+``max_distance_m`` at most that far, and with ``keep_heading`` a pure translation (issue 27's
+kidnap of 2-5 m: ``--kidnap-m 2 --kidnap-max-m 5 --kidnap-keep-heading``). From the jump on, over ``window_s``:
 
 - ``recovered``: 1 if the localizer is back for good within the window: it claims a pose
   within ``recover_m`` of the truth and, from then to the end of the window, no claimed pose
@@ -43,6 +45,8 @@ class Kidnap:
     Attributes:
         at_s: time of the jump after the reset (s).
         min_distance_m: the robot lands at least this far from where it stood.
+        max_distance_m: ... and at most this far (inf: anywhere in the arena).
+        keep_heading: the robot keeps its heading (a pure translation); False: a random heading.
         recover_m: a claimed pose this close to the truth is a recovery.
         wrong_m: a claimed pose farther off than this is a confident wrong pose.
         window_s: how long after the jump recovery is looked for.
@@ -53,6 +57,8 @@ class Kidnap:
     recover_m: float = 0.2
     wrong_m: float = 1.0
     window_s: float = 30.0
+    max_distance_m: float = math.inf
+    keep_heading: bool = False
 
     def __post_init__(self) -> None:
         for name in ("at_s", "min_distance_m"):
@@ -61,6 +67,11 @@ class Kidnap:
         for name in ("recover_m", "wrong_m", "window_s"):
             value = getattr(self, name)
             check(math.isfinite(value) and value > 0.0, f"kidnap.{name} must be a finite number > 0, got {value!r}")
+        check(
+            self.max_distance_m > self.min_distance_m,  # false for NaN
+            f"kidnap.max_distance_m must be a number above min_distance_m {self.min_distance_m}, got {self.max_distance_m!r}",
+        )
+        check(isinstance(self.keep_heading, bool), f"kidnap.keep_heading must be true or false, got {self.keep_heading!r}")
         check(self.wrong_m >= self.recover_m, f"kidnap.wrong_m {self.wrong_m} must be at least recover_m {self.recover_m}")
 
     @property

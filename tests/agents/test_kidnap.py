@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -69,6 +70,9 @@ def test_an_evaluated_episode_jumps_once_at_the_time_and_reports_the_recovery() 
         ({"window_s": 0.0}, "kidnap.window_s must be a finite number > 0, got 0.0"),
         ({"recover_m": math.nan}, "kidnap.recover_m must be a finite number > 0, got nan"),
         ({"recover_m": 2.0, "wrong_m": 1.0}, "kidnap.wrong_m 1.0 must be at least recover_m 2.0"),
+        ({"max_distance_m": 2.0}, "kidnap.max_distance_m must be a number above min_distance_m 2.0, got 2.0"),
+        ({"max_distance_m": math.nan}, "kidnap.max_distance_m must be a number above min_distance_m 2.0, got nan"),
+        ({"keep_heading": "yes"}, "kidnap.keep_heading must be true or false, got 'yes'"),
     ],
 )
 def test_bad_kidnaps_are_refused_with_the_value(kwargs: dict, message: str) -> None:
@@ -93,3 +97,25 @@ def test_the_cli_runs_a_kidnapping_and_refuses_its_flags_alone(tmp_path: Path, c
     with pytest.raises(SystemExit):  # a usage error: one line under the command's usage
         main([*args, "--episode-steps", "90", "--kidnap-m", "3", "--out", str(tmp_path / "x")])
     assert "--kidnap-m only applies with --kidnap-at-s" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main([*args, "--episode-steps", "90", "--kidnap-max-m", "5", "--kidnap-keep-heading", "--out", str(tmp_path / "y")])
+    assert "--kidnap-max-m, --kidnap-keep-heading only applies with --kidnap-at-s" in capsys.readouterr().err
+
+
+def test_the_cli_kidnaps_by_a_short_pure_translation(tmp_path: Path) -> None:
+    args = ["eval", "--policies", "spin", "--localizers", "resection", "--crowd-sizes", "0", "--seeds", "1",
+            "--env-id", "crowdloc/RoboCupStatic-v0", "--workers", "1", "--no-gif", "--no-progress", "--episode-steps", "90",
+            "--kidnap-at-s", "1", "--recover-window-s", "2", "--kidnap-m", "2", "--kidnap-max-m", "3", "--kidnap-keep-heading",
+            "--out", str(tmp_path / "k")]  # fmt: skip
+    assert main(args) == 0
+    kidnap = json.loads((tmp_path / "k" / "run.json").read_text())["spec"]["kidnap"]
+    assert kidnap["max_distance_m"] == 3.0 and kidnap["keep_heading"] is True
+    tum = sorted((tmp_path / "k" / "tum").rglob("*groundtruth.tum"))
+    assert tum, "the truth's TUM file"
+    truth = np.loadtxt(tum[0])  # t x y z qx qy qz qw
+    step = np.hypot(*np.diff(truth[:, 1:3], axis=0).T)
+    jump = int(np.argmax(step))
+    assert 2.0 <= step[jump] <= 3.0 + 0.1  # the jump, plus at most a step's motion
+    turned = 2.0 * np.arctan2(truth[:, 6], truth[:, 7])
+    spin = np.abs(np.angle(np.exp(1j * np.diff(turned))))
+    assert spin[jump] <= 2.0 * np.median(spin) + 1e-6  # the jump turned the robot no more than a step does

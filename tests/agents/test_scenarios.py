@@ -145,3 +145,24 @@ def test_kidnap_carries_the_robot_far_to_a_free_pose_and_odometry_does_not_see_i
     with pytest.raises(ValueError, match="min_distance_m must be a finite"):
         kidnap(world, rng, float("nan"))
     env.close()
+
+
+def test_a_short_kidnap_translates_the_robot_by_the_given_distances_and_the_default_draws_as_before() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0")
+    env.reset(seed=4)
+    world = env.unwrapped.world
+    # the defaults draw what they drew before max_distance_m and keep_heading existed (poses recorded then)
+    got = [kidnap(world, np.random.default_rng(0), 2.0)]
+    np.testing.assert_allclose(got[0], [3.139814654603079, 3.87697936590399, 0.27410390540137985], atol=1e-12)
+    rng = np.random.default_rng(1)
+    for _ in range(20):  # issue 27's kidnap: 2-5 m, pure translation
+        before = world.robot_pose.copy()
+        pose = kidnap(world, rng, 2.0, max_distance_m=5.0, keep_heading=True)
+        assert 2.0 <= np.hypot(*(pose[:2] - before[:2])) <= 5.0
+        assert pose[2] == pytest.approx(before[2], abs=1e-9)
+        np.testing.assert_allclose(world.robot_pose, pose, atol=1e-9)
+    with pytest.raises(ValueError, match="max_distance_m must be above min_distance_m 2.0, got 1.0"):
+        kidnap(world, rng, 2.0, max_distance_m=1.0)
+    with pytest.raises(ValueError, match="max_distance_m must be above min_distance_m 2.0, got nan"):
+        kidnap(world, rng, 2.0, max_distance_m=float("nan"))
+    env.close()
