@@ -1,12 +1,17 @@
-"""Lost detection from bearings (ours, issue 19): a pose estimate that the bearings keep contradicting.
+"""Lost detection (ours, issue 19): a pose estimate that the measurements keep contradicting.
 
-Each frame with at least two bearings is compared with the bearings the estimate predicts:
-the median absolute residual (wrapped) above ``residual_rad`` contradicts it. Contradicted on
-every such frame for ``after_s``, the localizer is lost: the robot is not where it thinks (it
-was carried away, its odometry jumped, or it locked onto a wrong pose). The median makes one
-misidentified landmark or one distractor harmless; frames with fewer than two bearings say
-nothing either way. Used by ``candidate_sets`` (which restarts from the bearings) and
-``mcl_bearing`` (which claims no pose while lost).
+Each frame with at least two measurements is compared with what the estimate predicts: the
+median of the measurements' residuals above a threshold contradicts it. Contradicted on every
+such frame for ``after_s``, the localizer is lost: the robot is not where it thinks (it was
+carried away, its odometry jumped, or it locked onto a wrong pose). The median makes one
+misidentified landmark or one distractor harmless; frames with fewer than two measurements say
+nothing either way.
+
+:class:`ContradictionClock` keeps the time for any residual; :class:`Contradiction` is the
+bearings' (the absolute wrapped bearing residual against ``residual_rad``), used by
+``candidate_sets`` (which restarts from the bearings) and ``mcl_bearing`` (which claims no pose
+while lost). ``far_landmark_pf`` folds in the median Mahalanobis distance of its stereo
+detections to the scene map's landmarks (issue 27).
 """
 
 from __future__ import annotations
@@ -41,7 +46,35 @@ def median_abs_residual(
     return float(residual[half]) if n % 2 else 0.5 * (residual[half - 1] + residual[half])
 
 
-class Contradiction:
+class ContradictionClock:
+    """How long the measurements have contradicted a localizer's estimate (module docstring), for
+    any per-frame residual: :meth:`fold` takes a frame's median residual.
+
+    Args:
+        threshold: a frame's median residual above this contradicts the estimate.
+        after_s: contradicted on every frame (with >= 2 measurements) for this long: lost (inf: never).
+        dt_s: the time between frames.
+    """
+
+    def __init__(self, threshold: float, after_s: float, dt_s: float) -> None:
+        self.threshold, self.after_s, self._dt = threshold, after_s, dt_s
+        self.contradicted_s = 0.0
+
+    def reset(self) -> None:
+        self.contradicted_s = 0.0
+
+    @property
+    def lost(self) -> bool:
+        return self.contradicted_s >= self.after_s - 1e-9
+
+    def fold(self, residual: float | None) -> bool:
+        """Fold in one frame's median residual (None: a frame that says nothing); returns :attr:`lost`."""
+        if residual is not None:
+            self.contradicted_s = self.contradicted_s + self._dt if residual > self.threshold else 0.0
+        return self.lost
+
+
+class Contradiction(ContradictionClock):
     """How long the bearings have contradicted a localizer's estimate (module docstring).
 
     Args:
@@ -52,17 +85,10 @@ class Contradiction:
     """
 
     def __init__(self, landmarks_xy: NDArray[np.float64], residual_rad: float, after_s: float, dt_s: float) -> None:
+        super().__init__(residual_rad, after_s, dt_s)
         self._x = np.ascontiguousarray(landmarks_xy[:, 0], dtype=np.float64)
         self._y = np.ascontiguousarray(landmarks_xy[:, 1], dtype=np.float64)
-        self.residual_rad, self.after_s, self._dt = residual_rad, after_s, dt_s
-        self.contradicted_s = 0.0
-
-    def reset(self) -> None:
-        self.contradicted_s = 0.0
-
-    @property
-    def lost(self) -> bool:
-        return self.contradicted_s >= self.after_s - 1e-9
+        self.residual_rad = residual_rad
 
     def observe(self, pose: tuple[float, float, float] | None, ids: NDArray[np.int64], bearings: NDArray[np.float64]) -> bool:
         """Fold in one frame seen from the estimate ``pose`` (None: no estimate, which nothing
@@ -72,6 +98,4 @@ class Contradiction:
             return False
         if ids.size < 2:
             return self.lost
-        residual = median_abs_residual(pose[0], pose[1], pose[2], self._x, self._y, ids, bearings)
-        self.contradicted_s = self.contradicted_s + self._dt if residual > self.residual_rad else 0.0
-        return self.lost
+        return self.fold(median_abs_residual(pose[0], pose[1], pose[2], self._x, self._y, ids, bearings))

@@ -241,6 +241,14 @@ def test_detections_with_a_bad_range_are_refused_naming_the_value(inverse_range:
         pf.update(EdgeMeasurement(np.array([1]), np.array([inverse_range]), np.array([0.0])))
 
 
+@pytest.mark.parametrize("measurement", [None, "edges", np.zeros(3)])
+def test_a_measurement_that_is_no_edge_measurement_is_refused_naming_its_type(measurement: object) -> None:
+    pf = FarLandmarkPF(SQUARE, FarLandmarkParams(), dt_s=0.1, scenes=toy_map([(1, 10.0, 0.0)]))
+    pf.reset(np.random.default_rng(0), PoseEstimate(0.0, 0.0, 0.0))
+    with pytest.raises(MeasurementError, match=f"far_landmark_pf: expected an EdgeMeasurement, got {type(measurement).__name__}"):
+        pf.update(measurement)  # type: ignore[arg-type]
+
+
 def test_edge_types_run_from_0_to_29_and_others_are_refused_naming_them() -> None:
     assert (EDGE_CHANNELS, EDGE_LEVELS, EDGE_POLARITIES, EDGE_TYPES) == (3, 5, 2, 30)  # the paper's 3 x 5 x 2
     assert EDGE_TYPES == max(edge_type(c, lv, f) for c in range(3) for lv in range(5) for f in (False, True)) + 1
@@ -258,10 +266,76 @@ def test_without_a_start_pose_or_a_map_it_says_what_it_needs() -> None:
         FarLandmarkPF(SQUARE, FarLandmarkParams(), dt_s=0.1)
 
 
-@pytest.mark.parametrize(("key", "value"), [("sigma_inv_r", 0.0), ("match_gate", -1.0), ("selection", "middle"), ("scenes", 0)])
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("sigma_inv_r", 0.0), ("match_gate", -1.0), ("selection", "middle"), ("scenes", 0), ("lost_gate", math.nan),
+     ("lost_after_s", 0.0), ("search_radius_m", -1.0), ("search_cell_m", 0.0), ("search_radius_m", 1e4)],
+)  # fmt: skip
 def test_bad_parameters_are_refused_naming_them(key: str, value: object) -> None:
     with pytest.raises(ConfigError, match=key):
         FarLandmarkParams(**{key: value})  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------ lost and found (issue 27)
+
+#: the toy campus: one scene at (5, 25) facing +x, 80 landmarks of random types 10-40 m ahead of it
+_RNG = np.random.default_rng(27)
+_TYPES = _RNG.integers(0, EDGE_TYPES, 80)
+_RELATIVE = np.column_stack([_RNG.uniform(10.0, 40.0, 80), _RNG.uniform(-15.0, 15.0, 80)])
+TOY_CAMPUS = SceneMap(np.array([[5.0, 25.0, 0.0]]), np.array([0, 80]), _TYPES, _RELATIVE, "toy", geometry_fingerprint(SQUARE))
+
+
+def seen_from(pose: tuple[float, float, float], rng: np.random.Generator) -> EdgeMeasurement:
+    """The toy campus's landmarks within 60 deg of the heading, as detected from ``pose`` (with the filter's noise)."""
+    xy = TOY_CAMPUS.world_xy(0)
+    r = np.hypot(xy[:, 0] - pose[0], xy[:, 1] - pose[1])
+    b = np.arctan2(xy[:, 1] - pose[1], xy[:, 0] - pose[0]) - pose[2]
+    keep = np.abs(b) < math.radians(60.0)
+    inv = 1.0 / r[keep] + rng.normal(0.0, 0.002, keep.sum())
+    return EdgeMeasurement(_TYPES[keep], inv, b[keep] + rng.normal(0.0, 0.004, keep.sum()))
+
+
+def kidnapped_run(frames: int = 30, **params: object) -> tuple[list[PoseEstimate], FarLandmarkPF]:
+    """Ten frames standing at (5, 25) facing +x, then ``frames`` frames from 3 m ahead and 1 m to the left,
+    the odometry none the wiser (zero increments): issue 27's kidnap."""
+    pf = FarLandmarkPF(SQUARE, FarLandmarkParams(**params), dt_s=0.1, scenes=TOY_CAMPUS)  # type: ignore[arg-type]
+    rng = np.random.default_rng(5)
+    pf.reset(rng, PoseEstimate(5.0, 25.0, 0.0))
+    out = []
+    for n in range(10 + frames):
+        pf.predict(OdometryDelta(0.0, 0.0, 0.0))
+        pf.update(seen_from((5.0, 25.0, 0.0) if n < 10 else (8.0, 26.0, 0.0), rng))
+        out.append(pf.estimate)
+    return out, pf
+
+
+def test_a_kidnapped_filter_says_it_is_lost_within_lost_after_s() -> None:
+    estimates, pf = kidnapped_run(search_radius_m=0.0)  # no re-localization: it can only say so
+    before, after = estimates[:10], estimates[10:]
+    assert all(e.valid and math.hypot(e.x_m - 5.0, e.y_m - 25.0) < 0.2 for e in before)  # standing where it thinks
+    assert all(e.valid for e in after[:4])  # the first frames after the jump: not yet contradicted for 0.5 s
+    assert not any(e.valid for e in after[4:20])  # then no pose claimed (for as long as no frame agrees with it)
+    assert pf.searches == 0
+
+
+def test_a_kidnapped_filter_relocalizes_from_the_scene_map() -> None:
+    estimates, pf = kidnapped_run()
+    after = estimates[10:]
+    assert sum(e.valid and math.hypot(e.x_m - 8.0, e.y_m - 26.0) > 1.0 for e in after) <= 5  # at most 0.5 s confidently wrong
+    found = [e.valid and math.hypot(e.x_m - 8.0, e.y_m - 26.0) < 0.3 for e in after]
+    assert all(found[4:]) and not pf.lost  # re-localized at the first search, 0.5 s after the jump, and stays there
+    assert pf.searches == 1
+
+
+def test_a_filter_that_stays_put_never_searches() -> None:
+    estimates, pf = kidnapped_run(frames=0)
+    pf.reset(np.random.default_rng(1), PoseEstimate(5.0, 25.0, 0.0))
+    rng = np.random.default_rng(2)
+    for _ in range(100):
+        pf.predict(OdometryDelta(0.0, 0.0, 0.0))
+        pf.update(seen_from((5.0, 25.0, 0.0), rng))
+        assert pf.estimate.valid
+    assert pf.searches == 0 and not pf.lost
 
 
 # ------------------------------------------------------------------ on the campus
