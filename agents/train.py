@@ -34,7 +34,7 @@ import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
 from agents.rewards import ActiveLocalizationReward, RewardWeights
 from agents.util import nest, write_run_record
-from localizers.schema import ConfigError, check, from_mapping, load_yaml, parse_yaml, replace_checked
+from localizers.schema import ConfigError, check, from_mapping, load_yaml, merge_nested, parse_yaml, replace_checked
 
 EXPERIMENT_DIR = crowdloc_configs.path("experiments")  # package data (configs/ in the checkout)
 #: env seeds at or above this are evaluation seeds; training episodes never use them
@@ -146,13 +146,28 @@ class EpisodeSeeds(gym.Wrapper):
 
 def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: Any) -> gym.Env[Any, Any]:
     """The task a training config describes, at one crowd size: its world, localizer and
-    conditions (``env_kwargs``, then ``make_kwargs`` on top), with the active-localization reward."""
+    conditions (``env_kwargs``, then ``make_kwargs`` on top), with the active-localization reward.
+
+    ``make_kwargs`` may override the localizer's parameters (``localizer_params``, merged over the
+    config's key by key) but not the localizer itself (a ``ConfigError``: the task is its localizer's).
+    """
+    kwargs = {**dict(config.env_kwargs), **make_kwargs}
+    if "localizer" in kwargs:
+        raise ConfigError(
+            f"{config.env_id} with localizer {config.localizer!r} is the task of this training config: "
+            f"localizer={kwargs['localizer']!r} cannot replace it (give it to a world id, e.g. "
+            f"gym.make({config.env_id!r}, localizer={kwargs['localizer']!r}))"
+        )
+    extra = kwargs.pop("localizer_params", None)
+    extra = {} if extra is None else extra
+    if not isinstance(extra, Mapping):
+        raise ConfigError(f"localizer_params must be a mapping, got {type(extra).__name__} {extra!r}")
     env = gym.make(
         config.env_id,
         crowd_size=crowd_size,
         localizer=config.localizer,
-        localizer_params=dict(config.localizer_params) or None,
-        **{**dict(config.env_kwargs), **make_kwargs},
+        localizer_params=merge_nested(config.localizer_params, extra) or None,
+        **kwargs,
     )
     return ActiveLocalizationReward(env, config.reward)
 

@@ -26,6 +26,7 @@ import crowdloc_configs
 from envs.crowds import CrowdConfig
 from envs.features import FeatureConfig
 from envs.features.base import Segment
+from envs.floor import FloorGrid
 from envs.sensors import SensorConfig
 from envs.view import (
     BACKGROUND_PAD_PX,
@@ -533,7 +534,26 @@ class WorldConfig:
                     f"(thickness {2 * WALL_RADIUS_M:g} m): its centre is {gap[i]:.3g} m from the wall's line, "
                     f"it must be at least {r + WALL_RADIUS_M:g} m"
                 )
+        if not self._floor.reachable(x, y):
+            return (
+                f"the robot's centre ({x:g}, {y:g}) would be in a part of world {self.name!r} that walls close off "
+                f"from its main floor ({self._floor.main_area_m2:.4g} m^2, envs.floor): the robot could never get there"
+            )
         return None
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the floor grid (megabytes on the campus; remade where it is asked for)."""
+        state = dict(self.__dict__)
+        state.pop("_floor", None)
+        return state
+
+    @functools.cached_property
+    def _floor(self) -> FloorGrid:
+        """Where the robot can get (:mod:`envs.floor`), made once, at the first placement asked about."""
+        a, b = self._interior_floor_walls
+        polygons = [piece.footprint() for piece in self.furniture if piece.kind == "box"]
+        polygons += [solid.corners for feature in self.features.values() for solid in feature.solids() if solid.bottom_m <= 0.0]
+        return FloorGrid(self.arena_m, np.hstack([a, b]), polygons, self.robot.radius_m, WALL_RADIUS_M)
 
     @functools.cached_property
     def _interior_floor_walls(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

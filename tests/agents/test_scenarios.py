@@ -166,3 +166,17 @@ def test_a_short_kidnap_translates_the_robot_by_the_given_distances_and_the_defa
     with pytest.raises(ValueError, match="max_distance_m must be above min_distance_m 2.0, got nan"):
         kidnap(world, rng, 2.0, max_distance_m=float("nan"))
     env.close()
+
+
+def test_a_kidnap_lands_on_the_floor_the_robot_can_reach() -> None:
+    """The corridor's walls close pockets between them and the field's edge (x 1..1.6 m beside the
+    door recesses): a kidnap once left the robot there (1.31, 2.87) for a whole recovery window."""
+    env = gym.make("crowdloc/CeilingCorridor-v0")
+    env.reset(seed=0)
+    world = env.unwrapped.world
+    rng = np.random.default_rng(0)
+    for _ in range(400):
+        x, y, _ = kidnap(world, rng, 2.0)
+        alcove = -1.6 < y < 0.0 or 9.5 < y < 11.5 if x > 0 else 11.5 < y < 13.5
+        assert abs(x) < 1.1 or alcove, (x, y)  # the corridor, a door recess or an alcove
+    env.close()

@@ -9,6 +9,7 @@ from stable_baselines3.common.monitor import Monitor
 
 import envs
 from agents.train import load_train_config
+from localizers.schema import ConfigError
 
 
 @pytest.mark.parametrize(("env_id", "config"), sorted(envs.TASK_CONFIGS.items()))
@@ -33,3 +34,16 @@ def test_a_bare_world_id_returns_reward_zero() -> None:
     env = gym.make("crowdloc/RoboCupCrowded-v0")
     env.reset(seed=0)
     assert env.step(env.action_space.sample())[1] == 0.0
+
+
+def test_a_task_id_keeps_its_localizer_and_merges_parameter_overrides() -> None:
+    """gym.make(task, localizer=...) was gymnasium's 'multiple values for keyword argument' TypeError."""
+    with pytest.raises(
+        ConfigError, match=r"localizer 'candidate_sets' is the task .* localizer='dead_reckoning' cannot replace it"
+    ):
+        gym.make("crowdloc/ActiveCandidateSets-v0", localizer="dead_reckoning")
+    env = gym.make("crowdloc/ActiveCandidateSets-v0", localizer_params={"max_sets": 3})
+    assert env.get_wrapper_attr("localizer")._params.max_sets == 3
+    env.close()
+    with pytest.raises(ConfigError, match="localizer_params must be a mapping, got int 0"):
+        gym.make("crowdloc/ActiveCandidateSets-v0", localizer_params=0)

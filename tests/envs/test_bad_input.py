@@ -393,6 +393,20 @@ def test_a_start_region_must_lie_where_the_robot_fits() -> None:
     gym.make("crowdloc/RoboCupStatic-v0", robot={"start_pose": None, "start_region_m": [-0.27, -0.27, 5.27, 10.27]}).close()
 
 
+def test_a_pose_behind_a_wall_is_off_the_floor_for_a_reset_and_a_start() -> None:
+    """(1.31, 2.87) clears every wall of the corridor but lies between its wall and the field's
+    edge, a pocket closed on every side: a kidnap once left the robot there for a whole window."""
+    env = LocalizationEnv("ceiling_corridor")
+    with pytest.raises(ValueError, match=r"robot_pose.*\(1.31, 2.87\).*close off from its main floor"):
+        env.reset(seed=0, options={"robot_pose": [1.31, 2.87, 1.57]})
+    with pytest.raises(ConfigError, match=r"robot.start_pose = \[1.31, 2.87, 1.57\]: .* close off from its main floor"):
+        gym.make("crowdloc/CeilingCorridor-v0", robot={"start_pose": [1.31, 2.87, 1.57]})
+    # the alcove beside it and the door recess are floor the robot can reach
+    assert env.world.config.robot_placement_problem(1.3, 10.5) is None
+    assert env.world.config.robot_placement_problem(0.0, 2.87) is None
+    env.close()
+
+
 def test_a_crowd_region_too_small_for_its_radius_says_so() -> None:
     env = LocalizationEnv("robocup_crowded")
     crowd = env.world.crowd_named("soccer")
