@@ -397,6 +397,45 @@ def checked_bearings(owner: str, measurement: BearingMeasurement, landmark_count
     return measurement.validated(landmark_count, source=owner)
 
 
+def validated_scan(scan: ScanMeasurement, source: str = "scan") -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """``(ranges, angles, max_range)`` of a scan as float64, or a :class:`MeasurementError`.
+
+    Checked: a finite positive ``max_range_m``; 1-D ranges and angles of equal length;
+    finite angles, strictly ascending (as :class:`ScanMeasurement` requires);
+    ranges finite and in ``[0, max_range_m]``. The message names the first bad value and its
+    beam index.
+    """
+    if not isinstance(scan, ScanMeasurement):
+        raise MeasurementError(f"{source}: expected a ScanMeasurement, got {type(scan).__name__}")
+    max_range = float(scan.max_range_m)
+    if not (math.isfinite(max_range) and max_range > 0.0):
+        raise MeasurementError(f"{source}: max_range_m must be a positive number of metres, got {scan.max_range_m!r}")
+    ranges = np.asarray(scan.ranges_m, dtype=np.float64)
+    angles = np.asarray(scan.angles_rad, dtype=np.float64)
+    if ranges.ndim != 1 or angles.ndim != 1 or ranges.shape != angles.shape:
+        raise MeasurementError(
+            f"{source}: ranges_m and angles_rad must be 1-D of equal length, got shapes {ranges.shape} and {angles.shape}"
+        )
+    bad = ~np.isfinite(angles)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise MeasurementError(f"{source}: beam angle {float(angles[i])!r} rad at index {i} is not finite")
+    bad = ~(np.diff(angles) > 0.0)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0]) + 1
+        raise MeasurementError(
+            f"{source}: beam angles must ascend (ScanMeasurement.angles_rad), got {float(angles[i])!r} rad at index {i} "
+            f"after {float(angles[i - 1])!r} rad"
+        )
+    bad = ~((ranges >= 0.0) & (ranges <= max_range))  # NaN fails both comparisons
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise MeasurementError(
+            f"{source}: range {float(ranges[i])!r} m at index {i} is not a finite value in [0, max_range_m = {max_range!r}]"
+        )
+    return ranges, angles, max_range
+
+
 #: the default position spread (m) past which a localizer stops claiming a pose (``max_spread_m``)
 DEFAULT_MAX_SPREAD_M = 1.0
 
