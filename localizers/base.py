@@ -191,7 +191,7 @@ class ScanMeasurement:
 
 
 #: what types a stereo camera's vertical edges have (paper D): colour channel (R, G, B) x detection
-#: row (topmost first) x polarity (rising, falling), numbered by :func:`localizers.stereo_vision.edge_type`
+#: row (topmost first) x polarity (rising, falling), numbered by :func:`localizers.stereo_edges.edge_type`
 EDGE_CHANNELS, EDGE_LEVELS, EDGE_POLARITIES = 3, 5, 2
 EDGE_TYPES = EDGE_CHANNELS * EDGE_LEVELS * EDGE_POLARITIES  # 30
 
@@ -201,7 +201,7 @@ class EdgeMeasurement:
     """Typed vertical edges seen by a stereo camera in one frame (paper D's landmarks).
 
     Attributes:
-        types: ``(n,)`` edge types in ``0..EDGE_TYPES - 1`` (:func:`localizers.stereo_vision.edge_type`).
+        types: ``(n,)`` edge types in ``0..EDGE_TYPES - 1`` (:func:`localizers.stereo_edges.edge_type`).
         inverse_range_m: ``(n,)`` 1 / range from the robot centre, 1/m, finite and > 0.
         bearings_rad: ``(n,)`` bearings in the robot frame, counter-clockwise from the heading.
     """
