@@ -191,7 +191,7 @@ class ScanMeasurement:
 
 
 #: what types a stereo camera's vertical edges have (paper D): colour channel (R, G, B) x detection
-#: row (topmost first) x polarity (rising, falling), numbered by :func:`localizers.stereo_vision.edge_type`
+#: row (topmost first) x polarity (rising, falling), numbered by :func:`localizers.stereo_edges.edge_type`
 EDGE_CHANNELS, EDGE_LEVELS, EDGE_POLARITIES = 3, 5, 2
 EDGE_TYPES = EDGE_CHANNELS * EDGE_LEVELS * EDGE_POLARITIES  # 30
 
@@ -201,7 +201,7 @@ class EdgeMeasurement:
     """Typed vertical edges seen by a stereo camera in one frame (paper D's landmarks).
 
     Attributes:
-        types: ``(n,)`` edge types in ``0..EDGE_TYPES - 1`` (:func:`localizers.stereo_vision.edge_type`).
+        types: ``(n,)`` edge types in ``0..EDGE_TYPES - 1`` (:func:`localizers.stereo_edges.edge_type`).
         inverse_range_m: ``(n,)`` 1 / range from the robot centre, 1/m, finite and > 0.
         bearings_rad: ``(n,)`` bearings in the robot frame, counter-clockwise from the heading.
     """
@@ -395,6 +395,45 @@ def checked_bearings(owner: str, measurement: BearingMeasurement, landmark_count
     if not isinstance(measurement, BearingMeasurement):
         raise MeasurementError(f"{owner}: expected a BearingMeasurement, got {type(measurement).__name__}")
     return measurement.validated(landmark_count, source=owner)
+
+
+def validated_scan(scan: ScanMeasurement, source: str = "scan") -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """``(ranges, angles, max_range)`` of a scan as float64, or a :class:`MeasurementError`.
+
+    Checked: a finite positive ``max_range_m``; 1-D ranges and angles of equal length;
+    finite angles, strictly ascending (as :class:`ScanMeasurement` requires);
+    ranges finite and in ``[0, max_range_m]``. The message names the first bad value and its
+    beam index.
+    """
+    if not isinstance(scan, ScanMeasurement):
+        raise MeasurementError(f"{source}: expected a ScanMeasurement, got {type(scan).__name__}")
+    max_range = float(scan.max_range_m)
+    if not (math.isfinite(max_range) and max_range > 0.0):
+        raise MeasurementError(f"{source}: max_range_m must be a positive number of metres, got {scan.max_range_m!r}")
+    ranges = np.asarray(scan.ranges_m, dtype=np.float64)
+    angles = np.asarray(scan.angles_rad, dtype=np.float64)
+    if ranges.ndim != 1 or angles.ndim != 1 or ranges.shape != angles.shape:
+        raise MeasurementError(
+            f"{source}: ranges_m and angles_rad must be 1-D of equal length, got shapes {ranges.shape} and {angles.shape}"
+        )
+    bad = ~np.isfinite(angles)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise MeasurementError(f"{source}: beam angle {float(angles[i])!r} rad at index {i} is not finite")
+    bad = ~(np.diff(angles) > 0.0)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0]) + 1
+        raise MeasurementError(
+            f"{source}: beam angles must ascend (ScanMeasurement.angles_rad), got {float(angles[i])!r} rad at index {i} "
+            f"after {float(angles[i - 1])!r} rad"
+        )
+    bad = ~((ranges >= 0.0) & (ranges <= max_range))  # NaN fails both comparisons
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise MeasurementError(
+            f"{source}: range {float(ranges[i])!r} m at index {i} is not a finite value in [0, max_range_m = {max_range!r}]"
+        )
+    return ranges, angles, max_range
 
 
 #: the default position spread (m) past which a localizer stops claiming a pose (``max_spread_m``)

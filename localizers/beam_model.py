@@ -13,17 +13,14 @@ range. Log likelihoods are summed over beams (products of 16 beams at a time, th
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import LandmarkMap
+from localizers.mcl_lidar_params import LidarMCLParams
 from localizers.range_table import RangeTable, check_table_size, wall_distance_field
-
-if TYPE_CHECKING:  # mcl_lidar imports this module
-    from localizers.mcl_lidar import LidarMCLParams
 
 Array = NDArray[np.float64]
 

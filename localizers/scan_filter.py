@@ -46,11 +46,13 @@ from localizers.base import (
     checked_dt,
     checked_odometry,
     require_reset,
+    validated_scan,
     within_spread,
 )
 from localizers.bounds import odometry_process_noise
 from localizers.geometry import between, compose, wrap_angle
-from localizers.mcl_lidar import LidarMCL, LidarMCLParams, informative, large_map_mcl, validated_scan
+from localizers.mcl_lidar import LidarMCL, informative
+from localizers.mcl_lidar_params import LidarMCLParams, large_map_mcl
 from localizers.schema import check, check_at_most
 
 Array = NDArray[np.float64]
@@ -387,7 +389,7 @@ class FarPointMCLParams:
 def large_map_params(env: Any, sensor: str, params: Mapping[str, Any] | None) -> Mapping[str, Any] | None:
     """``far_point_mcl``'s preparation (its registry entry names it): its ``mcl`` section gets what
     ``mcl_lidar`` gets in a world too large for the beam model's table
-    (:func:`localizers.mcl_lidar.large_map_mcl`: the campus reference's likelihood field, logged);
+    (:func:`localizers.mcl_lidar_params.large_map_mcl`: the campus reference's likelihood field, logged);
     elsewhere, or when the section names a ``model``, ``params`` unchanged."""
     from localizers.registry import load_params
 

@@ -13,889 +13,99 @@ is triangulated with the outer pair and becomes a landmark at a range and bearin
    :func:`rig_range_bearing`: the same point in the robot frame, in crowdloc's convention
    (the one place the paper's bearing convention is converted).
 
-Everything here works on plain arrays (no env objects), so it runs on a real camera's
-frames too: uint8 RGB images of shape ``(H, W, 3)``.
+This module is the one import for all of it (what the stereo camera sensor and the tests
+use); the code lives in two modules along the pipeline's seam:
 
-**Pixel coordinates** (shared with the renderer and the geometric fast mode): the continuous
-column coordinate ``u`` runs left to right; pixel column ``k`` spans ``[k, k + 1)`` and its
-centre, ``k + 0.5``, is where its viewing ray passes: ``u = cx + f X / Z`` for a point at
-``X`` right of and ``Z`` ahead of the camera (so an image of width ``W`` whose optical axis
-is at its middle has ``cx = W / 2``). A colour boundary between columns ``k`` and ``k + 1``
-is at ``u = k + 1``. Filter responses are indexed by column: index ``k`` is the filter
-centred on column ``k``'s centre. An ideal step at ``u = k + 1`` gives a response plateau
-at indices ``k`` and ``k + 1``; its edge is reported at ``u = k + 1``. Rows are integer
-pixel indices (row 0 at the top).
+- :mod:`localizers.stereo_edges`: one camera's image: the edge types, the filter, detection,
+  :class:`EdgeDetector`, :func:`draw_detections`, and the pixel convention (column ``k``
+  spans ``[k, k + 1)``, its ray through ``k + 0.5``; shared with the renderer and the
+  geometric fast mode of :mod:`envs.stereo`);
+- :mod:`localizers.stereo_matching`: the rig: trinocular matching, triangulation,
+  :class:`TrinocularRig`, and the frames' convention (the paper's stereo frame vs crowdloc's
+  robot frame).
 
-**Frames.** The paper's stereo frame has its origin at the LEFT camera, ``x`` to the right
-and ``y`` forward; its bearing ``theta = atan(x / y)`` is measured from the forward axis,
-positive to the right. crowdloc's robot frame has ``x`` forward and ``y`` to the left, with
-bearings counter-clockwise from the heading (left positive). Only
-:func:`rig_range_bearing` converts between the two.
-
-**Errors.** Bad parameters raise ValueError naming the argument and the value; malformed
-measured data (images, edge lists) raise :class:`~localizers.base.MeasurementError` (a
-ValueError) naming it; bad config dataclasses raise
-:class:`~localizers.schema.ConfigError` (a ValueError).
+Everything works on plain arrays (no env objects), so it runs on a real camera's frames
+too: uint8 RGB images of shape ``(H, W, 3)``.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any, NamedTuple
-
-import cv2
-import numba
-import numpy as np
-from numpy.typing import ArrayLike, NDArray
-
-from localizers.base import EDGE_CHANNELS as CHANNELS  # R, G, B
-from localizers.base import EDGE_LEVELS as LEVELS  # detection rows; level 0 is the topmost
-from localizers.base import EDGE_POLARITIES as POLARITIES  # rising, falling
-from localizers.base import EDGE_TYPES, MeasurementError
-from localizers.geometry import wrap_angle
-from localizers.schema import check
-
-# The paper's filter at its cameras' 640 x 480.
-PAPER_FILTER_ROWS = 101
-PAPER_FILTER_COLS = 7
-PAPER_WIDTH_PX = 640
-PAPER_HEIGHT_PX = 480
-
-# draw_detections: marker colours (RGB) of the channels R, G, B
-CHANNEL_COLOURS = ((255, 0, 0), (0, 255, 0), (0, 0, 255))
-
-
-# ---------------------------------------------------------------------------------------
-# Edge types
-# ---------------------------------------------------------------------------------------
-
-
-def _show(value: Any) -> Any:
-    """A value as error messages show it: numpy scalars as Python numbers (``nan``, not ``np.float64(nan)``)."""
-    return value.item() if isinstance(value, np.generic) else value
-
-
-def _is_int(value: Any) -> bool:
-    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
-
-
-def _in_range_int(value: Any, name: str, count: int) -> int:
-    if not _is_int(value) or not 0 <= int(value) < count:
-        raise ValueError(f"{name} must be an integer in 0..{count - 1}, got {_show(value)!r}")
-    return int(value)
-
-
-def _falling_flag(value: Any) -> bool:
-    if not (isinstance(value, bool | np.bool_) or (_is_int(value) and int(value) in (0, 1))):
-        raise ValueError(f"falling must be a bool, got {_show(value)!r}")
-    return bool(value)
-
-
-def edge_type(channel: int, level: int, falling: bool) -> int:
-    """The type ``6 level + 2 channel + falling`` (0..29) of an edge.
-
-    Args:
-        channel: 0 = R, 1 = G, 2 = B.
-        level: the detection row's index, 0 the topmost.
-        falling: True when the pixel value decreases from left to right.
-    """
-    c = _in_range_int(channel, "channel", CHANNELS)
-    lv = _in_range_int(level, "level", LEVELS)
-    return POLARITIES * CHANNELS * lv + POLARITIES * c + int(_falling_flag(falling))
-
-
-def edge_type_parts(t: int) -> tuple[int, int, bool]:
-    """``(channel, level, falling)`` of the edge type ``t`` (the inverse of :func:`edge_type`)."""
-    t = _in_range_int(t, "edge type", EDGE_TYPES)
-    return (t % (POLARITIES * CHANNELS)) // POLARITIES, t // (POLARITIES * CHANNELS), bool(t % POLARITIES)
-
-
-def _int_array(values: ArrayLike, name: str, count: int) -> NDArray[np.int64]:
-    """``values`` as int64, or ValueError naming the first value that is not an integer in ``0..count - 1``.
-
-    Integer dtypes only (no floats, no bools); an empty array of any dtype is accepted.
-    """
-    a = np.asarray(values)
-    if a.size == 0:
-        return a.astype(np.int64)
-    if a.dtype.kind not in "iu":
-        flat = a.ravel()
-        bad = flat[0]
-        if a.dtype.kind in "fc":
-            off = ~np.isfinite(flat) | (flat != np.round(flat))
-            if off.any():
-                bad = flat[np.argmax(off)]
-        raise ValueError(f"{name} must be integers in 0..{count - 1}, got {_show(bad)!r} (dtype {a.dtype})")
-    outside = (a < 0) | (a >= count)
-    if outside.any():
-        raise ValueError(f"{name} {_show(a[outside].ravel()[0])!r} is outside 0..{count - 1}")
-    return a.astype(np.int64)
-
-
-def check_edge_types(types: ArrayLike, where: str) -> NDArray[np.int64]:
-    """``types`` as an int64 array, or ValueError naming ``where`` and the first bad value.
-
-    A type must be an integer (integer dtype; no floats, no bools) in ``0..29``. An empty
-    array of any dtype is accepted.
-    """
-    return _int_array(types, f"{where}: edge type", EDGE_TYPES)
-
-
-def edge_types(channel: ArrayLike, level: ArrayLike, falling: ArrayLike) -> NDArray[np.int64]:
-    """:func:`edge_type` on arrays (broadcast): int64 types of the shape of the broadcast inputs."""
-    c = _int_array(channel, "edge_types: channel", CHANNELS)
-    lv = _int_array(level, "edge_types: level", LEVELS)
-    f = np.asarray(falling)
-    if f.size and f.dtype != np.bool_ and not (f.dtype.kind in "iu" and np.isin(f, (0, 1)).all()):
-        raise ValueError(f"edge_types: falling must be bools, got {_show(f.ravel()[0])!r} (dtype {f.dtype})")
-    return np.asarray(POLARITIES * CHANNELS * lv + POLARITIES * c + f.astype(np.int64), dtype=np.int64)
-
-
-def edge_types_parts(types: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
-    """:func:`edge_type_parts` on an array: ``(channel, level, falling)`` arrays of its shape."""
-    t = check_edge_types(types, "edge_types_parts")
-    return (t % (POLARITIES * CHANNELS)) // POLARITIES, t // (POLARITIES * CHANNELS), (t % POLARITIES).astype(np.bool_)
-
-
-# ---------------------------------------------------------------------------------------
-# The filter
-# ---------------------------------------------------------------------------------------
-
-
-def _nearest_odd(x: float) -> int:
-    """The odd integer nearest to ``x`` (a tie, ``x`` even, goes up)."""
-    return 2 * math.floor(x / 2.0) + 1
-
-
-def filter_size(width_px: int, height_px: int) -> tuple[int, int]:
-    """``(rows, cols)`` of the paper's 101 x 7 filter (at 640 x 480) scaled to an image size.
-
-    ``rows`` is the odd integer nearest to ``101 height_px / 480``, ``cols`` the one nearest
-    to ``7 width_px / 640`` (ties go up), each at least 3: ``(101, 7)`` at 640 x 480,
-    ``(51, 3)`` at 320 x 240, ``(203, 15)`` at 1280 x 960.
-    """
-    for name, value in (("width_px", width_px), ("height_px", height_px)):
-        if not _is_int(value) or value <= 0:
-            raise ValueError(f"filter_size: {name} must be a positive integer, got {_show(value)!r}")
-    rows = _nearest_odd(PAPER_FILTER_ROWS * height_px / PAPER_HEIGHT_PX)
-    cols = _nearest_odd(PAPER_FILTER_COLS * width_px / PAPER_WIDTH_PX)
-    return max(3, rows), max(3, cols)
-
-
-def check_rgb_image(image: Any, where: str) -> NDArray[np.uint8]:
-    """The image as a C-contiguous uint8 ``(H, W, 3)`` array, or MeasurementError naming its dtype and shape."""
-    a = np.asarray(image)
-    if a.dtype != np.uint8 or a.ndim != 3 or a.shape[2] != 3 or a.shape[0] == 0 or a.shape[1] == 0:
-        raise MeasurementError(f"{where}: expected a uint8 RGB image of shape (H, W, 3), got {a.dtype} {a.shape}")
-    return np.ascontiguousarray(a)
-
-
-def _check_filter_side(value: Any, name: str) -> int:
-    if not _is_int(value) or value < 3 or value % 2 == 0:
-        raise ValueError(f"{name} must be an odd integer >= 3, got {_show(value)!r}")
-    return int(value)
-
-
-def check_rows(rows: ArrayLike, height_px: int, filter_rows: int, where: str) -> NDArray[np.int64]:
-    """The detection rows as int64 ``(L,)``, or ValueError naming the bad row.
-
-    1 to 5 strictly increasing integer rows (level 0 the topmost), each with its filter
-    window ``rows[l] -+ (filter_rows - 1) / 2`` inside ``0..height_px - 1``.
-    """
-    r = np.asarray(rows)
-    if r.ndim != 1 or not 1 <= r.size <= LEVELS:
-        raise ValueError(f"{where}: rows must be 1 to {LEVELS} detection rows, got {r.tolist()!r}")
-    if r.dtype.kind not in "iu":
-        raise ValueError(f"{where}: rows must be integers, got {r.tolist()!r}")
-    r = r.astype(np.int64)
-    if r.size > 1 and not (np.diff(r) > 0).all():
-        raise ValueError(f"{where}: rows must increase strictly (level 0 is the topmost), got {r.tolist()!r}")
-    half = filter_rows // 2
-    for row in r:
-        if row - half < 0 or row + half > height_px - 1:
-            raise ValueError(
-                f"{where}: the {filter_rows}-row window of row {int(row)} does not fit an image of {height_px} rows "
-                f"(rows {half}..{height_px - 1 - half} do)"
-            )
-    return r
-
-
-@numba.njit(cache=True)
-def _response_kernel(
-    image: NDArray[np.uint8], rows: NDArray[np.int64], half_rows: int, half_cols: int, out: NDArray[np.float32]
-) -> None:
-    """The filter of :func:`vertical_edge_response` into the zeroed ``out`` ``(L, W, 3)``."""
-    height, width, _ = image.shape
-    flat = image.reshape(height, width * 3)
-    sums = np.empty(width * 3, dtype=np.int32)
-    denom = np.float32(half_cols * (2 * half_rows + 1))
-    for lv in range(rows.shape[0]):
-        # per-column sums over the window's rows (a loop over contiguous bytes: it vectorizes)
-        sums[:] = 0
-        for r in range(rows[lv] - half_rows, rows[lv] + half_rows + 1):
-            line = flat[r]
-            for j in range(width * 3):
-                sums[j] += line[j]
-        # sliding sums of the half_cols columns left and right of each column u
-        for c in range(3):
-            left = np.int64(0)
-            right = np.int64(0)
-            for j in range(half_cols):
-                left += sums[3 * j + c]
-                right += sums[3 * (half_cols + 1 + j) + c]
-            for u in range(half_cols, width - half_cols):
-                out[lv, u, c] = np.float32(right - left) / denom
-                if u + half_cols + 1 < width:
-                    left += sums[3 * u + c] - sums[3 * (u - half_cols) + c]
-                    right += sums[3 * (u + half_cols + 1) + c] - sums[3 * (u + 1) + c]
-
-
-def vertical_edge_response(image: ArrayLike, rows: ArrayLike, filter_rows: int, filter_cols: int) -> NDArray[np.float32]:
-    """The paper's vertical-edge filter at each detection row, in each colour channel.
-
-    For detection row ``rows[l]`` and column ``u``: over the ``filter_rows`` rows centred on
-    the detection row, the mean of the ``(filter_cols - 1) / 2`` columns right of ``u`` minus
-    the mean of as many columns left of it (the centre column has weight 0). A step of
-    ``delta`` (right minus left, 0-255) spanning the whole window gives ``delta``; one spanning
-    a share ``q`` of the window's rows gives ``q delta``. Columns within
-    ``(filter_cols - 1) / 2`` of the border get 0.
-
-    Args:
-        image: ``(H, W, 3)`` uint8 RGB.
-        rows: ``(L,)`` 1 to 5 strictly increasing detection rows (level 0 the topmost), each
-            window inside the image.
-        filter_rows: odd, >= 3 (the paper's ``m``; :func:`filter_size`).
-        filter_cols: odd, >= 3, at most ``W`` (the paper's ``n``).
-
-    Returns:
-        ``(L, W, 3)`` float32: the response per level, column and channel.
-    """
-    img = check_rgb_image(image, "vertical_edge_response: image")
-    fr = _check_filter_side(filter_rows, "vertical_edge_response: filter_rows")
-    fc = _check_filter_side(filter_cols, "vertical_edge_response: filter_cols")
-    height, width, _ = img.shape
-    if fc > width:
-        raise ValueError(f"vertical_edge_response: filter_cols {fc} exceeds the image width {width}")
-    r = check_rows(rows, height, fr, "vertical_edge_response")
-    out = np.zeros((r.size, width, 3), dtype=np.float32)
-    _response_kernel(img, r, fr // 2, fc // 2, out)
-    return out
-
-
-# ---------------------------------------------------------------------------------------
-# Edges
-# ---------------------------------------------------------------------------------------
-
-
-class EdgeList(NamedTuple):
-    """Edges detected in one image, sorted by ``(type, u)``.
-
-    Attributes:
-        u: ``(N,)`` float64 continuous column (sub-pixel; see the module's pixel convention).
-        type: ``(N,)`` int64 edge type (:func:`edge_type`).
-        strength: ``(N,)`` float32 ``|response|`` at the peak (0-255 units).
-    """
-
-    u: NDArray[np.float64]
-    type: NDArray[np.int64]
-    strength: NDArray[np.float32]
-
-
-def empty_edges() -> EdgeList:
-    """An :class:`EdgeList` without edges."""
-    return EdgeList(np.empty(0, np.float64), np.empty(0, np.int64), np.empty(0, np.float32))
-
-
-def _sort_edges(u: NDArray[np.float64], t: NDArray[np.int64], s: NDArray[np.float32]) -> EdgeList:
-    if u.size > 1 and not _is_sorted(t, u):
-        order = np.lexsort((u, t))
-        u, t, s = u[order], t[order], s[order]
-    return EdgeList(u, t, s)
-
-
-def _is_sorted(t: NDArray[np.int64], u: NDArray[np.float64]) -> bool:
-    dt = np.diff(t)
-    return bool(((dt > 0) | ((dt == 0) & (np.diff(u) >= 0))).all())
-
-
-def check_edges(edges: EdgeList, where: str) -> EdgeList:
-    """``edges`` with checked dtypes, sorted by ``(type, u)``, or MeasurementError naming the bad value.
-
-    ``u`` must be finite, ``type`` in ``0..29``, ``strength`` finite and >= 0, all 1-D of one length.
-    """
-    try:
-        u, t, s = edges
-    except (TypeError, ValueError):
-        raise MeasurementError(f"{where}: expected an EdgeList (u, type, strength), got {type(edges).__name__}") from None
-    try:
-        u = np.asarray(u, dtype=np.float64)
-        s = np.asarray(s, dtype=np.float32)
-    except (TypeError, ValueError):
-        raise MeasurementError(f"{where}: edge u and strength must be numbers, got {u!r} and {s!r}") from None
-    try:
-        t = check_edge_types(t, where)
-    except ValueError as exc:
-        raise MeasurementError(str(exc)) from None
-    if u.ndim != 1 or t.shape != u.shape or s.shape != u.shape:
-        raise MeasurementError(f"{where}: u, type and strength must be 1-D of one length, got {u.shape}, {t.shape}, {s.shape}")
-    if not np.isfinite(u).all():
-        raise MeasurementError(f"{where}: edge column u must be finite, got {_show(u[~np.isfinite(u)][0])!r}")
-    bad = ~np.isfinite(s) | (s < 0)
-    if bad.any():
-        raise MeasurementError(f"{where}: edge strength must be finite and >= 0, got {_show(s[bad][0])!r}")
-    return _sort_edges(u, t, s)
-
-
-def concat_edges(*lists: EdgeList) -> EdgeList:
-    """The edges of several lists (checked) in one, sorted by ``(type, u)``."""
-    checked = [check_edges(e, f"concat_edges: list {i}") for i, e in enumerate(lists)]
-    if not checked:
-        return empty_edges()
-    return _sort_edges(
-        np.concatenate([e.u for e in checked]),
-        np.concatenate([e.type for e in checked]),
-        np.concatenate([e.strength for e in checked]),
-    )
-
-
-@numba.njit(cache=True)
-def _detect_kernel(
-    response: NDArray[np.float32], threshold: float, border: int,
-    u_out: NDArray[np.float64], t_out: NDArray[np.int64], s_out: NDArray[np.float32],
-) -> int:  # fmt: skip
-    """Peaks of :func:`detect_edges` into the ``*_out`` arrays (in ``(type, u)`` order); returns their count."""
-    levels, width, _ = response.shape
-    lo = border  # the first and last columns whose response is known
-    hi = width - 1 - border
-    v = np.empty(width, dtype=np.float32)
-    n = 0
-    for lv in range(levels):
-        for c in range(3):
-            for falling in range(2):
-                sign = np.float32(-1.0) if falling else np.float32(1.0)
-                for i in range(width):
-                    v[i] = max(sign * response[lv, i, c], np.float32(0.0))
-                t = 6 * lv + 2 * c + falling
-                i = lo + 1
-                while i <= hi - 1:
-                    if v[i] < threshold or v[i] <= v[i - 1]:
-                        i += 1
-                        continue
-                    j = i  # the run of equal values (a plateau) starting at i
-                    while j + 1 <= hi and v[j + 1] == v[i]:
-                        j += 1
-                    if j + 1 <= hi and v[j + 1] < v[i]:
-                        y0 = float(v[i - 1])
-                        y1 = float(v[i])
-                        y2 = float(v[j + 1])
-                        s = 0.5 * (j - i) + 1.0  # the parabola's sample spacing: neighbours to the plateau's centre
-                        curv = y0 + y2 - 2.0 * y1  # < 0: both neighbours are below the peak
-                        off = s * (y0 - y2) / (2.0 * curv)
-                        off = min(0.5, max(-0.5, off))
-                        u_out[n] = 0.5 * (i + j) + 0.5 + off  # + 0.5: index k is centred on u = k + 0.5
-                        t_out[n] = t
-                        s_out[n] = v[i]
-                        n += 1
-                    i = j + 1
-    return n
-
-
-def detect_edges(response: ArrayLike, threshold: float, *, border_px: int = 0) -> EdgeList:
-    """Edges: the local maxima of ``|response|`` along ``u`` that reach ``threshold``.
-
-    Per level and channel, rising (``response > 0``) and falling (``response < 0``) edges are
-    the peaks of the positive and negative parts of the response. A peak is a sample, or a
-    run of equal samples (a plateau, counted once at its centre), whose two neighbours are
-    strictly smaller. Its position is refined by a parabola through the peak (the plateau's
-    centre) and its two neighbours, the offset clipped to ``+-0.5`` px. With the module's
-    pixel convention an ideal step at ``u = k + 1`` is found at ``u = k + 1``, and a step
-    blurred over one pixel (an anti-aliased boundary) exactly at its sub-pixel position.
-
-    Args:
-        response: ``(L, W, 3)`` the :func:`vertical_edge_response`, ``L <= 5``.
-        threshold: the least ``|response|`` of an edge (0-255 units), finite and > 0.
-        border_px: columns at each side whose response is not known (the filter's
-            ``(filter_cols - 1) / 2``): a peak needs both its neighbours inside the rest.
-
-    Returns:
-        The :class:`EdgeList`, sorted by ``(type, u)``; ``strength`` is the peak's ``|response|``.
-    """
-    r = np.asarray(response)
-    if r.ndim != 3 or r.shape[2] != CHANNELS or not 1 <= r.shape[0] <= LEVELS:
-        raise ValueError(f"detect_edges: response must have shape (L, W, 3) with 1 <= L <= {LEVELS}, got {r.shape}")
-    if r.dtype.kind not in "fiu":
-        raise ValueError(f"detect_edges: response must be numeric, got dtype {r.dtype}")
-    r = np.ascontiguousarray(r, dtype=np.float32)
-    if not np.isfinite(r).all():
-        raise ValueError(f"detect_edges: response must be finite, got {_show(r[~np.isfinite(r)][0])!r}")
-    if isinstance(threshold, bool) or not isinstance(threshold, int | float | np.integer | np.floating):
-        raise ValueError(f"detect_edges: threshold must be a number, got {_show(threshold)!r}")
-    if not (math.isfinite(threshold) and threshold > 0):
-        raise ValueError(f"detect_edges: threshold must be finite and > 0, got {_show(threshold)!r}")
-    if not _is_int(border_px) or border_px < 0:
-        raise ValueError(f"detect_edges: border_px must be an integer >= 0, got {_show(border_px)!r}")
-    levels, width, _ = r.shape
-    cap = levels * CHANNELS * POLARITIES * (width // 2 + 1)  # peaks are at least 2 samples apart
-    u = np.empty(cap, np.float64)
-    t = np.empty(cap, np.int64)
-    s = np.empty(cap, np.float32)
-    n = _detect_kernel(r, float(threshold), int(border_px), u, t, s)
-    return EdgeList(u[:n].copy(), t[:n].copy(), s[:n].copy())
-
-
-# ---------------------------------------------------------------------------------------
-# Trinocular matching
-# ---------------------------------------------------------------------------------------
-
-
-class Matches(NamedTuple):
-    """Edges matched in the three cameras, sorted by ``(type, u_left)``.
-
-    Attributes:
-        u_left, u_middle, u_right: ``(M,)`` float64 the edge's column in each camera.
-        type: ``(M,)`` int64 edge type.
-        strength: ``(M,)`` float32 the least of the three edges' strengths.
-    """
-
-    u_left: NDArray[np.float64]
-    u_middle: NDArray[np.float64]
-    u_right: NDArray[np.float64]
-    type: NDArray[np.int64]
-    strength: NDArray[np.float32]
-
-
-def empty_matches() -> Matches:
-    """:class:`Matches` without matches."""
-    e = np.empty(0, np.float64)
-    return Matches(e, e.copy(), e.copy(), np.empty(0, np.int64), np.empty(0, np.float32))
-
-
-def _positive(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise ValueError(f"{name} must be a number, got {_show(value)!r}")
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be finite and > 0, got {_show(value)!r}")
-    return float(value)
-
-
-def _finite(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {_show(value)!r}")
-    return float(value)
-
-
-@numba.njit(cache=True)
-def _lower_bound(a: NDArray[np.float64], lo: int, hi: int, x: float) -> int:
-    """The first index in ``lo:hi`` of the sorted ``a`` with ``a[i] >= x`` (``hi`` if none)."""
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if a[mid] < x:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
-@numba.njit(cache=True)
-def _type_starts(t: NDArray[np.int64]) -> NDArray[np.int64]:
-    """``starts[k]:starts[k + 1]`` is the slice of type ``k`` in the type-sorted ``t``."""
-    starts = np.empty(31, dtype=np.int64)
-    i = 0
-    for k in range(31):
-        while i < t.shape[0] and t[i] < k:
-            i += 1
-        starts[k] = i
-    return starts
-
-
-@numba.njit(cache=True)
-def _candidates(
-    tl: NDArray[np.int64], ul: NDArray[np.float64], tm: NDArray[np.int64], um: NDArray[np.float64],
-    tr: NDArray[np.int64], ur: NDArray[np.float64], d_min: float, d_max: float, tol: float,
-    fill: bool, res: NDArray[np.float64], idx: NDArray[np.int64],
-) -> int:  # fmt: skip
-    """Every (left, right, middle) triple of one type whose disparity is in the window and whose
-    middle edge is within ``tol`` of the pair's midpoint; all counted, and written when ``fill``
-    as long as ``res`` has room."""
-    sl, sm, sr = _type_starts(tl), _type_starts(tm), _type_starts(tr)
-    n = 0
-    for t in range(30):
-        if sl[t] == sl[t + 1] or sm[t] == sm[t + 1] or sr[t] == sr[t + 1]:
-            continue
-        for i in range(sl[t], sl[t + 1]):
-            j = _lower_bound(ur, sr[t], sr[t + 1], ul[i] - d_max)
-            while j < sr[t + 1] and ur[j] <= ul[i] - d_min:
-                mid = 0.5 * (ul[i] + ur[j])
-                k = _lower_bound(um, sm[t], sm[t + 1], mid - tol)
-                while k < sm[t + 1] and um[k] <= mid + tol:
-                    if fill and n < res.shape[0]:
-                        res[n] = abs(um[k] - mid)
-                        idx[3 * n] = i
-                        idx[3 * n + 1] = j
-                        idx[3 * n + 2] = k
-                    n += 1
-                    k += 1
-                j += 1
-    return n
-
-
-@numba.njit(cache=True)
-def _greedy(res: NDArray[np.float64], idx: NDArray[np.int64], nl: int, nm: int, nr: int) -> NDArray[np.bool_]:
-    """Accept candidates by increasing residual (ties: in generation order), each edge at most once."""
-    order = np.argsort(res, kind="mergesort")
-    used_l = np.zeros(nl, dtype=np.bool_)
-    used_m = np.zeros(nm, dtype=np.bool_)
-    used_r = np.zeros(nr, dtype=np.bool_)
-    keep = np.zeros(res.shape[0], dtype=np.bool_)
-    for q in order:
-        i, j, k = idx[3 * q], idx[3 * q + 1], idx[3 * q + 2]
-        if used_l[i] or used_r[j] or used_m[k]:
-            continue
-        used_l[i] = True
-        used_r[j] = True
-        used_m[k] = True
-        keep[q] = True
-    return keep
-
-
-def disparity_window(focal_px: float, baseline_m: float, min_range_m: float, max_range_m: float) -> tuple[float, float]:
-    """``(d_min, d_max)``: the outer pair's disparities ``2 f b / max_range .. 2 f b / min_range`` (px).
-
-    ``baseline_m`` is the NEIGHBOUR baseline (the outer pair's is twice it); the ranges are
-    depths (forward distances from the rig), which is what a disparity measures.
-    """
-    f = _positive(focal_px, "focal_px")
-    b = _positive(baseline_m, "baseline_m")
-    r_min = _positive(min_range_m, "min_range_m")
-    r_max = _positive(max_range_m, "max_range_m")
-    if r_min >= r_max:
-        raise ValueError(f"min_range_m must be below max_range_m, got {_show(min_range_m)!r} >= {_show(max_range_m)!r}")
-    return 2.0 * f * b / r_max, 2.0 * f * b / r_min
-
-
-def match_trinocular(
-    left: EdgeList,
-    middle: EdgeList,
-    right: EdgeList,
-    focal_px: float,
-    baseline_m: float,
-    min_range_m: float,
-    max_range_m: float,
-    tolerance_px: float,
-) -> Matches:
-    """Edges seen by all three cameras of the rig, matched by type and confirmed by the middle camera.
-
-    A left and a right edge of one type pair up when their disparity ``d = uL - uR`` lies in
-    ``[2 f b / max_range, 2 f b / min_range]`` (:func:`disparity_window`); the middle camera
-    confirms the pair when it has an edge of that type within ``tolerance_px`` of
-    ``(uL + uR) / 2`` (where the point appears in it for rectified, parallel, identical
-    cameras equally spaced). Conflicts are resolved greedily by the smallest middle
-    residual (ties in the order of type, left, right and middle edge): each edge of each
-    camera is used at most once.
-
-    Note that equal spacing leaves one ambiguity the middle camera cannot resolve: in a
-    pattern of period ``p`` (in px) the pairs shifted by ``2 p`` also meet at a middle edge;
-    only the disparity window tells them apart.
-
-    Args:
-        left, middle, right: each camera's :class:`EdgeList`.
-        focal_px: the cameras' focal length (px), > 0.
-        baseline_m: the NEIGHBOUR baseline (0.19 m in the paper), > 0.
-        min_range_m, max_range_m: the depth window (m), ``0 < min < max < inf``.
-        tolerance_px: the largest middle residual (px), > 0.
-
-    Returns:
-        :class:`Matches`, sorted by ``(type, u_left)``.
-    """
-    d_min, d_max = disparity_window(focal_px, baseline_m, min_range_m, max_range_m)
-    tol = _positive(tolerance_px, "tolerance_px")
-    el = check_edges(left, "match_trinocular: left")
-    em = check_edges(middle, "match_trinocular: middle")
-    er = check_edges(right, "match_trinocular: right")
-    return match_checked(el, em, er, d_min, d_max, tol)
-
-
-def match_checked(el: EdgeList, em: EdgeList, er: EdgeList, d_min: float, d_max: float, tol: float) -> Matches:
-    """:func:`match_trinocular` on lists already checked and sorted by ``(type, u)`` (:func:`check_edges`)
-    with the disparity window ``[d_min, d_max]`` (:func:`disparity_window`) and a positive ``tol``:
-    for callers whose lists come from this module's kernels or the simulator's, every step."""
-    if el.u.size == 0 or em.u.size == 0 or er.u.size == 0:
-        return empty_matches()
-    args = (el.type, el.u, em.type, em.u, er.type, er.u, d_min, d_max, tol)
-    cap = 4 * (el.u.size + er.u.size) + 64
-    res = np.empty(cap, np.float64)
-    idx = np.empty(3 * cap, np.int64)
-    n = _candidates(*args, True, res, idx)
-    if n == 0:
-        return empty_matches()
-    if n > cap:  # more candidates than the first guess: count them all, again
-        res = np.empty(n, np.float64)
-        idx = np.empty(3 * n, np.int64)
-        _candidates(*args, True, res, idx)
-    res, idx = res[:n], idx[: 3 * n]
-    keep = _greedy(res, idx, el.u.size, em.u.size, er.u.size)
-    triples = idx.reshape(n, 3)[keep]  # in generation order: by (type, left edge)
-    i, j, k = triples[:, 0], triples[:, 1], triples[:, 2]
-    strength = np.minimum(np.minimum(el.strength[i], em.strength[k]), er.strength[j])
-    return Matches(el.u[i], em.u[k], er.u[j], el.type[i], strength.astype(np.float32))
-
-
-# ---------------------------------------------------------------------------------------
-# Triangulation: the paper's eqs. (2)-(5)
-# ---------------------------------------------------------------------------------------
-
-
-def _finite_array(values: ArrayLike, name: str) -> NDArray[np.float64]:
-    try:
-        a = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be numbers, got {values!r}") from None
-    if not np.isfinite(a).all():
-        raise ValueError(f"{name} must be finite, got {_show(a[~np.isfinite(a)].ravel()[0])!r}")
-    return a
-
-
-def triangulate(
-    u_left: ArrayLike, u_right: ArrayLike, focal_px: float, baseline_m: float, cx_px: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The point seen at ``u_left`` and ``u_right`` in the paper's stereo frame, eqs. (2)-(3).
-
-    Args:
-        u_left, u_right: the point's columns in the two cameras (broadcast).
-        focal_px: focal length (px), > 0.
-        baseline_m: the baseline between THESE two cameras (the outer pair: 2 x 0.19 m), > 0.
-        cx_px: the principal point's column (``ox``; ``W / 2`` for a centred axis).
-
-    Returns:
-        ``(x, y)`` float64 arrays of the broadcast shape: origin at the left camera, ``x`` to
-        the right, ``y`` forward (m).
-
-    Raises:
-        ValueError: a non-positive disparity ``u_left - u_right``, naming it; a non-finite column.
-    """
-    ul = _finite_array(u_left, "triangulate: u_left")
-    ur = _finite_array(u_right, "triangulate: u_right")
-    f = _positive(focal_px, "triangulate: focal_px")
-    b = _positive(baseline_m, "triangulate: baseline_m")
-    ox = _finite(cx_px, "triangulate: cx_px")
-    d = ul - ur
-    if (d <= 0).any():
-        raise ValueError(
-            f"triangulate: the disparity u_left - u_right must be > 0, got {_show(np.asarray(d)[d <= 0].ravel()[0])!r}"
-        )
-    x = b * (ul - ox) / d  # eq. (2)
-    y = f * b / d  # eq. (3)
-    return x, y
-
-
-def paper_range_bearing(x: ArrayLike, y: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Range and bearing of stereo-frame points, eqs. (4)-(5), in the PAPER's convention.
-
-    ``r = sqrt(x^2 + y^2)`` (eq. (4)); ``theta = atan(x / y)`` (eq. (5)): from the forward
-    (``y``) axis, positive to the right (computed as ``atan2(x, y)``, equal for ``y > 0``).
-    """
-    xa = np.asarray(x, dtype=np.float64)
-    ya = np.asarray(y, dtype=np.float64)
-    return np.hypot(xa, ya), np.arctan2(xa, ya)  # eqs. (4), (5)
-
-
-def rig_range_bearing(
-    u_left: ArrayLike,
-    u_right: ArrayLike,
-    focal_px: float,
-    neighbour_baseline_m: float,
-    cx_px: float,
-    rig_forward_m: float = 0.0,
-    rig_left_m: float = 0.0,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The point seen by the outer cameras, as range and bearing from the ROBOT centre (crowdloc's convention).
-
-    The rig's middle camera sits ``rig_forward_m`` ahead of the robot centre and
-    ``rig_left_m`` to its left; the left camera ``neighbour_baseline_m`` to the left of the
-    middle one and the right camera as far to its right. The point is triangulated with the
-    outer pair (baseline ``2 neighbour_baseline_m``, :func:`triangulate`) and converted here,
-    the only place, from the paper's frame (``x`` right, ``y`` forward, bearings positive to
-    the right) to the robot's (forward, left; bearings counter-clockwise from the heading).
-
-    Returns:
-        ``(range_m, bearing_rad)`` float64 arrays of the broadcast shape; bearings in ``[-pi, pi)``.
-    """
-    b = _positive(neighbour_baseline_m, "rig_range_bearing: neighbour_baseline_m")
-    fwd = _finite(rig_forward_m, "rig_range_bearing: rig_forward_m")
-    lft = _finite(rig_left_m, "rig_range_bearing: rig_left_m")
-    x, y = triangulate(u_left, u_right, focal_px, 2.0 * b, cx_px)
-    forward = fwd + y  # the left camera is at (fwd, lft + b) in the robot frame
-    left = lft + b - x  # the paper's x points right: the robot's -left
-    return np.hypot(forward, left), np.asarray(wrap_angle(np.arctan2(left, forward)), dtype=np.float64)
-
-
-def range_std_m(range_m: ArrayLike, focal_px: float, baseline_m: float, disparity_std_px: float) -> NDArray[np.float64]:
-    """First-order range sd ``r^2 sigma_d / (f b)`` of a triangulated point.
-
-    ``baseline_m`` is the triangulation's (the outer pair: 2 x 0.19 m). The formula is the
-    depth's sd (``y = f b / d``) exactly to first order; for the range it holds on the left
-    camera's axis (the paper's case) and is the depth's value elsewhere.
-    """
-    r = _finite_array(range_m, "range_std_m: range_m")
-    f = _positive(focal_px, "range_std_m: focal_px")
-    b = _positive(baseline_m, "range_std_m: baseline_m")
-    sd = _positive(disparity_std_px, "range_std_m: disparity_std_px")
-    return r * r * sd / (f * b)
-
-
-def inverse_range_std(focal_px: float, baseline_m: float, disparity_std_px: float) -> float:
-    """The sd of ``1 / r``: ``sigma_d / (f b)``, the same at every range (1/r is linear in d)."""
-    f = _positive(focal_px, "inverse_range_std: focal_px")
-    b = _positive(baseline_m, "inverse_range_std: baseline_m")
-    return _positive(disparity_std_px, "inverse_range_std: disparity_std_px") / (f * b)
-
-
-# ---------------------------------------------------------------------------------------
-# Configs and drawing
-# ---------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class EdgeDetector:
-    """One camera's edge detection: the filter, its detection rows and the threshold.
-
-    ``rows``: 1 to 5 strictly increasing detection rows (level 0 the topmost);
-    ``filter_rows``, ``filter_cols``: odd, >= 3 (:func:`filter_size`); ``threshold``: the least
-    ``|response|`` of an edge (0-255 units).
-    """
-
-    rows: tuple[int, ...]
-    filter_rows: int = PAPER_FILTER_ROWS
-    filter_cols: int = PAPER_FILTER_COLS
-    threshold: float = 20.0
-
-    def __post_init__(self) -> None:
-        check(
-            1 <= len(self.rows) <= LEVELS and all(_is_int(r) and r >= 0 for r in self.rows),
-            f"EdgeDetector.rows must be 1 to {LEVELS} rows >= 0, got {self.rows!r}",
-        )
-        check(
-            all(a < b for a, b in zip(self.rows, self.rows[1:])), f"EdgeDetector.rows must increase strictly, got {self.rows!r}"
-        )
-        for name in ("filter_rows", "filter_cols"):
-            value = getattr(self, name)
-            check(
-                _is_int(value) and value >= 3 and value % 2 == 1,
-                f"EdgeDetector.{name} must be an odd integer >= 3, got {_show(value)!r}",
-            )
-        check(
-            not isinstance(self.threshold, bool) and isinstance(self.threshold, int | float) and 0 < self.threshold < math.inf,
-            f"EdgeDetector.threshold must be finite and > 0, got {_show(self.threshold)!r}",
-        )
-
-    @staticmethod
-    def for_image(width_px: int, height_px: int, rows: Sequence[int], threshold: float = 20.0) -> EdgeDetector:
-        """The detector with the paper's filter scaled to the image size (:func:`filter_size`)."""
-        fr, fc = filter_size(width_px, height_px)
-        return EdgeDetector(tuple(int(r) for r in rows), fr, fc, threshold)
-
-    def response(self, image: ArrayLike) -> NDArray[np.float32]:
-        """``(L, W, 3)`` :func:`vertical_edge_response` of an image."""
-        return vertical_edge_response(image, self.rows, self.filter_rows, self.filter_cols)
-
-    def detect(self, image: ArrayLike) -> EdgeList:
-        """The image's edges (:func:`detect_edges`, the filter's border excluded)."""
-        return detect_edges(self.response(image), self.threshold, border_px=self.filter_cols // 2)
-
-
-@dataclass(frozen=True)
-class TrinocularRig:
-    """The three-camera rig: identical, rectified, parallel cameras ``neighbour_baseline_m`` apart.
-
-    ``rig_forward_m``, ``rig_left_m``: the middle camera's place in the robot frame;
-    ``min_range_m``, ``max_range_m``, ``tolerance_px``: the matching window
-    (:func:`match_trinocular`).
-    """
-
-    focal_px: float
-    cx_px: float
-    neighbour_baseline_m: float = 0.19
-    min_range_m: float = 1.0
-    max_range_m: float = 50.0
-    tolerance_px: float = 1.0
-    rig_forward_m: float = 0.0
-    rig_left_m: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("focal_px", "neighbour_baseline_m", "min_range_m", "max_range_m", "tolerance_px"):
-            value = getattr(self, name)
-            check(
-                not isinstance(value, bool) and isinstance(value, int | float) and 0 < value < math.inf,
-                f"TrinocularRig.{name} must be finite and > 0, got {_show(value)!r}",
-            )
-        for name in ("cx_px", "rig_forward_m", "rig_left_m"):
-            value = getattr(self, name)
-            check(
-                not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value),
-                f"TrinocularRig.{name} must be finite, got {_show(value)!r}",
-            )
-        check(
-            self.min_range_m < self.max_range_m,
-            f"TrinocularRig.min_range_m must be below max_range_m, got {self.min_range_m} >= {self.max_range_m}",
-        )
-
-    def match(self, left: EdgeList, middle: EdgeList, right: EdgeList) -> Matches:
-        """:func:`match_trinocular` with this rig's numbers."""
-        return match_trinocular(
-            left, middle, right, self.focal_px, self.neighbour_baseline_m, self.min_range_m, self.max_range_m, self.tolerance_px
-        )
-
-    def range_bearing(self, matches: Matches) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """``(range_m, bearing_rad)`` ``(M,)`` of matches from the robot centre (:func:`rig_range_bearing`)."""
-        return rig_range_bearing(
-            matches.u_left,
-            matches.u_right,
-            self.focal_px,
-            self.neighbour_baseline_m,
-            self.cx_px,
-            self.rig_forward_m,
-            self.rig_left_m,
-        )
-
-
-def draw_detections(
-    image: ArrayLike, edges_or_matches_u: ArrayLike, types: ArrayLike, rows: ArrayLike, *, radius_px: int = 4
-) -> NDArray[np.uint8]:
-    """A copy of ``image`` with detections marked like the paper's Fig. 2.
-
-    A white line across each detection row; a circle at ``(u, rows[level])`` of each
-    detection in its channel's colour (red, green, blue), hollow for a rising and filled for
-    a falling edge. ``u`` follows the module's pixel convention (drawn sub-pixel).
-
-    Args:
-        image: ``(H, W, 3)`` uint8 RGB (not modified).
-        edges_or_matches_u: ``(N,)`` columns (an :class:`EdgeList`'s ``u`` or a camera's ``Matches`` column).
-        types: ``(N,)`` their edge types.
-        rows: the detector's rows (``rows[level]`` is level ``level``'s row).
-        radius_px: the circles' radius (px), >= 1.
-
-    Returns:
-        The marked ``(H, W, 3)`` uint8 image.
-    """
-    out = check_rgb_image(image, "draw_detections: image").copy()
-    u = _finite_array(edges_or_matches_u, "draw_detections: u")
-    t = check_edge_types(types, "draw_detections: types")
-    if u.ndim != 1 or t.shape != u.shape:
-        raise ValueError(f"draw_detections: u and types must be 1-D of one length, got {u.shape} and {t.shape}")
-    r = np.asarray(rows)
-    if r.ndim != 1 or r.dtype.kind not in "iu" or not 1 <= r.size <= LEVELS or (r < 0).any() or (r >= out.shape[0]).any():
-        raise ValueError(f"draw_detections: rows must be 1 to {LEVELS} rows inside the image, got {r.tolist()!r}")
-    if not _is_int(radius_px) or radius_px < 1:
-        raise ValueError(f"draw_detections: radius_px must be an integer >= 1, got {_show(radius_px)!r}")
-    channel, level, falling = edge_types_parts(t)
-    if (level >= r.size).any():
-        raise ValueError(f"draw_detections: an edge of level {int(level.max())} but only {r.size} rows {r.tolist()!r}")
-    out[r, :, :] = 255
-    shift = 4  # sub-pixel centres: cv2 draws at coordinates / 2**shift, pixel k's centre at k
-    scale = 1 << shift
-    for uk, ck, lk, fk in zip(u, channel, level, falling):
-        centre = (int(round((uk - 0.5) * scale)), int(r[lk]) * scale)
-        cv2.circle(out, centre, int(radius_px) * scale, CHANNEL_COLOURS[ck], -1 if fk else 1, cv2.LINE_8, shift)
-    return out
+from localizers.stereo_edges import (
+    CHANNEL_COLOURS,
+    CHANNELS,
+    EDGE_TYPES,
+    LEVELS,
+    PAPER_FILTER_COLS,
+    PAPER_FILTER_ROWS,
+    PAPER_HEIGHT_PX,
+    PAPER_WIDTH_PX,
+    POLARITIES,
+    EdgeDetector,
+    EdgeList,
+    check_edge_types,
+    check_edges,
+    check_rgb_image,
+    check_rows,
+    concat_edges,
+    detect_edges,
+    draw_detections,
+    edge_type,
+    edge_type_parts,
+    edge_types,
+    edge_types_parts,
+    empty_edges,
+    filter_size,
+    vertical_edge_response,
+)
+from localizers.stereo_matching import (
+    Matches,
+    TrinocularRig,
+    disparity_window,
+    empty_matches,
+    inverse_range_std,
+    match_checked,
+    match_trinocular,
+    paper_range_bearing,
+    range_std_m,
+    rig_range_bearing,
+    triangulate,
+)
+
+__all__ = [
+    "CHANNELS",
+    "CHANNEL_COLOURS",
+    "EDGE_TYPES",
+    "LEVELS",
+    "PAPER_FILTER_COLS",
+    "PAPER_FILTER_ROWS",
+    "PAPER_HEIGHT_PX",
+    "PAPER_WIDTH_PX",
+    "POLARITIES",
+    "EdgeDetector",
+    "EdgeList",
+    "Matches",
+    "TrinocularRig",
+    "check_edge_types",
+    "check_edges",
+    "check_rgb_image",
+    "check_rows",
+    "concat_edges",
+    "detect_edges",
+    "disparity_window",
+    "draw_detections",
+    "edge_type",
+    "edge_type_parts",
+    "edge_types",
+    "edge_types_parts",
+    "empty_edges",
+    "empty_matches",
+    "filter_size",
+    "inverse_range_std",
+    "match_checked",
+    "match_trinocular",
+    "paper_range_bearing",
+    "range_std_m",
+    "rig_range_bearing",
+    "triangulate",
+    "vertical_edge_response",
+]
