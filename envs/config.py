@@ -1,7 +1,12 @@
 """World configurations: frozen dataclasses loaded from ``configs/worlds/<name>.yaml``.
 
-The sensors are a mapping from name to a config tagged by ``type`` (the registered sensor
-types of :mod:`envs.sensors`); each sensor module owns its config dataclass.
+The sensors, crowds and features are mappings from name to a config tagged by ``type``; each
+plug-in module owns its config dataclass and registers it (:mod:`envs.plugins`). This module
+imports only the plug-ins' ``base`` modules and asks their registries for the tagged class
+(through the base config's ``__from_config__`` hook), so it names no plug-in: a new sensor,
+crowd or feature is a new module. Importing a ``base`` module imports its package first, whose
+``__init__`` registers the built-in types, so a process that only imports this module still
+knows them when it loads a world.
 
 Every unit is in the field name (``_m``, ``_rad``, ``_s``, ``_mps``). Loading goes through
 :func:`localizers.schema.from_mapping`, which rejects unknown keys and wrong types with
@@ -23,11 +28,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 import crowdloc_configs
-from envs.crowds import CrowdConfig
-from envs.features import FeatureConfig
-from envs.features.base import Segment
+from envs.crowds.base import CrowdConfig
+from envs.features.base import FeatureConfig, Segment
 from envs.floor import FloorGrid
-from envs.sensors import SensorConfig
+from envs.sensors.base import SensorConfig
 from envs.view import (
     BACKGROUND_PAD_PX,
     CAPTION_PX,

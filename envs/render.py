@@ -43,6 +43,7 @@ import pygame.surfarray  # noqa: E402
 from numpy.typing import ArrayLike, NDArray  # noqa: E402
 
 from envs.config import WorldConfig  # noqa: E402
+from envs.palette import HIDDEN_LANDMARK, Color, landmark_color  # noqa: E402
 from envs.state import WorldState  # noqa: E402
 from envs.view import (  # noqa: E402
     BACKGROUND_PAD_PX,
@@ -57,8 +58,6 @@ from localizers.base import Overlay  # noqa: E402
 
 if TYPE_CHECKING:
     from envs.localization_env import LocalizationEnv
-
-Color = tuple[int, int, int]
 
 _FONT_PX = 16
 _CAPTION_LEFT_PX = 6  # where each caption line starts
@@ -75,24 +74,8 @@ ROOM_OUTLINE: Color = (170, 165, 155)
 WALL: Color = (20, 20, 20)
 CAPTION_BACKGROUND: Color = (20, 20, 20)
 CAPTION_TEXT: Color = (230, 230, 230)
-HIDDEN_LANDMARK: Color = (128, 128, 128)
-LANDMARK_PALETTE: tuple[Color, ...] = (
-    (255, 215, 0),
-    (0, 170, 255),
-    (255, 100, 180),
-    (255, 140, 0),
-    (150, 90, 255),
-    (0, 220, 200),
-    (255, 60, 60),
-    (190, 255, 80),
-)
 ROBOT_FILL: Color = (250, 250, 250)
 ROBOT_OUTLINE: Color = (220, 0, 0)
-
-
-def landmark_color(index: int) -> Color:
-    """Colour of landmark ``index`` while it is visible."""
-    return LANDMARK_PALETTE[index % len(LANDMARK_PALETTE)]
 
 
 def _layout(config: WorldConfig) -> tuple[float, Bounds, int, int, float, float]:

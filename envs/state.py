@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from envs.bodies import Figures, Section
+from envs.figures import Figures, Section
 from localizers.geometry import spanning
 
 #: body rows: a slice where they are consecutive (views), else an index array

@@ -24,9 +24,11 @@ import pymunk
 import pymunk.batch as pbatch
 from numpy.typing import NDArray
 
-from envs.bodies import FigureModel, Figures, consecutive, turn_to_travel
+from envs.bodies import turn_to_travel
 from envs.config import BOUNDARY_SEGMENTS, WALL_RADIUS_M, WorldConfig
 from envs.crowds import BodySpec, Crowd, build_crowd
+from envs.figure_model import FigureModel
+from envs.figures import Figures, consecutive
 from envs.state import Rows, WorldState, robot_pose
 
 # collision types

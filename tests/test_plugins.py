@@ -7,7 +7,10 @@ Nothing outside this module knows them: if any of these steps needed an edit of 
 
 from __future__ import annotations
 
+import ast
 import math
+import subprocess
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +24,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 import envs  # noqa: F401  (registers crowdloc/*)
+import envs.config
 from agents.evaluate import EvalSpec, evaluate
 from agents.replay import record, replay
 from agents.scenarios import square_driver
@@ -208,3 +212,22 @@ def test_they_are_evaluated(toy_world: Path, tmp_path: Path) -> None:
         assert episode.cell.localizer == "toy_mcl"
         assert math.isfinite(episode.metrics["position_error_mean_m"])
         assert episode.metrics["availability"] == 1.0
+
+
+# ------------------------------------------------------------------ the core names no plug-in
+def test_the_world_config_imports_only_the_plugin_registries() -> None:
+    """``envs.config`` reaches the sensors, crowds and features through their ``base`` modules
+    (the registries) only: a plug-in, built in or like the toys above, is a module it never names."""
+    tree = ast.parse(Path(envs.config.__file__).read_text())
+    imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.module}
+    imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+    plugin_imports = {m for m in imported if m.split(".")[:2] in (["envs", "sensors"], ["envs", "crowds"], ["envs", "features"])}
+    assert plugin_imports == {"envs.sensors.base", "envs.crowds.base", "envs.features.base"}
+
+
+def test_a_process_that_only_imports_the_loader_knows_the_builtin_plugins() -> None:
+    """The built-in types register when their package is imported, which importing a registry
+    does: ``from envs.config import load_world`` alone loads every shipped world."""
+    code = "from envs.config import available_worlds, load_world\nfor name in available_worlds():\n    load_world(name)\n"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr

@@ -5,6 +5,11 @@ Built in: ``soccer`` (:mod:`.soccer`, owns the ball), ``queues`` (:mod:`.queues`
 corridor and groups standing by its walls) and ``campus`` (:mod:`.campus`: pedestrians on a
 walkway network, groups by the doors, cars on the road's lanes, parked cars). See :mod:`.base` for the interface and
 ``docs/architecture.md`` for adding one.
+
+This ``__init__`` imports the built-in modules, which registers them: Python runs it before any
+module of the package, so whoever reaches the registry (:mod:`envs.config` imports only
+:mod:`.base`) finds the built-in types. A crowd of your own registers itself when its module is
+imported; neither this file nor :mod:`envs.config` names it.
 """
 
 from __future__ import annotations

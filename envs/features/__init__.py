@@ -3,6 +3,10 @@
 Built in: ``ceiling`` (:mod:`.ceiling`); ``buildings``, ``poles`` and ``trees``
 (:mod:`.scenery`: static solids with an appearance); ``route`` (:mod:`.route`). See :mod:`.base`
 for the interface.
+
+This ``__init__`` imports the built-in modules, which registers them: Python runs it before any
+module of the package, so whoever reaches the registry (:mod:`envs.config` imports only
+:mod:`.base`) finds the built-in types.
 """
 
 from __future__ import annotations

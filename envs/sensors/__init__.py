@@ -5,6 +5,11 @@ Built in: ``odometry`` (:mod:`.odometry`), ``bearing_camera`` (:mod:`.bearing_ca
 :class:`~envs.sensors.ranging.RangeSensor`), ``ceiling_camera`` (:mod:`.ceiling_camera`) and
 ``stereo_camera`` (:mod:`.stereo_camera`). See :mod:`.base` for the interface and
 ``docs/architecture.md`` for adding one.
+
+This ``__init__`` imports the built-in modules, which registers them: Python runs it before any
+module of the package, so whoever reaches the registry (:mod:`envs.config` imports only
+:mod:`.base`) finds the built-in types. A sensor of your own registers itself when its module is
+imported; neither this file nor :mod:`envs.config` names it.
 """
 
 from __future__ import annotations

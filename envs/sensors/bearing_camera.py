@@ -28,6 +28,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from envs.palette import landmark_color
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.state import WorldState
 from localizers.geometry import in_field_of_view
@@ -290,8 +291,6 @@ class BearingCamera(SensorBase):
         for j in np.flatnonzero(info.get("visible_landmarks", ())):
             canvas.line(pose[:2], state.landmark_xy[j], SIGHT_LINE, 1)
         if self.distractor_slot.size:
-            from envs.render import landmark_color  # here: envs.render imports the sensors through envs.config
-
             reported = np.asarray(info.get("distractor_detections", np.zeros(self.count, dtype=bool)), dtype=bool)
             chosen = _nearest_in_view(
                 state.positions[0], self.distractor_xy, self.distractor_slot, self.distractors_in_view(state), self.count

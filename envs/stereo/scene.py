@@ -9,7 +9,7 @@ are consecutive and form an *object* (for silhouettes). The vertical edges insid
 (:meth:`~envs.features.base.FacadeProfile.edges`) are listed as world points with their height
 runs and the colours either side.
 
-**Moving scene**: the bodies' parts as :meth:`envs.bodies.Figures.appearance` gives them
+**Moving scene**: the bodies' parts as :meth:`envs.figures.Figures.appearance` gives them
 (discs for people, box sides for cars), each step.
 
 **Camera geometry** (:class:`Rig`): three level pinhole cameras in a row, ``baseline_m``

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
-from envs.bodies import CROTCH_FRACTION, HIP_FRACTION, SHOULDER_FRACTION, FigureModel, PersonConfig
+from envs.bodies import CROTCH_FRACTION, HIP_FRACTION, SHOULDER_FRACTION, PersonConfig
 from envs.config import load_world
+from envs.figure_model import FigureModel
 from envs.world import World
 from localizers.schema import ConfigError
 

@@ -14,7 +14,8 @@ import pytest
 import envs  # noqa: F401  (registers crowdloc/*)
 from envs.bodies import CarConfig
 from envs.config import load_world
-from envs.crowds.campus import CampusConfig, CampusCrowd, _box_disc_gap, _boxes_overlap
+from envs.crowds.campus import CampusConfig, CampusCrowd
+from envs.crowds.campus.traffic import box_disc_gap, boxes_overlap
 from envs.localization_env import LocalizationEnv
 from localizers.schema import ConfigError
 
@@ -174,7 +175,7 @@ def test_cars_follow_their_lanes_facing_their_travel() -> None:
     assert moved.min() > 100  # every car drove on, at about the speed limit
     # the whole time, no car touched another
     boxes = car_boxes(env)
-    assert not any(_boxes_overlap(a, b, 0.0) for i, a in enumerate(boxes) for b in boxes[:i])
+    assert not any(boxes_overlap(a, b, 0.0) for i, a in enumerate(boxes) for b in boxes[:i])
 
 
 def test_cars_leaving_come_back_in_at_a_lane_start_facing_along_it_at_their_speed() -> None:
@@ -218,7 +219,7 @@ def test_cars_queue_behind_a_person_in_their_lane_keeping_their_gaps() -> None:
         pos, _ = members(env)
         np.testing.assert_allclose(pos[0], person, atol=1e-9)
         boxes = car_boxes(env)[: crowd.cars]
-        gaps = np.array([_box_disc_gap(box, person) for box in boxes])
+        gaps = np.array([box_disc_gap(box, person) for box in boxes])
         assert gaps.min() > crowd.c.radius_m  # no car touches the person
         east = np.sort(pos[cars][(crowd.lane == 0), 0])
         queue = east[east < person[0]]
@@ -264,11 +265,11 @@ def test_crowd_sizes_from_0_to_150_are_placed_without_overlap() -> None:
         np.fill_diagonal(d, np.inf)
         assert d.min(initial=np.inf) > 2 * crowd.c.radius_m, size
         boxes = car_boxes(env)
-        assert not any(_boxes_overlap(a, b, 0.0) for i, a in enumerate(boxes) for b in boxes[:i])
+        assert not any(boxes_overlap(a, b, 0.0) for i, a in enumerate(boxes) for b in boxes[:i])
         robot = env.unwrapped.world.positions[0]  # type: ignore[attr-defined]
         for box in boxes:
-            assert all(_box_disc_gap(box, p) > crowd.c.radius_m for p in people)
-            assert _box_disc_gap(box, robot) > 0.3
+            assert all(box_disc_gap(box, p) > crowd.c.radius_m for p in people)
+            assert box_disc_gap(box, robot) > 0.3
         assert np.all(np.hypot(*(people - robot).T) > 0.55)
         infos = run(env, 20)
         assert all(np.all(np.isfinite(i["true_pose"])) for i in infos)

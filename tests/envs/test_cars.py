@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
-from envs.bodies import CarConfig, FigureModel
+from envs.bodies import CarConfig
 from envs.config import load_world
+from envs.figure_model import FigureModel
 from localizers.schema import ConfigError
 
 STILL = np.zeros(2, dtype=np.float32)

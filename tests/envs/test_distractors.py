@@ -15,7 +15,8 @@ import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
 from envs.config import load_world, world_path
-from envs.render import Renderer, landmark_color
+from envs.palette import landmark_color
+from envs.render import Renderer
 from envs.sensors.bearing_camera import BearingCameraConfig, DistractorConfig
 from localizers.geometry import wrap_angle
 from localizers.schema import ConfigError

@@ -15,7 +15,8 @@ import pytest
 from gymnasium.wrappers import RecordVideo
 
 import envs
-from envs.render import HIDDEN_LANDMARK, Canvas, Renderer, frame_shape, landmark_color
+from envs.palette import HIDDEN_LANDMARK, landmark_color
+from envs.render import Canvas, Renderer, frame_shape
 from localizers.base import Overlay
 
 ENV_IDS = list(envs.ENV_WORLDS)

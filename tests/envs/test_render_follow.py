@@ -16,7 +16,8 @@ from gymnasium.wrappers import RecordVideo, TimeLimit
 import envs
 from envs.config import LandmarkConfig, WorldConfig
 from envs.localization_env import LocalizationEnv
-from envs.render import BACKGROUND, CAPTION_PX, HIDDEN_LANDMARK, ROBOT_FILL, Renderer, frame_shape, landmark_color
+from envs.palette import HIDDEN_LANDMARK, landmark_color
+from envs.render import BACKGROUND, CAPTION_PX, ROBOT_FILL, Renderer, frame_shape
 from envs.sensors import Lidar
 from envs.view import background_size_px, drawn_bounds, fit
 from localizers.schema import ConfigError

@@ -79,7 +79,7 @@ def crowd_config() -> Any:
 
 
 def cars_of(count: int) -> int:
-    """Cars among ``count`` members: ``car_share`` of them rounded half up (``envs/crowds/campus.py``)."""
+    """Cars among ``count`` members: ``car_share`` of them rounded half up (``envs/crowds/campus/config.py``)."""
     return int(np.floor(count * float(crowd_config().car_share) + 0.5))
 
 
