@@ -20,7 +20,7 @@ parameters for a given world, crowd density and motion scenario:
   scene map, driven at the crowd of the world's file, :meth:`EpisodeSetup.prepared_params`), the same for every
   trial and held-out episode.
 * **Episodes, recorded once**: ``--train-seeds`` episodes are rolled out once
-  (:func:`agents.replay.record`) and every trial replays its localizer into the same
+  (:func:`agents.experiments.replay.record`) and every trial replays its localizer into the same
   recordings. This is exact, not an approximation: the world, the crowd, the scenario driver
   and the sensors never read the localizer (the driver steers on the *true* pose, and a
   localizer draws from its own generator; the route scenario steers on the LIDAR reference,
@@ -59,6 +59,9 @@ Modules: :mod:`~agents.tune.space` (the search space), :mod:`~agents.tune.object
 scores, the trial function), :mod:`~agents.tune.study` (configuration, storage, workers,
 :func:`tune`, the command line), :mod:`~agents.tune.report` (``best_params.yaml``, figures,
 ``report.md``).
+
+May import: ``envs``, ``localizers`` and every other part of ``agents`` but :mod:`agents.cli`
+and :mod:`agents.demo` (the far-point paper's square path comes from :mod:`agents.papers`).
 """
 
 from agents.tune.objective import (

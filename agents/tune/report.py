@@ -18,12 +18,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import optuna
 
-from agents import metrics
-from agents.evaluate import METRICS, MetricInfo, bootstrap_ci
-from agents.train import EVAL_SEED_BASE
+from agents.common.util import nest
+from agents.evaluate import METRICS, MetricInfo, bootstrap_ci, metrics
+from agents.rl.train import EVAL_SEED_BASE
 from agents.tune.objective import EpisodeScore, seed_base_text
 from agents.tune.space import SearchSpace
-from agents.util import nest
 
 if TYPE_CHECKING:
     from agents.tune.study import StudyPlan, TuneConfig
@@ -116,7 +115,7 @@ def _value(trial: optuna.trial.FrozenTrial) -> float:
 
 def plot_importances(path: Path, importances: Mapping[str, float], title: str) -> Path:
     """Horizontal bar chart of the importances, most important on top (PNG)."""
-    from agents.plots import plt, save_figure
+    from agents.common.plots import plt, save_figure
 
     names = list(importances)[::-1]
     fig, ax = plt.subplots(figsize=(6.0, 0.5 * max(len(names), 2) + 1.2))
@@ -135,7 +134,7 @@ def plot_history(path: Path, study: optuna.Study, title: str) -> Path:
     """Objective per trial (completed: dots, pruned: last reported value, x), best so far, the defaults (star)."""
     from matplotlib.ticker import MaxNLocator
 
-    from agents.plots import plt, save_figure
+    from agents.common.plots import plt, save_figure
 
     fig, ax = plt.subplots(figsize=(7.0, 3.8))
     done = [t for t in study.trials if t.state == _State.COMPLETE]

@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 import optuna
 
-from agents.sweep import run_tasks
+from agents.common.sweep import run_tasks
+from agents.common.util import at_least, flatten, nest, refuse_to_overwrite, seed_int
 from agents.tune.objective import (
     DEFAULT_EPISODE_STEPS,
     DEFAULT_FAIL_M,
@@ -41,7 +42,6 @@ from agents.tune.objective import (
 )
 from agents.tune.report import write_report
 from agents.tune.space import UNTUNED, SearchSpace, load_search_space, tunable_localizers
-from agents.util import at_least, flatten, nest, refuse_to_overwrite, seed_int
 from localizers.registry import spec
 from localizers.schema import ConfigError
 
@@ -425,7 +425,7 @@ def add_arguments(parser: Any) -> None:
 
 def run_cli(args: Any) -> TuneResult:
     """``crowdloc tune`` from parsed arguments (raises ConfigError for bad values)."""
-    from agents.train import parse_overrides
+    from agents.rl.train import parse_overrides
 
     check_tunable(args.localizer, args.space)
     config = TuneConfig(

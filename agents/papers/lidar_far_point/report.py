@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from agents import consistency, metrics
+from agents.common.util import jsonable, text_table
+from agents.evaluate import consistency, metrics
 from agents.papers import before
 from agents.papers.world_text import odometry_text
-from agents.util import jsonable, text_table
 
 from . import experiment, paper, world
 from .analysis import (
@@ -398,7 +398,7 @@ def setup_section(c: Context) -> Lines:
         world_item(),
         f"- Path (ours: the paper gives no size): an open-loop square of side {experiment.SIDE_M} m centred in the room, "
         f"counter-clockwise from {tuple(round(v, 2) for v in experiment.start_pose()[:2])} facing +x, {laps} lap(s) at "
-        f"{paper.SPEED_MPS} m/s, turns in place at {experiment.TURN_RATE_RPS} rad/s (`agents.scenarios.square_driver`); "
+        f"{paper.SPEED_MPS} m/s, turns in place at {experiment.TURN_RATE_RPS} rad/s (`agents.experiments.scenarios.square_driver`); "
         f"{experiment.perimeter_m():.1f} m per lap, {f.duration_s:.0f} s per run. The square leaves "
         f"{world.queue_gap_m(experiment.CENTER_XY, experiment.SIDE_M):.2f} m between the robot's and the queued people's "
         "bodies.",

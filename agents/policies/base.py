@@ -1,7 +1,7 @@
 """The base of the fixed policies (:class:`FixedPolicy`) and the helpers they share.
 
 :mod:`agents.policies` has the policies and their registry; policies in other modules
-(:mod:`agents.navigation`) build on this module, which imports none of them.
+(:mod:`agents.policies.navigation`) build on this module, which imports none of them.
 """
 
 from __future__ import annotations

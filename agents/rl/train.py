@@ -32,8 +32,8 @@ import torch
 
 import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
-from agents.rewards import ActiveLocalizationReward, RewardWeights
-from agents.util import nest, write_run_record
+from agents.common.util import nest, write_run_record
+from agents.rl.rewards import ActiveLocalizationReward, RewardWeights
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, merge_nested, parse_yaml, replace_checked
 
 EXPERIMENT_DIR = crowdloc_configs.path("experiments")  # package data (configs/ in the checkout)
@@ -374,12 +374,12 @@ def train_seeds(
 ) -> list[Path]:
     """Train ``config`` once per seed (``<out>/<name>/seed_<s>/``), the runs side by side.
 
-    The runs go through :func:`agents.sweep.run_tasks`: a local process pool (``workers``,
+    The runs go through :func:`agents.common.sweep.run_tasks`: a local process pool (``workers``,
     default the core count; each run steps its envs as its ``vec_env`` says) or a Ray cluster
     (``ray_address``; ``out`` must then be a folder every node can write). Each run equals
     ``train`` with that seed alone. Returns the ``model.zip`` paths in seed order.
     """
-    from agents.sweep import run_tasks
+    from agents.common.sweep import run_tasks
 
     check(len(seeds) >= 1, "train_seeds needs at least one seed")
     check(len(set(seeds)) == len(seeds), f"seeds repeat: {list(seeds)}")
