@@ -1,7 +1,7 @@
 """The outputs of a ``crowdloc tune`` run: ``best_params.yaml``, importances, figures, ``report.md``.
 
-Every number in the report comes from the study, the run's :class:`~agents.tune.study.TuneConfig`
-and :class:`~agents.tune.study.StudyPlan`, or the held-out scores.
+Every number in the report comes from the study, the run's :class:`~agents.tune.plan.TuneConfig`
+and :class:`~agents.tune.plan.StudyPlan`, or the held-out scores.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import optuna
@@ -22,10 +22,8 @@ from agents.common.util import nest
 from agents.evaluate import METRICS, MetricInfo, bootstrap_ci, metrics
 from agents.rl.train import EVAL_SEED_BASE
 from agents.tune.objective import EpisodeScore, seed_base_text
+from agents.tune.plan import StudyPlan, TuneConfig
 from agents.tune.space import SearchSpace
-
-if TYPE_CHECKING:
-    from agents.tune.study import StudyPlan, TuneConfig
 
 _EVAL_METRICS = {m.key: m for m in METRICS}
 #: the held-out table's columns (label and format as in ``crowdloc eval``) and each one's value of an episode score
