@@ -28,7 +28,6 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import torch
 
 import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
@@ -198,10 +197,14 @@ def make_vec_env(config: TrainConfig, first_episode: int = 0) -> Any:
 
 
 def _random_states() -> dict[str, Any]:
+    import torch  # here, not at the top: evaluation and the reproductions import this module without training
+
     return {"torch": torch.get_rng_state(), "numpy": np.random.get_state(), "python": random.getstate()}
 
 
 def _set_random_states(states: Mapping[str, Any]) -> None:
+    import torch
+
     torch.set_rng_state(states["torch"])
     np.random.set_state(states["numpy"])
     random.setstate(states["python"])
@@ -266,6 +269,8 @@ def train(
     check_run_dir(config, out, resume=resume is not None, overwrite=overwrite)
     # A 64x64 MLP is fastest on one thread; the parallelism is in the env processes. More
     # threads only fight the env workers for the cores (measured: 1.8 ms per layer on 2 busy cores).
+    import torch
+
     torch.set_num_threads(1)
     directory = run_dir(config, out)
     (directory / "checkpoints").mkdir(parents=True, exist_ok=True)
