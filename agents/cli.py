@@ -11,7 +11,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from agents.util import at_least, positive_float, positive_int, seed_int
+from agents.common.util import at_least, positive_float, positive_int, seed_int
 
 DEFAULT_RESULTS = Path("results")
 
@@ -316,7 +316,7 @@ def _run_demo(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 
 def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from agents.train import latest_checkpoint, load_train_config, parse_overrides, train
+    from agents.rl.train import latest_checkpoint, load_train_config, parse_overrides, train
     from localizers.schema import ConfigError
 
     if args.seeds and args.resume:
@@ -340,7 +340,7 @@ def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
         if not resume.is_file():
             raise ConfigError(f"--resume {args.resume}: no such checkpoint file (or give 'latest')")
     if args.seeds:
-        from agents.train import train_seeds
+        from agents.rl.train import train_seeds
 
         models = train_seeds(config, args.out, args.seeds, workers=args.workers, ray_address=args.ray_address,
                              progress=not args.no_progress, overwrite=args.overwrite)  # fmt: skip
@@ -367,8 +367,8 @@ def _run_tune(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 
 def _run_reproduce(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from agents.common.util import make_out_dir, refuse_to_overwrite
     from agents.papers import EXPERIMENTS
-    from agents.util import make_out_dir, refuse_to_overwrite
 
     refuse_to_overwrite(Path(args.out) / "report.md", args.overwrite)  # before minutes of work, not after
     make_out_dir(Path(args.out))
@@ -384,8 +384,8 @@ def _run_fit(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 
 def _run_map(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from agents.scene_maps import MappingDrive, build_scene_map, default_map_path
-    from agents.util import refuse_to_overwrite
+    from agents.common.util import refuse_to_overwrite
+    from agents.experiments.scene_maps import MappingDrive, build_scene_map, default_map_path
     from envs.localization_env import LocalizationEnv
 
     drive = MappingDrive(seed=args.seed, crowd_size=args.crowd_size, pose=args.pose, period_s=args.period_s)

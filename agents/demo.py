@@ -40,8 +40,8 @@ from tqdm import tqdm
 
 import crowdloc_models
 import envs
+from agents.evaluate.metrics import beam_breakdown
 from agents.evaluate.outputs import EVAL_OUTPUTS
-from agents.metrics import beam_breakdown
 from agents.policies import RandomWalk
 from envs.sensors import RangeSensor
 from localizers.raycast import cast_rays
@@ -269,7 +269,7 @@ def run_demo(
         ConfigError: before any run, for an ``out_dir`` that is not empty (without ``overwrite``)
             or cannot be created.
     """
-    from agents.util import prepare_out_dir
+    from agents.common.util import prepare_out_dir
 
     prepare_out_dir(out_dir, DEMO_OUTPUTS, command="crowdloc demo", overwrite=overwrite)
     report = run_worlds(out_dir, steps=steps, seed=seed, densities=densities)
@@ -323,7 +323,7 @@ def _active_table(
     """Evaluate the fixed and the trained policies on ``seeds`` test seeds; write the outputs; the table's lines."""
     from agents.evaluate import Cell, EvalSpec, evaluate, summary_markdown, write_outputs
     from agents.evaluate.spec import runnable_policies, world_of
-    from agents.train import load_train_config
+    from agents.rl.train import load_train_config
 
     trained = load_train_config(SHIPPED_CONFIG)
     policies = runnable_policies(world_of(trained.env_id, trained.env_kwargs))  # not those planning on another world's map
@@ -368,7 +368,7 @@ def _active_verdict(
 ) -> list[str]:
     """The trained policies against the best fixed ones of ``result`` (on ``verdict_seeds`` fresh seeds; 0: the table's)."""
     from agents.evaluate import evaluate, write_tables
-    from agents.train import EVAL_SEED_BASE
+    from agents.rl.train import EVAL_SEED_BASE
 
     spec, seeds = result.spec, result.spec.seeds
     judged = result
@@ -405,7 +405,7 @@ def _active_verdict(
 
 def _describe(env_kwargs: Mapping[str, Any]) -> str:
     """``{"camera": {"fov_rad": 1.57}, "prior": "none"}`` -> ``camera.fov_rad=1.57 (90 deg), prior=none``."""
-    from agents.util import flatten
+    from agents.common.util import flatten
 
     parts = []
     for key, value in flatten(env_kwargs).items():

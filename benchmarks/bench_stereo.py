@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
-from agents.scene_maps import MappingDrive, build_scene_map
+from agents.experiments.scene_maps import MappingDrive, build_scene_map
 from benchmarks.common import Result, per_call_ms, rate
 from envs.sensors.stereo_camera import StereoCamera
 from localizers.base import EdgeMeasurement, PoseEstimate

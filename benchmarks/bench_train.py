@@ -21,7 +21,7 @@ TARGET = 1500  # env steps/s on 2 cores
 
 
 def run_all(quick: bool = False) -> list[Result]:
-    from agents import train as training
+    from agents.rl import train as training
 
     rollouts = 3 if quick else 6
     shipped = training.load_train_config("ppo_candidate_sets")

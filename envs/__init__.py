@@ -26,7 +26,7 @@ ENV_WORLDS = {
 
 
 #: task id -> shipped training config (``configs/experiments/``): a world with its localizer,
-#: conditions and the active-localization reward (``agents.tasks``); the ids above return reward 0
+#: conditions and the active-localization reward (``agents.rl.tasks``); the ids above return reward 0
 TASK_CONFIGS = {
     "crowdloc/ActiveCandidateSets-v0": "ppo_candidate_sets",
     "crowdloc/ActiveMCLBearing-v0": "ppo_mcl_bearing",
@@ -48,7 +48,10 @@ def _register() -> None:
         if env_id not in registry:
             # by name only: envs does not import agents; the task module loads when one is made
             register(
-                id=env_id, entry_point="agents.tasks:make_task", kwargs={"config": config}, max_episode_steps=TASK_EPISODE_STEPS
+                id=env_id,
+                entry_point="agents.rl.tasks:make_task",
+                kwargs={"config": config},
+                max_episode_steps=TASK_EPISODE_STEPS,
             )
 
 

@@ -13,7 +13,7 @@ facts such as ``visible_landmarks``, ``false_detections`` and ``distractor_detec
 flag per landmark) is in ``info`` only; every entry but the ``contacts`` list has a fixed
 shape, so ``gym.make_vec`` can stack them. An episode terminates when the world has a
 ``goal`` and the robot has stood still there (else it only times out). The base
-environment's reward is 0: tasks add rewards as wrappers (``agents.rewards``, ``agents.tasks``).
+environment's reward is 0: tasks add rewards as wrappers (``agents.rl.rewards``, ``agents.rl.tasks``).
 """
 
 from __future__ import annotations

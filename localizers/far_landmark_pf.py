@@ -121,7 +121,7 @@ class FarLandmarkParams:
     Attributes:
         scene_map: the scene map's file (``.npz``, :class:`~localizers.scene_map.SceneMap`);
             empty: the world's default map, which ``gym.make(..., localizer="far_landmark_pf")``
-            builds and caches on first use (:mod:`agents.scene_maps`).
+            builds and caches on first use (:mod:`agents.experiments.scene_maps`).
         n_particles: set size (paper: 500).
         alphas: odometry motion-model alpha1..alpha4 (ours).
         min_translation_std_m, min_rotation_std_rad: per-step motion-noise floors (ours).

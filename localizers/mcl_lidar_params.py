@@ -42,7 +42,7 @@ _log = logging.getLogger("localizers.mcl_lidar")  # the localizer's logger, whos
 
 #: mcl_lidar's parameters where the beam model's ray-cast table of the world's map would exceed
 #: ``max_table_mb`` (a campus) and the user did not choose ``model``: ROS amcl's likelihood-field
-#: configuration at 0.1 m, as the campus's LIDAR reference runs it (:mod:`agents.scene_maps`; no recovery or
+#: configuration at 0.1 m, as the campus's LIDAR reference runs it (:mod:`agents.experiments.scene_maps`; no recovery or
 #: lost test: injection drawn over a campus almost never lands near the robot, and the lost test fires
 #: when people pass). With the beam model's defaults on the likelihood field, the campus filter spreads
 #: along the sidewalk and claims a pose on 7 % of the steps (measured, 300 steps of route_follower)

@@ -3,7 +3,7 @@
 A :class:`MeasurementKind` names the sensor type whose observations it reads and one
 ``decode(observation, metadata)`` function that turns an observation array (and the
 sensor's metadata: beam angles, maximum range, ...) into a measurement dataclass of
-:mod:`localizers.base`. The localizer wrapper, the recordings of ``agents.replay`` and
+:mod:`localizers.base`. The localizer wrapper, the recordings of ``agents.experiments.replay`` and
 ``crowdloc eval`` go through :func:`decode`, so they handle any registered kind without a
 branch on observation keys. Built in: ``bearings`` (a bearing camera's slots), ``scan``
 (a LIDAR's ranges), ``ceiling_image`` (an upward camera's image), ``stereo_edges`` (a

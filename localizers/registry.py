@@ -139,7 +139,7 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         "stereo_edges",
         True,
         "500-particle filter on stereo edges, the farthest matching one per 30 deg sector, a map of scenes (paper D's method)",
-        prepare="agents.scene_maps:prepare_far_landmark_pf",
+        prepare="agents.experiments.scene_maps:prepare_far_landmark_pf",
     ),
 }
 

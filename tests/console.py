@@ -1,4 +1,4 @@
-"""What the commands print: the aligned tables of agents.util.text_table, found in printed text."""
+"""What the commands print: the aligned tables of agents.common.util.text_table, found in printed text."""
 
 from __future__ import annotations
 

@@ -26,8 +26,8 @@ from numpy.typing import NDArray
 import envs  # noqa: F401  (registers crowdloc/*)
 import envs.config
 from agents.evaluate import EvalSpec, evaluate
-from agents.replay import record, replay
-from agents.scenarios import square_driver
+from agents.experiments.replay import record, replay
+from agents.experiments.scenarios import square_driver
 from envs.config import load_world, world_path
 from envs.crowds import Commands, Crowd, CrowdConfig, Taken, register_crowd
 from envs.sensors import SensorBase, SensorConfig, register_sensor

@@ -3,7 +3,7 @@
 Every cell of the grid is one episode on a held-out seed (``EVAL_SEED_BASE + i``, never used
 in training) of any registered crowdloc world (``env_id``, or ``env_kwargs["world"]``, a YAML
 path), with any localizer whose measurement kind's sensor that world has. Cells run through
-:func:`agents.sweep.run_tasks` (local processes or Ray).
+:func:`agents.common.sweep.run_tasks` (local processes or Ray).
 
 - :mod:`.spec`: the grid (:class:`EvalSpec`, :class:`Cell`) and its checks;
 - :mod:`.episode`: the rollout, :func:`run_episode` and the core pose metrics, which apply to
@@ -15,7 +15,11 @@ path), with any localizer whose measurement kind's sensor that world has. Cells 
 - :mod:`.stats`: :func:`bootstrap_ci`, :func:`summarize` and :func:`evaluate`;
 - :mod:`.outputs`: CSV tables, ``summary.md``, plots, TUM trajectories, the GIF;
 - :mod:`.journal`: ``episodes.jsonl``, each episode written as it finishes (``--resume``);
-- :mod:`.cli`: :func:`run_cli`.
+- :mod:`.cli`: :func:`run_cli`;
+- :mod:`.metrics`: the pose metrics on trajectories (errors, NEES, recovery), used by the
+  episodes, ``crowdloc tune`` and the reproductions alike;
+- :mod:`.consistency`: whether a localizer's reported covariance is honest (pooled NEES),
+  in numbers and words.
 
 Aggregates: per (policy, localizer, crowd size) the mean over seeds (over the episodes with a
 value; the summary shows how many) and a 95% percentile bootstrap interval of that mean.
@@ -23,6 +27,10 @@ From Python::
 
     result = evaluate(EvalSpec(policies=("spin", "ppo:results/train/x/seed_0/model.zip"), seeds=5))
     write_outputs(result, Path("results/eval"))
+
+May import: ``envs``, ``localizers``, :mod:`agents.common`, :mod:`agents.policies`,
+:mod:`agents.experiments`, :mod:`agents.rl`; never :mod:`agents.tune`, :mod:`agents.papers`,
+:mod:`agents.cli`, :mod:`agents.demo`.
 """
 
 from __future__ import annotations

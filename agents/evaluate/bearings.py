@@ -12,7 +12,7 @@ Per episode, for localizers that consume identified landmark bearings:
   from their metadata; prior: the known start pose for localizers that get it, else one as
   vague as the field);
 - ``error_bound_ratio``: RMS position error over that RMS bound
-  (:func:`agents.metrics.error_bound_ratio`; >= 1 for an unbiased estimator in expectation).
+  (:func:`agents.evaluate.metrics.error_bound_ratio`; >= 1 for an unbiased estimator in expectation).
 
 Per step it keeps ``visible`` ``(T, L)`` and computes ``bound_rmse_m`` ``(T,)`` (``Episode.series``).
 """
@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from agents import metrics
+import agents.evaluate.metrics as metrics
 from agents.evaluate.plugins import EpisodeContext, MetricInfo, MetricPlugin, PluginOutput, Track, register_metrics
-from agents.replay import bound_rmse_along
+from agents.experiments.replay import bound_rmse_along
 from localizers.measurements import find_sensor
 
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from agents.common.util import prepare_out_dir
 from agents.evaluate.journal import JOURNAL_NAME, EpisodeJournal
 from agents.evaluate.kidnap import Kidnap
 from agents.evaluate.outputs import EVAL_OUTPUTS, summary_markdown, write_outputs
 from agents.evaluate.spec import Cell, EvalSpec, check_first_seed
 from agents.evaluate.stats import EvalResult, evaluate
-from agents.util import prepare_out_dir
 from localizers.schema import ConfigError, check
 
 
@@ -30,8 +30,8 @@ def spec_from_args(args: Any) -> EvalSpec:
     Raises:
         ConfigError: for a bad option value.
     """
-    from agents.train import load_train_config, parse_overrides
-    from agents.util import nest
+    from agents.common.util import nest
+    from agents.rl.train import load_train_config, parse_overrides
     from localizers.schema import merge_nested
 
     check_first_seed(args.first_seed, "--first-seed")

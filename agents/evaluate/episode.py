@@ -44,12 +44,12 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import metrics
+import agents.evaluate.metrics as metrics
 from agents.evaluate.kidnap import KIDNAP_SALT, kidnap_metrics
 from agents.evaluate.plugins import EpisodeContext, MetricPlugin, Track, localizer_kind, metric_plugins
 from agents.evaluate.spec import PPO_PREFIX, Cell, EvalSpec, load_ppo, policy_seed
-from agents.rewards import ActiveLocalizationReward
-from agents.scenarios import kidnap as carry_away
+from agents.experiments.scenarios import kidnap as carry_away
+from agents.rl.rewards import ActiveLocalizationReward
 from localizers.registry import spec as localizer_spec
 
 

@@ -24,9 +24,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from agents.common.util import jsonable
 from agents.evaluate.episode import Episode
 from agents.evaluate.spec import Cell, EvalSpec
-from agents.util import jsonable
 from localizers.schema import ConfigError
 
 #: the journal's file name in the output folder

@@ -1,7 +1,7 @@
 """The kidnapping study of ``crowdloc eval --kidnap-at-s S``: the robot is carried away mid-episode.
 
 At the first step at or after ``at_s`` the robot is teleported to a random free pose at least
-``min_distance_m`` from where it stood (:func:`agents.scenarios.kidnap`; odometry does not see
+``min_distance_m`` from where it stood (:func:`agents.experiments.scenarios.kidnap`; odometry does not see
 it, the localizer is not told): by default anywhere in the arena with a random heading; with
 ``max_distance_m`` at most that far, and with ``keep_heading`` a pure translation (issue 27's
 kidnap of 2-5 m: ``--kidnap-m 2 --kidnap-max-m 5 --kidnap-keep-heading``). From the jump on, over ``window_s``:

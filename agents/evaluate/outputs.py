@@ -21,13 +21,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from agents.consistency import NO_COVARIANCE, reports_covariance
+from agents.common.util import flatten, write_run_record
+from agents.evaluate.consistency import NO_COVARIANCE, reports_covariance
 from agents.evaluate.episode import rollout
 from agents.evaluate.plugins import Array, MetricInfo, localizer_kind, plugins_for
 from agents.evaluate.spec import Cell, EvalSpec
 from agents.evaluate.stats import EvalResult, Stat
-from agents.train import EVAL_SEED_BASE
-from agents.util import flatten, write_run_record
+from agents.rl.train import EVAL_SEED_BASE
 
 
 # --------------------------------------------------------------------------- TUM trajectories
@@ -227,7 +227,7 @@ def plot_error_vs_spread(result: EvalResult, path: Path, max_points: int = 4000)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from agents.plots import log_ticks, save_figure
+    from agents.common.plots import log_ticks, save_figure
 
     s = result.spec
     fig, axes = plt.subplots(1, len(s.localizers), figsize=(4.2 * len(s.localizers), 3.9), squeeze=False)

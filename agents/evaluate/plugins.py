@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import metrics
+import agents.evaluate.metrics as metrics
 from localizers.base import LandmarkMap
 from localizers.measurements import measurement_kind
 
@@ -142,7 +142,7 @@ class Track:
     @functools.cached_property
     def nees(self) -> Array:
         """``(T,)`` NEES of the pose (3 dof) against the reported covariance; NaN where the
-        estimate is not valid or its covariance not usable (:func:`agents.metrics.pose_nees`)."""
+        estimate is not valid or its covariance not usable (:func:`agents.evaluate.metrics.pose_nees`)."""
         est = np.where(self.valid[:, None], self.estimates, np.nan)
         assert self.covariances is not None  # set in __post_init__
         return metrics.pose_nees(est, self.true_pose, self.covariances)

@@ -18,8 +18,8 @@ import envs  # registers the crowdloc ids
 from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
 from agents.policies import FIXED_POLICIES
-from agents.rewards import RewardWeights
-from agents.train import EVAL_SEED_BASE
+from agents.rl.rewards import RewardWeights
+from agents.rl.train import EVAL_SEED_BASE
 from localizers.measurements import find_sensor
 from localizers.schema import ConfigError, check
 

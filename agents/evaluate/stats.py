@@ -132,7 +132,7 @@ def evaluate(
     Raises:
         ConfigError: a group that is not in the grid, or no group.
     """
-    from agents.sweep import run_tasks
+    from agents.common.sweep import run_tasks
 
     start = time.perf_counter()
     cells = spec.cells()

@@ -2,6 +2,10 @@
 
 Each experiment module exposes ``add_arguments(parser)`` (its own options) and
 ``run(args) -> pathlib.Path`` (the report it wrote).
+
+May import: ``envs``, ``localizers``, :mod:`agents.common`, :mod:`agents.policies`,
+:mod:`agents.experiments`, :mod:`agents.rl`, :mod:`agents.evaluate`; never :mod:`agents.tune`,
+:mod:`agents.cli`, :mod:`agents.demo`.
 """
 
 from __future__ import annotations
@@ -9,7 +13,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from agents.util import positive_int
+from agents.common.util import positive_int
 
 #: worker processes a reproduction runs by default: min(DEFAULT_WORKERS, cpu count)
 DEFAULT_WORKERS = 2

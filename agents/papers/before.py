@@ -21,8 +21,8 @@ from importlib import import_module
 from pathlib import Path
 from typing import Any
 
+from agents.common.util import text_table
 from agents.papers import EXPERIMENTS
-from agents.util import text_table
 
 Extractor = Callable[[Mapping[str, Any]], dict[str, Any]]
 FILE_NAME = "before.json"

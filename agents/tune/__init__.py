@@ -20,7 +20,7 @@ parameters for a given world, crowd density and motion scenario:
   scene map, driven at the crowd of the world's file, :meth:`EpisodeSetup.prepared_params`), the same for every
   trial and held-out episode.
 * **Episodes, recorded once**: ``--train-seeds`` episodes are rolled out once
-  (:func:`agents.replay.record`) and every trial replays its localizer into the same
+  (:func:`agents.experiments.replay.record`) and every trial replays its localizer into the same
   recordings. This is exact, not an approximation: the world, the crowd, the scenario driver
   and the sensors never read the localizer (the driver steers on the *true* pose, and a
   localizer draws from its own generator; the route scenario steers on the LIDAR reference,
@@ -56,9 +56,12 @@ parameters for a given world, crowd density and motion scenario:
   only with ``--overwrite``.
 
 Modules: :mod:`~agents.tune.space` (the search space), :mod:`~agents.tune.objective` (episodes,
-scores, the trial function), :mod:`~agents.tune.study` (configuration, storage, workers,
-:func:`tune`, the command line), :mod:`~agents.tune.report` (``best_params.yaml``, figures,
-``report.md``).
+scores, the trial function), :mod:`~agents.tune.plan` (the run's configuration and plan),
+:mod:`~agents.tune.study` (storage, workers, :func:`tune`, the command line),
+:mod:`~agents.tune.report` (``best_params.yaml``, figures, ``report.md``).
+
+May import: ``envs``, ``localizers`` and every other part of ``agents`` but :mod:`agents.cli`
+and :mod:`agents.demo` (the far-point paper's square path comes from :mod:`agents.papers`).
 """
 
 from agents.tune.objective import (
@@ -78,6 +81,7 @@ from agents.tune.objective import (
     score_episode,
     tuning_seeds,
 )
+from agents.tune.plan import DEFAULT_STORAGE, StudyPlan, TuneConfig, TuneResult
 from agents.tune.report import best_params_yaml, param_importances, resolution_text, write_report
 from agents.tune.space import (
     TUNING_CONFIG_DIR,
@@ -88,7 +92,7 @@ from agents.tune.space import (
     space_path,
     tunable_localizers,
 )
-from agents.tune.study import DEFAULT_STORAGE, StudyPlan, TuneConfig, TuneResult, add_arguments, run_cli, tune
+from agents.tune.study import add_arguments, run_cli, tune
 
 __all__ = [
     "DEFAULT_ENV_ID",

@@ -1,6 +1,6 @@
 """The episodes of ``crowdloc tune`` and how a trial is scored.
 
-Episodes are recorded once (:func:`agents.replay.record`) and every trial replays its
+Episodes are recorded once (:func:`agents.experiments.replay.record`) and every trial replays its
 localizer into the same recordings (see :mod:`agents.tune`); :func:`score_episode` is the
 per-episode objective, :class:`Objective` the Optuna trial function.
 
@@ -18,12 +18,12 @@ from typing import Any
 import numpy as np
 import optuna
 
-from agents import metrics
-from agents.replay import Recording, record, replay
-from agents.scenarios import SoccerDriver
-from agents.train import EVAL_SEED_BASE
+from agents.common.util import nest
+from agents.evaluate import metrics
+from agents.experiments.replay import Recording, record, replay
+from agents.experiments.scenarios import SoccerDriver
+from agents.rl.train import EVAL_SEED_BASE
 from agents.tune.space import SearchSpace
-from agents.util import nest
 from localizers.registry import load_params, prepared_params, spec
 from localizers.schema import ConfigError
 
@@ -125,7 +125,7 @@ class EpisodeSetup:
     Attributes:
         env_id: a registered crowdloc id with the sensor that ``measurement`` reads.
         crowd_size: other robots / people (``None``: the world's own count).
-        scenario: ``"soccer"``: Exp 2's field robot (:class:`agents.scenarios.SoccerDriver`,
+        scenario: ``"soccer"``: Exp 2's field robot (:class:`agents.experiments.scenarios.SoccerDriver`,
             chase, dribble, shoot; start at (0, 3) m facing +x), needs a world with a ball;
             ``"random_walk"``: :class:`agents.policies.RandomWalk` from the world's start pose;
             ``"square"``: the LIDAR paper's run in ``crowdloc/CrowdedRoom-v0``
@@ -133,7 +133,7 @@ class EpisodeSetup:
             0.15 m/s from the lower-left corner; the queue heads give way to the robot);
             ``"route"``: ``route_follower`` drives the world's route (a world with a ``route``
             feature and one LIDAR) steering on the LIDAR reference run online
-            (:func:`agents.scene_maps.reference_env_kwargs`), never on the tuned localizer, so
+            (:func:`agents.experiments.scene_maps.reference_env_kwargs`), never on the tuned localizer, so
             replaying a trial's parameters into the recording is exact.
         episode_steps: steps per episode (the square path stops when its laps are done, the
             route at its end).
@@ -176,7 +176,7 @@ class EpisodeSetup:
                 raise ConfigError(
                     f"scenario 'route' drives the world's route; {self.env_id} has none (try --scenario random_walk)"
                 )
-            from agents.scene_maps import reference_env_kwargs
+            from agents.experiments.scene_maps import reference_env_kwargs
 
             reference_env_kwargs(world)  # the route is driven on the LIDAR reference: one LIDAR
         return world
@@ -228,9 +228,9 @@ class EpisodeSetup:
             return record(self.env_id, experiment.driver_factory(LAPS), seed, max_steps=self.episode_steps,
                           env_kwargs=self.env_kwargs(), reset_options={"robot_pose": list(experiment.start_pose())})  # fmt: skip
         if self.scenario == "route":
+            from agents.experiments.replay import record_policy
+            from agents.experiments.scene_maps import reference_env_kwargs
             from agents.policies import make_policy
-            from agents.replay import record_policy
-            from agents.scene_maps import reference_env_kwargs
 
             kwargs = {**self.env_kwargs(), **reference_env_kwargs(self.world())}
             return record_policy(self.env_id, lambda env: make_policy("route_follower", env, seed=seed), seed,
@@ -304,7 +304,7 @@ def default_setup(
 
 
 def record_task(task: tuple[EpisodeSetup, int]) -> Recording:
-    """``setup.record(seed)`` as a :func:`agents.sweep.run_tasks` task."""
+    """``setup.record(seed)`` as a :func:`agents.common.sweep.run_tasks` task."""
     setup, seed = task
     return setup.record(seed)
 

@@ -1,7 +1,7 @@
 """The outputs of a ``crowdloc tune`` run: ``best_params.yaml``, importances, figures, ``report.md``.
 
-Every number in the report comes from the study, the run's :class:`~agents.tune.study.TuneConfig`
-and :class:`~agents.tune.study.StudyPlan`, or the held-out scores.
+Every number in the report comes from the study, the run's :class:`~agents.tune.plan.TuneConfig`
+and :class:`~agents.tune.plan.StudyPlan`, or the held-out scores.
 """
 
 from __future__ import annotations
@@ -13,20 +13,17 @@ import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import optuna
 
-from agents import metrics
-from agents.evaluate import METRICS, MetricInfo, bootstrap_ci
-from agents.train import EVAL_SEED_BASE
+from agents.common.util import nest
+from agents.evaluate import METRICS, MetricInfo, bootstrap_ci, metrics
+from agents.rl.train import EVAL_SEED_BASE
 from agents.tune.objective import EpisodeScore, seed_base_text
+from agents.tune.plan import StudyPlan, TuneConfig
 from agents.tune.space import SearchSpace
-from agents.util import nest
-
-if TYPE_CHECKING:
-    from agents.tune.study import StudyPlan, TuneConfig
 
 _EVAL_METRICS = {m.key: m for m in METRICS}
 #: the held-out table's columns (label and format as in ``crowdloc eval``) and each one's value of an episode score
@@ -116,7 +113,7 @@ def _value(trial: optuna.trial.FrozenTrial) -> float:
 
 def plot_importances(path: Path, importances: Mapping[str, float], title: str) -> Path:
     """Horizontal bar chart of the importances, most important on top (PNG)."""
-    from agents.plots import plt, save_figure
+    from agents.common.plots import plt, save_figure
 
     names = list(importances)[::-1]
     fig, ax = plt.subplots(figsize=(6.0, 0.5 * max(len(names), 2) + 1.2))
@@ -135,7 +132,7 @@ def plot_history(path: Path, study: optuna.Study, title: str) -> Path:
     """Objective per trial (completed: dots, pruned: last reported value, x), best so far, the defaults (star)."""
     from matplotlib.ticker import MaxNLocator
 
-    from agents.plots import plt, save_figure
+    from agents.common.plots import plt, save_figure
 
     fig, ax = plt.subplots(figsize=(7.0, 3.8))
     done = [t for t in study.trials if t.state == _State.COMPLETE]

@@ -25,7 +25,7 @@ from typing import Any
 import optuna
 
 import crowdloc_configs
-from agents.util import nest
+from agents.common.util import nest
 from localizers.registry import LOCALIZERS, load_params, spec
 from localizers.schema import ConfigError, load_yaml
 

@@ -1,4 +1,4 @@
-"""agents.consistency: the reports' NEES respects the registry's covariance flag, pools runs, and says so in words."""
+"""agents.evaluate.consistency: the reports' NEES respects the registry's covariance flag, pools runs, and says so in words."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from agents import consistency, metrics
+from agents.evaluate import consistency, metrics
 from localizers import registry
 
 

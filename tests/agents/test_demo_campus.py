@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
+from agents.experiments.scene_maps import MappingDrive, build_scene_map
 from agents.papers.stereo_far_landmarks.demo import SELECTED_COLOR, campus_section
-from agents.scene_maps import MappingDrive, build_scene_map
 from envs.config import load_world
 from envs.render import frame_shape
 from localizers.range_table import CACHE_ENV

@@ -30,7 +30,7 @@ from agents.evaluate import (
     write_outputs,
     write_tum,
 )
-from agents.train import EVAL_SEED_BASE, load_train_config, train
+from agents.rl.train import EVAL_SEED_BASE, load_train_config, train
 from localizers.schema import ConfigError
 
 

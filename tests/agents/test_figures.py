@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from agents import plots
+from agents.common import plots
 
 UNIT = re.compile(r"\[[^\]]+\]")  # "x [m]", "measured - set rotation [deg]"
 

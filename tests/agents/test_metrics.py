@@ -1,4 +1,4 @@
-"""agents.metrics on hand-made trajectories with known errors."""
+"""agents.evaluate.metrics on hand-made trajectories with known errors."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from agents import metrics
+from agents.evaluate import metrics
 
 
 def straight_line(T: int = 11, step: float = 0.1) -> np.ndarray:

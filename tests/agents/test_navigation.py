@@ -17,8 +17,8 @@ import pytest
 from gymnasium import spaces
 
 import envs  # noqa: F401  (registers crowdloc/*)
-from agents.navigation import CorridorFollower
 from agents.policies import make_policy
+from agents.policies.navigation import CorridorFollower
 from localizers.schema import ConfigError
 
 CORRIDOR = "crowdloc/CeilingCorridor-v0"

@@ -86,7 +86,7 @@ def test_unknown_policy_and_bad_settings_name_the_value() -> None:
 
 
 def test_patrol_drives_the_exp1_path_through_every_vertex_and_closes_it() -> None:
-    from agents.scenarios import EXP1_VERTICES
+    from agents.policies.paths import EXP1_VERTICES
 
     env = gym.make("crowdloc/RoboCupStatic-v0", odometry={"alpha1": 0.0, "alpha2": 0.0, "alpha3": 0.0, "alpha4": 0.0})
     policy = make_policy("patrol", env)

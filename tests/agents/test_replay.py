@@ -1,4 +1,4 @@
-"""agents.replay: replaying a recording equals the online wrapper, and feeds observation leaves only."""
+"""agents.experiments.replay: replaying a recording equals the online wrapper, and feeds observation leaves only."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
-from agents import metrics
-from agents.replay import Recording, measurements, odometry_deltas, record, replay, replay_into, scans
-from agents.scenarios import SoccerDriver, exp1_driver, square_driver
+from agents.evaluate import metrics
+from agents.experiments.replay import Recording, measurements, odometry_deltas, record, replay, replay_into, scans
+from agents.experiments.scenarios import SoccerDriver, exp1_driver, square_driver
 from localizers.base import BearingMeasurement, OdometryDelta, Overlay, PoseEstimate
 from localizers.registry import LOCALIZERS
 from localizers.wrappers import _SEED_SALT, bearing_measurement
@@ -132,7 +132,7 @@ def test_known_start_goes_only_to_methods_that_need_it(
     def capture(localizer: Any, recording: Recording, rng: np.random.Generator, **kwargs: Any) -> None:
         seen.append(kwargs["prior"])
 
-    monkeypatch.setattr("agents.replay.replay_into", capture)
+    monkeypatch.setattr("agents.experiments.replay.replay_into", capture)
     replay(rec, name, rng_seed=0)
     replay(rec, name, rng_seed=0, prior="none")
     replay(rec, name, rng_seed=0, prior="start")
@@ -251,9 +251,9 @@ def test_the_replay_keeps_each_estimates_covariance(recordings: dict[str, Record
 def test_a_closed_loop_recording_keeps_the_online_estimate_and_its_replay_equals_it() -> None:
     """record_policy: a policy acting on the observation with the env's own localizer's estimate; that estimate
     is kept, and replaying the localizer with online_rng reproduces it bit for bit (on every stored sensor's leaves)."""
+    from agents.experiments.replay import online_rng, record_policy, replay_into, start_prior
+    from agents.experiments.scene_maps import AMCL_LIKE
     from agents.policies import make_policy
-    from agents.replay import online_rng, record_policy, replay_into, start_prior
-    from agents.scene_maps import AMCL_LIKE
     from localizers.registry import make_localizer
 
     kwargs = {"crowd_size": 10, "localizer": "mcl_lidar", "localizer_params": AMCL_LIKE, "prior": "start"}

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
-from agents.rewards import TERMS, ActiveLocalizationReward, RewardWeights
+from agents.rl.rewards import TERMS, ActiveLocalizationReward, RewardWeights
 from localizers.base import PoseEstimate
 from localizers.schema import ConfigError
 

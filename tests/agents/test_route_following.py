@@ -16,10 +16,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import agents.route_following as route_following
+import agents.policies.route_following as route_following
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.policies import FIXED_POLICIES, make_policy
-from agents.route_following import RouteFollower
+from agents.policies.route_following import RouteFollower
 from envs.config import load_world
 from localizers.base import PoseEstimate
 from localizers.dead_reckoning import DeadReckoningLocalizer, DeadReckoningParams

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
-from agents.replay import record
-from agents.scenarios import EXP1_VERTICES, PatrolDriver, ShoveDriver, SoccerDriver, exp1_driver, kidnap, polygon_commands
+from agents.experiments.replay import record
+from agents.experiments.scenarios import PatrolDriver, ShoveDriver, SoccerDriver, exp1_driver, kidnap
+from agents.policies.paths import EXP1_VERTICES, polygon_commands
 from localizers.geometry import compose, wrap_angle
 from tests.envs.exact import EXACT
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.sweep import run_tasks
+from agents.common.sweep import run_tasks
 
 
 def square_and_pid(x: int) -> tuple[int, int]:
@@ -78,7 +78,7 @@ def test_ray_cluster_runs_the_tasks_and_a_multi_seed_training(tmp_path: Path) ->
         results = run_tasks(square_and_pid, list(range(5)), ray_address=f"127.0.0.1:{port}", progress=False)
         assert [r[0] for r in results] == [0, 1, 4, 9, 16]
         assert os.getpid() not in {r[1] for r in results}
-        from agents.train import load_train_config, train_seeds
+        from agents.rl.train import load_train_config, train_seeds
 
         config = load_train_config("ppo_candidate_sets", {
             "total_timesteps": 64, "n_envs": 2, "vec_env": "dummy", "crowd_sizes": [3], "ppo.n_steps": 32,

@@ -8,7 +8,7 @@ import pytest
 from stable_baselines3.common.monitor import Monitor
 
 import envs
-from agents.train import load_train_config
+from agents.rl.train import load_train_config
 from localizers.schema import ConfigError
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from agents.train import TrainConfig, latest_checkpoint, load_train_config, parse_overrides, train
+from agents.rl.train import TrainConfig, latest_checkpoint, load_train_config, parse_overrides, train
 from localizers.schema import ConfigError
 
 
@@ -52,7 +52,7 @@ def test_tiny_run_trains_saves_loads_and_resumes_exactly(tmp_path: Path) -> None
     init = weights(train(tiny(1), tmp_path / "init", progress_bar=False))
     assert any(not torch.equal(x, y) for x, y in zip(a, init))
     # the saved model loads and acts on a real observation
-    from agents.train import make_training_env
+    from agents.rl.train import make_training_env
 
     env = make_training_env(config, 0)
     obs, _ = env.reset()
@@ -79,7 +79,7 @@ def test_bad_training_configs_name_the_problem(overrides: dict, needle: str) -> 
 
 
 def test_multi_seed_training_equals_the_single_runs(tmp_path: Path) -> None:
-    from agents.train import train_seeds
+    from agents.rl.train import train_seeds
 
     config = tiny(64)
     models = train_seeds(config, tmp_path / "sweep", [3, 4], workers=2, progress=False)

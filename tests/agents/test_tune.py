@@ -8,9 +8,10 @@ from pathlib import Path
 import optuna
 import pytest
 
-from agents import metrics, tune
+from agents import tune
 from agents.cli import main
-from agents.train import EVAL_SEED_BASE
+from agents.evaluate import metrics
+from agents.rl.train import EVAL_SEED_BASE
 from localizers.registry import load_params
 from localizers.schema import ConfigError, load_yaml
 

@@ -14,11 +14,11 @@ import pytest
 import crowdloc_configs
 from agents import tune
 from agents.cli import main
+from agents.common.util import nest
+from agents.experiments.replay import Recording
 from agents.papers.lidar_far_point import experiment
-from agents.replay import Recording
 from agents.tune.report import compare_held_out
 from agents.tune.study import _stored_attr
-from agents.util import nest
 from envs.config import load_world
 from localizers.registry import BUILTIN_LOCALIZERS, load_params
 from localizers.schema import ConfigError

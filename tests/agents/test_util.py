@@ -1,10 +1,10 @@
-"""agents.util.text_table: the console tables of the commands line up whatever their cells."""
+"""agents.common.util.text_table: the console tables of the commands line up whatever their cells."""
 
 from __future__ import annotations
 
 import pytest
 
-from agents.util import text_table
+from agents.common.util import text_table
 from tests.console import assert_aligned, printed_tables
 
 

@@ -309,8 +309,8 @@ def test_the_renderer_draws_distractors_as_rings_in_their_landmark_colour() -> N
 
 
 def test_a_recording_keeps_the_distractor_flags() -> None:
-    from agents.replay import record
-    from agents.scenarios import exp1_driver
+    from agents.experiments.replay import record
+    from agents.experiments.scenarios import exp1_driver
 
     kwargs = {"camera": {"distractors": [FAKE_L5]}}
     rec = record("crowdloc/RoboCupStatic-v0", exp1_driver, seed=4, max_steps=300, env_kwargs=kwargs)

@@ -20,9 +20,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 import envs  # noqa: F401
-from agents.metrics import chi2_quantile, pose_nees
+from agents.evaluate.metrics import chi2_quantile, pose_nees
+from agents.experiments.scenarios import kidnap
 from agents.policies import make_policy
-from agents.scenarios import kidnap
 from localizers.base import BearingMeasurement, OdometryDelta, PoseEstimate, ScanMeasurement
 
 #: a gentle circle: forward at 40 % of top speed, turning at 20 % of the top turn rate
@@ -136,7 +136,7 @@ def drive(
     """Drive ``steps`` steps of the fixed policy ``policy`` (seeded with ``seed``) or, without
     one, the fixed ``action``, feeding the localizer the odometry and frames of each step ``n``
     (through ``odometry(n, d)`` and ``frame(n, f)`` when given), and kidnapping the robot
-    (:func:`agents.scenarios.kidnap`, at least 2 m, drawn from ``[seed, kidnap_stream]``)
+    (:func:`agents.experiments.scenarios.kidnap`, at least 2 m, drawn from ``[seed, kidnap_stream]``)
     before step ``kidnap_at``. ``event_s`` (default: the time of the kidnap) is where the
     recovery time counts from."""
     env = gym.make(

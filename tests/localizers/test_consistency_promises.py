@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
-from agents import metrics
-from agents.consistency import POSE_DOF, run_nees
+from agents.evaluate import metrics
+from agents.evaluate.consistency import POSE_DOF, run_nees
 from agents.policies import make_policy
 from localizers.base import ConsistencyPromise
 from localizers.registry import BUILTIN_LOCALIZERS, LOCALIZERS

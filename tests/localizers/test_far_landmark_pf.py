@@ -13,8 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import envs  # noqa: F401  (registers crowdloc/*)
+from agents.experiments.scene_maps import MappingDrive, build_scene_map, default_map_path
 from agents.policies import make_policy
-from agents.scene_maps import MappingDrive, build_scene_map, default_map_path
 from localizers.base import (
     EDGE_CHANNELS,
     EDGE_LEVELS,

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from agents import scene_maps
+from agents.experiments import scene_maps
 from localizers import scene_map
 from localizers.scene_map import SceneMap
 from localizers.schema import ConfigError

@@ -8,7 +8,7 @@ method with K = 1, 5, 10 candidate sets. Beside the paper's rows of Tables 1-3, 
 run method (5) with an exponential forgetting of its accumulated Error (``jobs.OURS_PARAMS``,
 not in the paper). Beyond the paper: error and availability against
 crowd density and false-detection rate, and recovery after a shove. Every run is recorded
-once and replayed into every localizer (agents.replay), one process per seed.
+once and replayed into every localizer (agents.experiments.replay), one process per seed.
 
 Modules: :mod:`.jobs` (the plan, the jobs, running them), :mod:`.analysis` (statistics as
 data), :mod:`.conditions` (the set-up as the configs hold it), :mod:`.report` and
@@ -22,6 +22,7 @@ import argparse
 import time
 from pathlib import Path
 
+from agents.common.util import positive_int
 from agents.papers import add_worker_arguments
 from agents.papers.bearing_candidates.jobs import (
     DEFAULT_PUSH_SEEDS,
@@ -33,7 +34,6 @@ from agents.papers.bearing_candidates.jobs import (
     make_plan,
     run_jobs,
 )
-from agents.util import positive_int
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

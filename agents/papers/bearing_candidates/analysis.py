@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import consistency, metrics
+from agents.evaluate import consistency, metrics
 from agents.papers.bearing_candidates.jobs import (
     EXP1_METHODS,
     EXP1_OURS,

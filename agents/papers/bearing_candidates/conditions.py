@@ -2,7 +2,7 @@
 
 Nothing here restates a parameter: the worlds come from :meth:`jobs.Job.world` (the shipped
 world plus each job's overrides), the localizer parameters from their shipped YAMLs
-(:func:`jobs.shipped`), the scenario drivers' settings from :mod:`agents.scenarios`, and
+(:func:`jobs.shipped`), the scenario drivers' settings from :mod:`agents.experiments.scenarios`, and
 the rest from the constants of :mod:`jobs`. Derived geometry (which stretch of the Exp 1
 path sees the corner pole, the angle the goal posts subtend) is computed from those.
 """
@@ -195,7 +195,7 @@ class Shipped:
 
 @dataclass(frozen=True)
 class Kicks:
-    """The Exp 2 driver's plays (:class:`agents.scenarios.SoccerDriver`)."""
+    """The Exp 2 driver's plays (:class:`agents.experiments.scenarios.SoccerDriver`)."""
 
     spread_deg: float  # kick-out direction: uniform within this of -y
     speed_mps: tuple[float, float]  # kick-out speed range
@@ -225,7 +225,8 @@ class Conditions:
 
 def conditions(jobs: Sequence[Job]) -> Conditions:
     """The conditions of the planned jobs."""
-    from agents.scenarios import EXP1_VERTICES, SoccerDriver
+    from agents.experiments.scenarios import SoccerDriver
+    from agents.policies.paths import EXP1_VERTICES
     from localizers.registry import spec
 
     worlds = {}

@@ -1,4 +1,4 @@
-"""Figures of the candidate-set reproduction (:mod:`agents.plots`): the trajectory panels of
+"""Figures of the candidate-set reproduction (:mod:`agents.common.plots`): the trajectory panels of
 Exp 1 and 2 (the paper's Figs 12-16, 20-24) for the lowest seed, and the extra studies."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import metrics
+from agents.evaluate import metrics
 from agents.papers.bearing_candidates.analysis import Analysis, PushStudy, SweepStudy, by_study
 from agents.papers.bearing_candidates.jobs import (
     EXP1_FIGURE,
@@ -38,8 +38,8 @@ SWEEP_XLABELS = {
 
 def trajectory_figure(out: Path, study: str, runs: Sequence[JobResult]) -> Path:
     """One panel per method along the lowest seed's true path."""
-    from agents import plots
-    from agents.scenarios import EXP1_VERTICES
+    from agents.common import plots
+    from agents.policies.paths import EXP1_VERTICES
 
     name, methods, shows, cols = TRAJECTORIES[study]
     r = min(runs, key=lambda x: x.job.seed)
@@ -60,7 +60,7 @@ def trajectory_figure(out: Path, study: str, runs: Sequence[JobResult]) -> Path:
 
 def sweep_figure(out: Path, study: str, sweep: SweepStudy) -> Path:
     """Error and availability against the swept value, with sd-over-seeds bars."""
-    from agents import plots
+    from agents.common import plots
 
     def series(pick: str) -> dict[str, tuple[Array, Array]]:
         """label -> (seed mean, sd over seeds) of the cells' ``err`` or ``avail`` along the points."""
@@ -76,7 +76,7 @@ def sweep_figure(out: Path, study: str, sweep: SweepStudy) -> Path:
 
 def push_figure(out: Path, push: PushStudy) -> Path:
     """The error around the shove, median and quartiles over the seeds."""
-    from agents import plots
+    from agents.common import plots
 
     return plots.recovery_figure(
         out / "push_recovery.png",

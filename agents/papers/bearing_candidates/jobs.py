@@ -1,8 +1,8 @@
 """The experiment plan of the candidate-set reproduction: methods, jobs, and running them.
 
 Every (study, point, seed) is one :class:`Job`: its rollout is recorded once
-(:func:`agents.replay.record`) and replayed into each of the job's methods
-(:func:`agents.replay.replay`), one process per job (:func:`agents.sweep.run_tasks`).
+(:func:`agents.experiments.replay.record`) and replayed into each of the job's methods
+(:func:`agents.experiments.replay.replay`), one process per job (:func:`agents.common.sweep.run_tasks`).
 
 The world configs are loaded here and nowhere else in the package: :func:`world_config` (the
 shipped world of an env id) and :meth:`Job.world` (that world with the job's env keyword
@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import consistency, metrics
-from agents.sweep import run_tasks
+from agents.common.sweep import run_tasks
+from agents.evaluate import consistency, metrics
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -237,7 +237,7 @@ class MethodRun:
     position_error_m: Array
     heading_error_rad: Array
     bound_m: Array  # (T,) posterior CRB position RMSE along the true path
-    nees: Array  # (T,) 3-dof pose NEES against the true pose (agents.consistency.run_nees; NaN: none)
+    nees: Array  # (T,) 3-dof pose NEES against the true pose (agents.evaluate.consistency.run_nees; NaN: none)
 
 
 @dataclass(frozen=True)
@@ -264,8 +264,8 @@ class JobResult:
 
 
 def make_driver(job: Job) -> Any:
-    """The job's scenario driver (:mod:`agents.scenarios`)."""
-    from agents import scenarios
+    """The job's scenario driver (:mod:`agents.experiments.scenarios`)."""
+    from agents.experiments import scenarios
 
     if job.scenario == "exp1":
         return lambda env: scenarios.exp1_driver(env, EXP1_SPEED_MPS, EXP1_TURN_RPS)
@@ -281,7 +281,7 @@ def bound_along(recording: Any, fed: NDArray[np.bool_], known_start: bool) -> Ar
     """``(T,)`` posterior-CRB position RMSE along the recording's true path.
 
     Args:
-        recording: an :class:`agents.replay.Recording`.
+        recording: an :class:`agents.experiments.replay.Recording`.
         fed: ``(T, L)`` landmark slots the localizer was fed; false detections (random ones
             and distractors') are removed (the bound is for correctly associated bearings).
         known_start: the localizer got the start pose, else a prior as vague as the field.
@@ -289,7 +289,7 @@ def bound_along(recording: Any, fed: NDArray[np.bool_], known_start: bool) -> Ar
     Returns:
         NaN everywhere when the camera is noise-free (no finite bound).
     """
-    from agents.replay import bound_rmse_along
+    from agents.experiments.replay import bound_rmse_along
 
     # the alpha-model noise acts on the commanded motion; the Jacobians follow the true path
     return bound_rmse_along(
@@ -306,7 +306,7 @@ def bound_along(recording: Any, fed: NDArray[np.bool_], known_start: bool) -> Ar
 
 def replay_methods(recording: Any, job: Job) -> dict[str, MethodRun]:
     """Replay the recording into each of the job's methods (generator ``[seed, k]`` for the k-th)."""
-    from agents.replay import replay
+    from agents.experiments.replay import replay
     from localizers.registry import spec
 
     runs: dict[str, MethodRun] = {}
@@ -332,7 +332,7 @@ def replay_methods(recording: Any, job: Job) -> dict[str, MethodRun]:
 
 def run_job(job: Job) -> JobResult:
     """Record the job's rollout once and replay it into each of its methods."""
-    from agents.replay import record
+    from agents.experiments.replay import record
 
     start = time.perf_counter()
     driver = make_driver(job)
@@ -415,6 +415,6 @@ def make_jobs(plan: Plan) -> list[Job]:
 
 
 def run_jobs(jobs: Sequence[Job], workers: int) -> list[JobResult]:
-    """Run the jobs (:func:`agents.sweep.run_tasks`: a process pool when ``workers > 1``), sorted by study, point, seed."""
+    """Run the jobs (:func:`agents.common.sweep.run_tasks`: a process pool when ``workers > 1``), sorted by study, point, seed."""
     results = run_tasks(run_job, list(jobs), workers=workers, desc="bearing-candidates runs (seeds x points)")
     return sorted(results, key=lambda r: (r.job.study, r.job.point, r.job.seed))

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from agents import consistency
+from agents.common.util import jsonable, text_table
+from agents.evaluate import consistency
 from agents.papers import before
 from agents.papers.bearing_candidates.analysis import (
     Analysis,
@@ -57,7 +58,6 @@ from agents.papers.bearing_candidates.jobs import (
 )
 from agents.papers.bearing_candidates.paper import PAPER, PaperRow
 from agents.papers.bearing_candidates.text import about, and_list, facing, field, num, pm, ratio, xy
-from agents.util import jsonable, text_table
 
 PAPER_TITLE = "Candidate-set paper (Motomura et al.)"
 
@@ -145,7 +145,7 @@ def exp1_section(exp1: Exp1Stats, cond: Conditions, exp2_detected: float | None,
         "",
         f"`{EXP1_ENV}`: {field(world.size_m)} field, {pole.name} corner pole at {xy(pole.x_m, pole.y_m)} visible up to "
         f"{pole.max_range_m:g} m, goal posts {a.name} {xy(a.x_m, a.y_m)} and {b.name} {xy(b.x_m, b.y_m)}. Path "
-        f"{geo.loop} (vertices in `agents.scenarios.EXP1_VERTICES`, ours: the paper's Fig. 11 is not in the text), "
+        f"{geo.loop} (vertices in `agents.policies.paths.EXP1_VERTICES`, ours: the paper's Fig. 11 is not in the text), "
         f"{exp1.path_m:.2f} m long, driven open loop at {EXP1_SPEED_MPS} m/s with turns in place at {EXP1_TURN_RPS} "
         f"rad/s; every landmark is in view on {100 * exp1.all_in_view:.0f} % of the steps ({pole.name} is out of range "
         f"on {geo.pole_unseen}). Odometry alpha model {world.odometry_alphas}, camera noise "
@@ -179,7 +179,7 @@ def _exp2_setup(exp2: Exp2Stats, cond: Conditions, plan: Plan) -> str:
         f"±{kicks.spread_deg:.0f} deg of -y, {kicks.speed_mps[0]:g}-{kicks.speed_mps[1]:g} m/s); our robot chases it, "
         "takes it (dribbling holds the ball in front of the robot), dribbles toward the keeper's goal, turns to the "
         f"open side of the goal and shoots ({kicks.shot_speed_mps:g} m/s); {kicks.after_shot_s:g} s later the next "
-        f"play starts (`agents.scenarios.SoccerDriver`; {exp2.plays:.1f} plays and {exp2.contacts:.1f} contacts per "
+        f"play starts (`agents.experiments.scenarios.SoccerDriver`; {exp2.plays:.1f} plays and {exp2.contacts:.1f} contacts per "
         "seed on average). The random landmark subset of the paper is the camera's dropout: each visible landmark is "
         f"reported with probability {1 - world.dropout:.1f} per frame ({exp2.visible:.2f} landmarks in sight, "
         f"{exp2.detected:.2f} reported on average). The paper's reference was method (2) on all vision data; ours is "
@@ -311,7 +311,7 @@ def push_section(push: PushStudy, cond: Conditions, figure: Path) -> list[str]:
         "",
         f"`{EXP2_ENV}`, our robot patrols a rectangle (steering on its true pose) at {PATROL_SPEED_MPS:g} m/s; at "
         f"t = {PUSH_AT_S:.0f} s a crowd robot is put beside it and drives into it for {PUSH_SECONDS:.0f} s "
-        f"(`agents.scenarios.ShoveDriver`), moving it sideways by about {about(push.shift_m)} m that odometry does not "
+        f"(`agents.experiments.scenarios.ShoveDriver`), moving it sideways by about {about(push.shift_m)} m that odometry does not "
         f"see; camera dropout {cond.worlds['push'].dropout:g}; {push.seeds} seed(s). A run *lost track* if the error "
         f"reached {RECOVER_M:g} m (or the method had no pose) within {peak_s:.0f} s of the push start; time to recover: "
         f"from the push start until the error stays below {RECOVER_M:g} m for {RECOVER_HOLD_S:.0f} s with a pose at "

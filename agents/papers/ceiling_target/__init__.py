@@ -17,8 +17,8 @@ import argparse
 import time
 from pathlib import Path
 
+from agents.common.util import positive_int
 from agents.papers import add_worker_arguments
-from agents.util import positive_int
 
 DEFAULT_SEEDS = 10
 QUICK_SEEDS = 2

@@ -19,9 +19,9 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
-from agents import consistency, metrics
-from agents.navigation import CorridorFollower
+from agents.evaluate import consistency, metrics
 from agents.policies import make_policy
+from agents.policies.navigation import CorridorFollower
 from envs.localization_env import LocalizationEnv
 
 ENV_ID = "crowdloc/CeilingCorridor-v0"

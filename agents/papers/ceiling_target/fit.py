@@ -28,7 +28,7 @@ import yaml
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from agents.util import at_least, seed_int
+from agents.common.util import at_least, seed_int
 from envs.features.ceiling import LABEL_NAMES, PALETTE, colour_label
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import CeilingCamera

@@ -19,9 +19,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from agents.plots import save_figure
-from agents.sweep import run_tasks
-from agents.util import jsonable, markdown_table, refuse_to_overwrite, text_table, write_run_record
+from agents.common.plots import save_figure
+from agents.common.sweep import run_tasks
+from agents.common.util import jsonable, markdown_table, refuse_to_overwrite, text_table, write_run_record
 from localizers.registry import load_params
 
 from . import paper, static

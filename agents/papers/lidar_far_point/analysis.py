@@ -21,8 +21,8 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import consistency, metrics
-from agents.replay import Recording
+from agents.evaluate import consistency, metrics
+from agents.experiments.replay import Recording
 
 from .experiment import CROWD_SIZE, DENSITY_PARAMS, WORKS_FAILURE_RATE, Pair, Plan, both
 from .jobs import REFERENCE_KEY, Episode, Run, reference_runs

@@ -12,7 +12,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from agents.scenarios import OpenLoopDriver, polygon_commands, square_driver, square_vertices
+from agents.experiments.scenarios import OpenLoopDriver, square_driver
+from agents.policies.paths import polygon_commands, square_vertices
 
 from . import world
 from .paper import HIT_SWEEP_SAMPLING, HITS, LAPS, REFERENCE_LIDAR_HEIGHT_M, SAMPLINGS, SPEED_MPS, UPDATE_TRAVEL_M
@@ -222,7 +223,7 @@ def env_kwargs(crowd_size: int, steps: int) -> dict[str, Any]:
 
 
 def driver_factory(laps: int) -> Callable[[Any], OpenLoopDriver]:
-    """``env -> driver`` of ``laps`` laps of the square (:func:`agents.scenarios.square_driver`)."""
+    """``env -> driver`` of ``laps`` laps of the square (:func:`agents.experiments.scenarios.square_driver`)."""
 
     def make(env: Any) -> OpenLoopDriver:
         return square_driver(env, center_xy=CENTER_XY, side_m=SIDE_M, laps=laps, speed_mps=SPEED_MPS, turn_rate_rps=TURN_RATE_RPS)

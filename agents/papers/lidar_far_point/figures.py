@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents import plots
+from agents.common import plots
 
 from . import world
 from .analysis import DensityRow, Stats, StatsTable

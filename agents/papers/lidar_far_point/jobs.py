@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import consistency, metrics
-from agents.replay import Recording, feed, odometry_deltas, record, replay_into, start_prior
-from agents.sweep import run_tasks
+from agents.common.sweep import run_tasks
+from agents.evaluate import consistency, metrics
+from agents.experiments.replay import Recording, feed, odometry_deltas, record, replay_into, start_prior
 from localizers.base import LandmarkMap, ScanMeasurement
 from localizers.geometry import between
 from localizers.mcl_lidar import LidarMCL, LidarMCLParams
@@ -93,7 +93,7 @@ class Episode:
 
     Attributes:
         task: what was run.
-        recording: the :class:`agents.replay.Recording` without its LIDAR leaves (both LIDARs').
+        recording: the :class:`agents.experiments.replay.Recording` without its LIDAR leaves (both LIDARs').
         scan_map: the map the LIDAR under test's localizers get (cut at its height).
         update_steps: ``(K,)`` steps at which the MCL weighs a scan.
         raw_scans: ``(K, B)`` the LIDAR's scans at those steps.
@@ -104,7 +104,7 @@ class Episode:
             LIDAR's scans (``REFERENCE_MCL_PARAMS``, its map cut at that LIDAR's height).
         reference_nees: ``(K,)`` the reference pass's 3-dof pose NEES against the true pose.
         beams: ``"raw"`` / ``"far"`` -> ``(K, 4)`` beams matching the empty room, short of
-            it, past it, at maximum range (:func:`agents.metrics.beam_breakdown`).
+            it, past it, at maximum range (:func:`agents.evaluate.metrics.beam_breakdown`).
         wall_bias_m: ``"raw"`` / ``"far"`` -> ``(K,)`` mean of ``z - z*`` over the beams on
             the wall (the far point of a bin is the largest of many noisy returns).
         accumulated_points: ``(K,)`` points in the filter's window at each update.

@@ -2,7 +2,8 @@
 
 Every number in the prose comes from the runs (:mod:`.analysis`), the paper (:mod:`.paper`),
 our set-up (:mod:`.experiment`) or the shipped world and localizer configs (:mod:`.world`).
-One function per report section; :func:`write_report` puts them together.
+One function per report section; :func:`write_report` puts them together. The tables' cells and
+rows are :mod:`.tables`', the claims in words :mod:`.claims`'.
 """
 
 from __future__ import annotations
@@ -10,22 +11,19 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from agents import consistency, metrics
+from agents.common.util import jsonable, text_table
+from agents.evaluate import consistency
 from agents.papers import before
 from agents.papers.world_text import odometry_text
-from agents.util import jsonable, text_table
 
 from . import experiment, paper, world
 from .analysis import (
-    ERROR_GROWTH,
-    FLAT_SPREAD,
     VERDICT_MEASURE,
     Against,
     DensityRow,
@@ -43,198 +41,25 @@ from .analysis import (
     reference_fits,
     results_data,
 )
-from .experiment import Pair, Params, Plan
+from .claims import CLAIMS, verdict_record
+from .experiment import Params, Plan
 from .jobs import Episode, Run
-
-Lines = list[str]
-
-# ------------------------------------------------------------------------------------ formatting
-
-
-def fmt(v: float | None, spec: str = "{:.3f}") -> str:
-    """``spec`` of a finite number, else ``n/a``."""
-    return "n/a" if v is None or not np.isfinite(v) else spec.format(v)
-
-
-def value_set(values: Iterable[float]) -> str:
-    """Swept values as ``{0.1, 0.6, 1}``; ``none`` when empty."""
-    chosen = [f"{v:g}" for v in values]
-    return "{" + ", ".join(chosen) + "}" if chosen else "none"
-
-
-def same_or_list(values: Iterable[float]) -> str:
-    """``0.2`` when all values are equal, else ``0.1, 0.2, ...``."""
-    vs = list(values)
-    return f"{vs[0]:g}" if len(set(vs)) == 1 else ", ".join(f"{v:g}" for v in vs)
-
-
-def works_pct() -> str:
-    return f"{100 * experiment.WORKS_FAILURE_RATE:.0f}"
-
-
-def error_cells(s: Stats) -> str:
-    """Two table cells of one configuration on one measure: error, failures (total, large)."""
-    return f"{fmt(s.mean_m)} ± {fmt(s.sd_m)} | {s.failures:.2f} ({s.failures_total}, {s.large_total})"
-
-
-def cell(ref: Stats, truth: Stats) -> str:
-    """Five table cells of one configuration: against the reference, against the truth, runs failing (both)."""
-    return f"{error_cells(ref)} | {error_cells(truth)} | {ref.failed_runs}/{ref.runs}, {truth.failed_runs}/{truth.runs}"
-
-
-CELL_COLUMNS = 5  # the cells of :func:`cell`
-
-
-def variant_head(label: str) -> str:
-    """The header cells of :func:`cell` for one variant."""
-    large = f">= {paper.LARGE_FAIL_M:g} m"
-    return (
-        f"{label}: error vs reference [m] | failures / run vs reference (total, {large}) | error vs truth [m] "
-        f"| failures / run vs truth (total, {large}) | runs failing (vs reference, vs truth)"
-    )
-
-
-def table_head(x: str) -> Lines:
-    return [
-        f"| {x} | {variant_head('MCL only')} | {variant_head('+ far points')} |",
-        "|---|" + "---:|" * (2 * CELL_COLUMNS),
-    ]
-
-
-def pair_rows(rows: Iterable[tuple[Any, Pair]], st: StatsTable, st_ref: StatsTable) -> Lines:
-    """One table row per ``(label, pair)`` at the paper's crowd size."""
-    out = []
-    for label, pair in rows:
-        raw, far = pair_stats(st, pair)
-        raw_ref, far_ref = pair_stats(st_ref, pair)
-        out.append(f"| {label} | {cell(raw_ref, raw)} | {cell(far_ref, far)} |")
-    return out
-
-
-def fit_cells(localizer: str, fit: metrics.Consistency) -> str:
-    """Three table cells of one configuration: NEES median, inside 95 % (or "no covariance"), steps left out."""
-    has = consistency.reports_covariance(localizer)
-    missing = f"{100 * consistency.missing_share(fit):.0f} %" if has else consistency.NO_COVARIANCE
-    return " | ".join([*consistency.cells(has, fit.nees_median, fit.inside_95), missing])
-
-
-FIT_TAG = "(NEES vs truth)"  # after the first header cell of a consistency table
-
-
-def fit_head(label: str) -> str:
-    """The header cells of :func:`fit_cells` for one variant."""
-    return f"{label}: NEES median | {label}: inside 95 % | {label}: no usable covariance"
-
-
-def fit_rows(x: str, rows: Iterable[tuple[Any, Pair]], c: Context, crowd_size: int = experiment.CROWD_SIZE) -> Lines:
-    """The consistency table beside a table of :func:`pair_rows`: the same rows, the NEES of both variants."""
-    fits = fit_table(c.runs)
-    lines = [f"| {x} {FIT_TAG} | {fit_head('MCL only')} | {fit_head('+ far points')} |", "|---|" + "---:|" * 6]
-    for label, pair in rows:
-        lines.append(f"| {label} | " + " | ".join(fit_cells(v.localizer, fits[v.key, crowd_size]) for v in pair) + " |")
-    return [*lines, "", consistency.legend()]
-
-
-def params_text(params: Params) -> str:
-    """``sampling 0.1, hit 0.2`` of a configuration's sampling and hit sd."""
-    p = dict(params)
-    return f"sampling {p['sampling']:g}, hit {p['hit_std_m']:g}"
-
-
-# ------------------------------------------------------------------------------------ the claims in words
-
-
-@dataclass(frozen=True)
-class Claim:
-    """A claim of the paper and how to state our evidence on it."""
-
-    text: str
-    evidence: Callable[[Mapping[str, Any]], str]
-
-
-def _c1(n: Mapping[str, Any]) -> str:
-    t = paper.SAMPLING_THRESHOLD
-    return (
-        f"raw MCL, mean over sampling < {t:g} vs >= {t:g}: error {n['error_below_m']:.3f} vs {n['error_from_m']:.3f} m, "
-        f"failure rate {100 * n['failure_rate_below']:.1f} % vs {100 * n['failure_rate_from']:.1f} % of estimates. "
-        f"Criterion: error up by > {100 * (ERROR_GROWTH - 1):.0f} % and failures up to >= {works_pct()} %."
-    )
-
-
-def _c2(n: Mapping[str, Any]) -> str:
-    x0, x1 = n["samplings"]
-    return (
-        f"far points: error {n['far_error_min_m']:.3f}-{n['far_error_max_m']:.3f} m over sampling {x0:g}-{x1:g}, "
-        f"failure rate <= {100 * n['far_failure_rate_max']:.1f} %; works at sampling {value_set(n['far_works_at'])}. "
-        f"Criterion: works (< {works_pct()} % failures) everywhere and the largest mean error < {FLAT_SPREAD:g}x the smallest."
-    )
-
-
-def _c3(n: Mapping[str, Any]) -> str:
-    return (
-        f"lower error and no more failures at {n['better']} of {n['of']} sampling values >= {paper.SAMPLING_THRESHOLD:g} "
-        f"(far/raw error ratio {n['far_raw_error_ratio']:.2f} averaged over them)."
-    )
-
-
-def _c4(n: Mapping[str, Any]) -> str:
-    at = n["at_threshold"]
-    extra = ""
-    if at is not None:
-        extra = (f" At hit {paper.HIT_THRESHOLD:g}: {at['failures']:.2f} failures per run of {at['estimates']} (paper: "
-                 f"{paper.RAW_FAILURES_AT_HIT_THRESHOLD} of {paper.ESTIMATES}), {at['large_total']} estimates >= "
-                 f"{paper.LARGE_FAIL_M:g} m in {at['runs']} runs.")  # fmt: skip
-    return (
-        f"raw MCL fails (>= {works_pct()} % of estimates) at hit {value_set(n['raw_fails_at'])}; "
-        f"{n['raw_large_from_threshold']} estimates >= {paper.LARGE_FAIL_M:g} m at hit >= {paper.HIT_THRESHOLD:g}; median "
-        f"heading error of those failures {fmt(n['failure_heading_deg'], '{:.0f}')} deg.{extra}"
-    )
-
-
-def _c5(n: Mapping[str, Any]) -> str:
-    return (
-        f"far points: {n['far_large']} estimates >= {paper.LARGE_FAIL_M:g} m and {n['far_failures']} >= {paper.FAIL_M:g} m over "
-        f"all hit values and runs (raw: {n['raw_large']} and {n['raw_failures']})."
-    )
-
-
-def _c6(n: Mapping[str, Any]) -> str:
-    note = " Raw MCL works at every value too, so there is no range to widen here." if n["raw_works_everywhere"] else ""
-    return (
-        f"working values: sampling raw {value_set(n['sampling_raw_works_at'])} vs far "
-        f"{value_set(n['sampling_far_works_at'])}; hit raw {value_set(n['hit_raw_works_at'])} vs far "
-        f"{value_set(n['hit_far_works_at'])} ({n['raw_works']} vs {n['far_works']} of {n['of']}).{note} The processing "
-        f"gives the lower mean error at {n['far_lower_error']} of {n['of']} values."
-    )
-
-
-def _c7(n: Mapping[str, Any]) -> str:
-    return f"raw MCL works at {n['raw_works']} of {n['of']} swept values; its lowest mean error {n['raw_lowest_error_m']:.3f} m."
-
-
-CLAIMS: dict[str, Claim] = {
-    "C1": Claim(f"Raw MCL's mean error and failures grow from sampling {paper.SAMPLING_THRESHOLD:g} up (Figs 7, 8).", _c1),
-    "C2": Claim("With the far-point processing, error and failures stay low over the whole sampling range.", _c2),
-    "C3": Claim(
-        f"From sampling {paper.SAMPLING_THRESHOLD:g} up the processing gives a lower error and fewer failures than raw MCL.", _c3
-    ),  # fmt: skip
-    "C4": Claim(
-        f"Raw MCL fails (> {paper.LARGE_FAIL_M:g} m, ~{paper.LARGE_FAIL_HEADING_DEG:g} deg off) from hit "
-        f"{paper.HIT_THRESHOLD:g} up, and not below (Figs 9-11).",
-        _c4,
-    ),  # fmt: skip
-    "C5": Claim("With the processing there is no large failure over the hit sweep.", _c5),
-    "C6": Claim("The processing widens the range of MCL parameters that work (the paper's conclusion).", _c6),
-    "C7": Claim("Raw MCL also has a parameter range with a small error in this setting (the paper's closing remark).", _c7),
-}
-
-
-def verdict_record(v: Verdict, against: str = VERDICT_MEASURE) -> dict[str, Any]:
-    """A verdict for results.json: its data and its words, and the measure it was taken on."""
-    claim = CLAIMS[v.claim_id]
-    return {"id": v.claim_id, "claim": claim.text, "verdict": v.verdict, "against": against,
-            "evidence": claim.evidence(v.numbers), "numbers": v.numbers}  # fmt: skip
-
+from .tables import (
+    CELL_COLUMNS,
+    FIT_TAG,
+    Lines,
+    cell,
+    fit_cells,
+    fit_head,
+    fit_rows,
+    fmt,
+    pair_rows,
+    params_text,
+    same_or_list,
+    table_head,
+    variant_head,
+    works_pct,
+)
 
 # ------------------------------------------------------------------------------------ report sections
 
@@ -398,7 +223,7 @@ def setup_section(c: Context) -> Lines:
         world_item(),
         f"- Path (ours: the paper gives no size): an open-loop square of side {experiment.SIDE_M} m centred in the room, "
         f"counter-clockwise from {tuple(round(v, 2) for v in experiment.start_pose()[:2])} facing +x, {laps} lap(s) at "
-        f"{paper.SPEED_MPS} m/s, turns in place at {experiment.TURN_RATE_RPS} rad/s (`agents.scenarios.square_driver`); "
+        f"{paper.SPEED_MPS} m/s, turns in place at {experiment.TURN_RATE_RPS} rad/s (`agents.experiments.scenarios.square_driver`); "
         f"{experiment.perimeter_m():.1f} m per lap, {f.duration_s:.0f} s per run. The square leaves "
         f"{world.queue_gap_m(experiment.CENTER_XY, experiment.SIDE_M):.2f} m between the robot's and the queued people's "
         "bodies.",
@@ -439,7 +264,7 @@ def sweep_sections(c: Context) -> Lines:
         *table_head("sampling"),
         *pair_rows(c.plan.sampling_configs(), c.st, c.st_ref),
         "",
-        *fit_rows("sampling", c.plan.sampling_configs(), c),
+        *fit_rows("sampling", c.plan.sampling_configs(), c.runs),
         "",
         f"![Fig. 7]({c.figs['sampling_error'].name})",
         f"![Fig. 8]({c.figs['sampling_failures'].name})",
@@ -449,7 +274,7 @@ def sweep_sections(c: Context) -> Lines:
         *table_head("hit [m]"),
         *pair_rows(c.plan.hit_configs(), c.st, c.st_ref),
         "",
-        *fit_rows("hit [m]", c.plan.hit_configs(), c),
+        *fit_rows("hit [m]", c.plan.hit_configs(), c.runs),
         "",
         f"![Fig. 10]({c.figs['hit_error'].name})",
         f"![Fig. 11]({c.figs['hit_failures'].name})",
@@ -528,7 +353,7 @@ def amcl_section(c: Context) -> Lines:
         *table_head("configuration"),
         *pair_rows(rows, c.st, c.st_ref),
         "",
-        *fit_rows("configuration", rows, c),
+        *fit_rows("configuration", rows, c.runs),
         "",
         "The likelihood field scores each beam's end point by its distance to the nearest wall and ignores what lies "
         "between; a beam ending on a person scores that person's distance to the wall, floored by z_rand over the "

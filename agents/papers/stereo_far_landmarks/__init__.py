@@ -21,8 +21,8 @@ import argparse
 import time
 from pathlib import Path
 
+from agents.common.util import positive_int
 from agents.papers import add_worker_arguments
-from agents.util import positive_int
 
 from .experiment import DEFAULT_SEEDS, DENSITIES, QUICK_DENSITIES, QUICK_SEEDS, QUICK_STEPS, crowd_size
 

@@ -19,7 +19,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from agents import consistency, metrics
+from agents.evaluate import consistency, metrics
 from agents.evaluate.stats import bootstrap_ci
 
 from . import paper, world
@@ -148,7 +148,7 @@ class Summary:
         diff_max_m: the largest distance to the reference over the runs; ``diff_run_max_m``: the
             per-run maxima (seed order); ``diff_mean_m``: the mean distance.
         nees_median, inside_95: the consistency of the reported covariance over every step with a
-            pose of every run (:func:`agents.consistency.pooled`); ``covariance_missing``: the
+            pose of every run (:func:`agents.evaluate.consistency.pooled`); ``covariance_missing``: the
             share of those steps without a usable covariance (left out of both).
     """
 

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from agents.scene_maps import reference_env_kwargs as reference_env_kwargs_of
+from agents.experiments.scene_maps import reference_env_kwargs as reference_env_kwargs_of
 
 from . import world
 

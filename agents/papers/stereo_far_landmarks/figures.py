@@ -10,7 +10,7 @@ import numpy as np
 from matplotlib.patches import Polygon
 from matplotlib.ticker import MultipleLocator
 
-from agents import plots
+from agents.common import plots
 
 from . import paper, world
 from .analysis import Profile, Table, difference_m, errors_m

@@ -1,14 +1,14 @@
 """The runs: per seed one map (run 1); per seed and crowd size one run 2, recorded once and replayed into every localizer.
 
-Run 1 is :func:`agents.scene_maps.build_scene_map`: ``route_follower`` drives the campus route
+Run 1 is :func:`agents.experiments.scene_maps.build_scene_map`: ``route_follower`` drives the campus route
 on the LIDAR reference's estimate at the world's crowd size and a scene is stored every second,
 its pose the reference's estimate (the paper's map poses came from its amcl too).
 
 Run 2 (:func:`run_episode`) is another crowd on the same route at a crowd size of the sweep:
 ``route_follower`` drives it on the LIDAR reference run online (``mcl_lidar`` with
-:data:`agents.scene_maps.AMCL_LIKE`; the driver never reads the truth), and the rollout is
-recorded once (:func:`agents.replay.record_policy`). Then every localizer is replayed into the
-same recording (:func:`agents.replay.replay_into`): ``far_landmark_pf`` with each selection on
+:data:`agents.experiments.scene_maps.AMCL_LIKE`; the driver never reads the truth), and the rollout is
+recorded once (:func:`agents.experiments.replay.record_policy`). Then every localizer is replayed into the
+same recording (:func:`agents.experiments.replay.replay_into`): ``far_landmark_pf`` with each selection on
 the stereo edges (the measurement kind ``stereo_edges``), all from one generator and the seed's
 map, and ``mcl_lidar`` on the LIDAR's scans with the online wrapper's generator, whose estimates
 must equal the online ones that drove the robot bit for bit (:attr:`Episode.identity_m`).
@@ -24,11 +24,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents.consistency import run_nees
+from agents.common.sweep import run_tasks
+from agents.evaluate.consistency import run_nees
+from agents.experiments.replay import Recording, ReplayResult, online_rng, record_policy, replay_into, start_prior
+from agents.experiments.scene_maps import AMCL_LIKE, MappingDrive, build_scene_map, camera_signature
 from agents.policies import make_policy
-from agents.replay import Recording, ReplayResult, online_rng, record_policy, replay_into, start_prior
-from agents.scene_maps import AMCL_LIKE, MappingDrive, build_scene_map, camera_signature
-from agents.sweep import run_tasks
 from localizers.far_landmark_pf import FarLandmarkPF
 from localizers.measurements import edge_measurement
 from localizers.registry import load_params, make_localizer
@@ -105,7 +105,7 @@ class Episode:
         arc_m: ``(T,)`` the arc length of the route point nearest the true position.
         estimates: localizer key (:data:`.experiment.KEYS`) -> ``(T, 3)`` its estimates, NaN where it claimed none.
         nees: localizer key -> ``(T,)`` the NEES of its estimate against the truth under its reported
-            covariance (:func:`agents.consistency.run_nees`; NaN where it claimed no pose).
+            covariance (:func:`agents.evaluate.consistency.run_nees`; NaN where it claimed no pose).
         detections: ``(T,)`` the stereo camera's matched edges a frame (its valid slots).
         far_detections: ``(T,)`` those at least far emphasis's ``min_range_m`` away.
         used: ``(T,)`` the detections the paper's far emphasis weighed a frame (for its estimate's pose).

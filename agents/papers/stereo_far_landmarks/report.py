@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from agents import consistency
+from agents.common.util import jsonable, markdown_table, text_table
+from agents.evaluate import consistency
+from agents.experiments.scene_maps import AMCL_LIKE
 from agents.papers.world_text import odometry_text
-from agents.scene_maps import AMCL_LIKE
-from agents.util import jsonable, markdown_table, text_table
 
 from . import experiment, paper, world
 from .analysis import (
@@ -253,7 +253,7 @@ def reference_item(c: Context) -> str:
     ref = c.table[REFERENCE_KEY, c.crowd]
     overrides = ", ".join(f"{k} {v}" for k, v in AMCL_LIKE.items())
     return (
-        f"- The LIDAR reference (the paper's amcl): `{world.REFERENCE}` with `agents.scene_maps.AMCL_LIKE` ({overrides}; "
+        f"- The LIDAR reference (the paper's amcl): `{world.REFERENCE}` with `agents.experiments.scene_maps.AMCL_LIKE` ({overrides}; "
         f"otherwise `{world.params_file(world.REFERENCE)}`): {r.n_particles} particles, {r.model.replace('_', ' ')}, every "
         f"{r.beam_stride}th beam, updates every {r.update_min_travel_m:g} m or {math.degrees(r.update_min_rotation_rad):g} "
         f"deg. It runs online and drives the robot; replayed into the recording with the online wrapper's generator it "
@@ -272,7 +272,7 @@ def drive_item(c: Context) -> str:
         f"its amcl: {f.scenes:.0f} scenes and {f.landmarks:.0f} landmarks a map, {f.map_s:.1f} s each. Run 2 (env seed = "
         "seed) is driven by `route_follower` (pure pursuit along the route, stopping for what its LIDAR sees ahead) on the "
         "online LIDAR reference's estimate (the paper drove by a controller; the driver never reads the truth) and "
-        f"recorded once (`agents.replay.record_policy`); every localizer is then replayed into it. Runs that reached the "
+        f"recorded once (`agents.experiments.replay.record_policy`); every localizer is then replayed into it. Runs that reached the "
         f"goal: {reached}. Per run at crowd {c.crowd}: {f.duration_s[c.crowd]:.0f} s, {f.blocked_s[c.crowd]:.1f} s stopped "
         f"for obstacles, {f.contacts[c.crowd]:.1f} contacts.{cut} Per run on average: recording {f.record_s:.1f} s, replays "
         + ", ".join(f"{SHORT[k]} {f.replay_s[k]:.1f} s" for k in KEYS)
@@ -497,7 +497,7 @@ def parameters_section(c: Context) -> Lines:
         "",
         f"Nothing in `configs/` changed: far_landmark_pf and mcl_lidar run with their shipped files "
         f"(`{world.params_file(world.LOCALIZER)}`, `{world.params_file(world.REFERENCE)}`), the reference with "
-        "`agents.scene_maps.AMCL_LIKE` on top, far_landmark_pf with the `selection` of each row. Our choices are in "
+        "`agents.experiments.scene_maps.AMCL_LIKE` on top, far_landmark_pf with the `selection` of each row. Our choices are in "
         "`agents/papers/stereo_far_landmarks/experiment.py`, the paper's numbers in `paper.py`. Per-run numbers: "
         "`results.json` beside this report.",
         "",

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents.scene_maps import AMCL_LIKE
+from agents.experiments.scene_maps import AMCL_LIKE
 from envs.config import WorldConfig, load_world
 from envs.features.route import RouteConfig
 from envs.features.scenery import BuildingsConfig
@@ -29,7 +29,7 @@ from localizers.registry import load_params, params_path
 
 WORLD = "stereo_campus"  # the world behind ``crowdloc/StereoCampus-v0``
 LOCALIZER = "far_landmark_pf"  # the paper's method
-REFERENCE = "mcl_lidar"  # the LIDAR reference (the paper's amcl), with :data:`agents.scene_maps.AMCL_LIKE`
+REFERENCE = "mcl_lidar"  # the LIDAR reference (the paper's amcl), with :data:`agents.experiments.scene_maps.AMCL_LIKE`
 
 
 @functools.cache

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents import consistency
 from agents.cli import build_parser, main
+from agents.evaluate import consistency
 from agents.papers.bearing_candidates import conditions, jobs
 from agents.papers.bearing_candidates.paper import PAPER
 from tests.console import assert_aligned, printed_tables

@@ -11,12 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents import consistency, metrics
 from agents.cli import build_parser, main
+from agents.evaluate import consistency, metrics
+from agents.experiments.replay import Recording, record, replay
+from agents.experiments.scenarios import square_driver
 from agents.papers.lidar_far_point import analysis, jobs, paper, world
 from agents.papers.lidar_far_point import experiment as ex
-from agents.replay import Recording, record, replay
-from agents.scenarios import square_driver, square_vertices
+from agents.policies.paths import square_vertices
 from localizers.geometry import wrap_angle
 from tests.console import assert_aligned, printed_tables
 from tests.pinning import PINNED_DIR, assert_same_numbers

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from agents.cli import build_parser, main
-from agents.consistency import run_nees
+from agents.evaluate.consistency import run_nees
 from agents.papers.stereo_far_landmarks import analysis, jobs, paper, world
 from agents.papers.stereo_far_landmarks import experiment as ex
 from tests.console import assert_aligned, printed_tables

@@ -1,7 +1,7 @@
 """Whether a localizer's reported covariance is honest, as the tables show it (NEES, inside the 95 % region).
 
-The numbers are :mod:`agents.metrics`' (:func:`~agents.metrics.pose_nees`,
-:func:`~agents.metrics.consistency`); this module adds what the reports share around them:
+The numbers are :mod:`agents.evaluate.metrics`' (:func:`~agents.evaluate.metrics.pose_nees`,
+:func:`~agents.evaluate.metrics.consistency`); this module adds what the reports share around them:
 whether a localizer has a covariance to score (``LocalizerSpec.covariance``), the per-step
 NEES of a run that respects it, the cells of a table and the legend under it. Light on
 purpose (numpy and the registry only): the reproductions' workers import it.
@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from agents import metrics
+import agents.evaluate.metrics as metrics
 
 #: what the tables show for a consistency metric of a localizer that reports no covariance
 NO_COVARIANCE = "no covariance"
@@ -31,7 +31,7 @@ def reports_covariance(localizer: str) -> bool:
 
 
 def run_nees(localizer: str, estimates: ArrayLike, truth: ArrayLike, covariances: ArrayLike) -> NDArray[np.float64]:
-    """``(T,)`` 3-dof pose NEES of a run of ``localizer`` (:func:`agents.metrics.pose_nees`).
+    """``(T,)`` 3-dof pose NEES of a run of ``localizer`` (:func:`agents.evaluate.metrics.pose_nees`).
 
     All NaN for a localizer that reports no covariance (:func:`reports_covariance`): its
     covariance is no measure to score.
@@ -45,7 +45,7 @@ def run_nees(localizer: str, estimates: ArrayLike, truth: ArrayLike, covariances
 def missing_share(fit: metrics.Consistency) -> float:
     """Share of the steps asked for without a usable covariance (none, not finite, or a negative variance).
 
-    :func:`agents.metrics.consistency` leaves them out of the NEES median and the inside-95 % share,
+    :func:`agents.evaluate.metrics.consistency` leaves them out of the NEES median and the inside-95 % share,
     so a large share here means those two describe only part of the run. (A singular covariance,
     a collapsed particle set, is usable: its NEES is ``inf``, outside the region.)
     """
@@ -90,7 +90,7 @@ def cells(covariance: bool, nees_median: float, inside_95: float) -> tuple[str, 
 
 
 def pooled(nees: Sequence[ArrayLike], masks: Sequence[ArrayLike]) -> metrics.Consistency:
-    """:func:`agents.metrics.consistency` over the masked steps of several runs together (all seeds' steps)."""
+    """:func:`agents.evaluate.metrics.consistency` over the masked steps of several runs together (all seeds' steps)."""
     if len(nees) != len(masks):
         raise ValueError(f"pooled: {len(nees)} NEES series but {len(masks)} masks")
     if not nees:

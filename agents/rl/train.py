@@ -28,12 +28,11 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import torch
 
 import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
-from agents.rewards import ActiveLocalizationReward, RewardWeights
-from agents.util import nest, write_run_record
+from agents.common.util import nest, write_run_record
+from agents.rl.rewards import ActiveLocalizationReward, RewardWeights
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, merge_nested, parse_yaml, replace_checked
 
 EXPERIMENT_DIR = crowdloc_configs.path("experiments")  # package data (configs/ in the checkout)
@@ -198,10 +197,14 @@ def make_vec_env(config: TrainConfig, first_episode: int = 0) -> Any:
 
 
 def _random_states() -> dict[str, Any]:
+    import torch  # here, not at the top: evaluation and the reproductions import this module without training
+
     return {"torch": torch.get_rng_state(), "numpy": np.random.get_state(), "python": random.getstate()}
 
 
 def _set_random_states(states: Mapping[str, Any]) -> None:
+    import torch
+
     torch.set_rng_state(states["torch"])
     np.random.set_state(states["numpy"])
     random.setstate(states["python"])
@@ -266,6 +269,8 @@ def train(
     check_run_dir(config, out, resume=resume is not None, overwrite=overwrite)
     # A 64x64 MLP is fastest on one thread; the parallelism is in the env processes. More
     # threads only fight the env workers for the cores (measured: 1.8 ms per layer on 2 busy cores).
+    import torch
+
     torch.set_num_threads(1)
     directory = run_dir(config, out)
     (directory / "checkpoints").mkdir(parents=True, exist_ok=True)
@@ -374,12 +379,12 @@ def train_seeds(
 ) -> list[Path]:
     """Train ``config`` once per seed (``<out>/<name>/seed_<s>/``), the runs side by side.
 
-    The runs go through :func:`agents.sweep.run_tasks`: a local process pool (``workers``,
+    The runs go through :func:`agents.common.sweep.run_tasks`: a local process pool (``workers``,
     default the core count; each run steps its envs as its ``vec_env`` says) or a Ray cluster
     (``ray_address``; ``out`` must then be a folder every node can write). Each run equals
     ``train`` with that seed alone. Returns the ``model.zip`` paths in seed order.
     """
-    from agents.sweep import run_tasks
+    from agents.common.sweep import run_tasks
 
     check(len(seeds) >= 1, "train_seeds needs at least one seed")
     check(len(set(seeds)) == len(seeds), f"seeds repeat: {list(seeds)}")

@@ -14,14 +14,14 @@ the estimate need the wrapped observation and say so when it is missing.
 - :class:`LandmarkSeeking`: head for the nearby spot from which most landmarks are in range.
 - :class:`GreedyInformationGain`: one-step look-ahead over a set of motions maximizing the
   Fisher information of the bearings expected to be visible from the estimated pose.
-- :class:`~agents.navigation.CorridorFollower` (``"corridor_follower"``): the ceiling-target
+- :class:`~agents.policies.navigation.CorridorFollower` (``"corridor_follower"``): the ceiling-target
   paper's navigation, from target to target of a ceiling along a corridor, centred by the
-  side sonars, stopping under each target to correct the pose (:mod:`agents.navigation`).
-- :class:`~agents.route_following.RouteFollower` (``"route_follower"``): pure pursuit along
+  side sonars, stopping under each target to correct the pose (:mod:`agents.policies.navigation`).
+- :class:`~agents.policies.route_following.RouteFollower` (``"route_follower"``): pure pursuit along
   the world's route (a ``route`` feature of the map), stopping for obstacles its LIDAR or
-  sonar sees ahead (:mod:`agents.route_following`).
+  sonar sees ahead (:mod:`agents.policies.route_following`).
 
-The base class and the helpers the policies share are in :mod:`agents.policy_base`. A policy
+The base class and the helpers the policies share are in :mod:`agents.policies.base`. A policy
 names the sensor type it reads (``needs_sensor``) and the map feature type it plans on
 (``needs_feature``); :meth:`FixedPolicy.unmet_need` says what a world lacks for it.
 
@@ -39,9 +39,10 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
-from agents.navigation import CorridorFollower
-from agents.policy_base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
-from agents.route_following import RouteFollower, range_sensor_kwargs, route_points
+from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
+from agents.policies.navigation import CorridorFollower
+from agents.policies.paths import EXP1_VERTICES, command_actions, polygon_commands
+from agents.policies.route_following import RouteFollower, range_sensor_kwargs, route_points
 from envs.sensors import BearingCameraConfig
 from localizers.base import LandmarkMap
 from localizers.bounds import bearing_information
@@ -150,13 +151,11 @@ class PatrolPath(FixedPolicy):
     @classmethod
     def exp1(cls, env: Any, speed_mps: float = 0.5, turn_rate_rps: float = 1.0) -> PatrolPath:
         """The Exp 1 path a-b-c-d-e-f-g-h-a of the candidate-set paper
-        (:data:`agents.scenarios.EXP1_VERTICES`), driven from wherever the robot starts.
+        (:data:`agents.policies.paths.EXP1_VERTICES`), driven from wherever the robot starts.
 
         On a world smaller than the paper's 5 m x 10 m field the path is scaled down to fit
         its shorter side (the turns stay the same).
         """
-        from agents.scenarios import EXP1_VERTICES, command_actions, polygon_commands
-
         base = env.unwrapped
         vertices = np.array(list(EXP1_VERTICES.values()))
         extent = np.ptp(vertices, axis=0)

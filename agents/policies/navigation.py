@@ -90,7 +90,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from agents.policy_base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
+from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
 from localizers.geometry import ring_directions, wrap_angle
 
 #: the heading along the corridor (+y)

@@ -1,7 +1,8 @@
 """The base of the fixed policies (:class:`FixedPolicy`) and the helpers they share.
 
-:mod:`agents.policies` has the policies and their registry; policies in other modules
-(:mod:`agents.navigation`) build on this module, which imports none of them.
+:mod:`agents.policies.fixed` has the baseline policies and their registry; the policies in
+:mod:`agents.policies.navigation` and :mod:`agents.policies.route_following` build on this
+module too, which imports none of them.
 """
 
 from __future__ import annotations

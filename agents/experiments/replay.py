@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 import envs  # noqa: F401  (registers the crowdloc ids)
-from agents.scenarios import Driver
+from agents.experiments.scenarios import Driver
 from envs.localization_env import LocalizationEnv
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
 from localizers.measurements import decode, find_sensor, measurement_kind, readable_kinds, sensor_map
@@ -192,7 +192,7 @@ def record(
 
     Args:
         env_id: a registered crowdloc id.
-        driver: a :class:`agents.scenarios.Driver`, or a callable ``env -> Driver`` (built
+        driver: a :class:`agents.experiments.scenarios.Driver`, or a callable ``env -> Driver`` (built
             after the env, for drivers that need its geometry).
         seed: the env seed.
         max_steps: stop after this many steps (also stops when the driver is done or the
@@ -228,7 +228,7 @@ def record_policy(
     Args:
         env_id: a registered crowdloc id.
         make_policy: ``env -> policy`` (built after ``gym.make``, before the reset), the policy
-            with ``predict(observation) -> (action, state)`` (:class:`agents.policy_base.FixedPolicy`).
+            with ``predict(observation) -> (action, state)`` (:class:`agents.policies.base.FixedPolicy`).
         seed: the env seed (the online localizer's generator is :func:`online_rng` of it).
         max_steps: stop after this many steps (also stops when the episode ends).
         env_kwargs, reset_options: as for :func:`record`.
@@ -387,7 +387,7 @@ class ReplayResult:
             for scans).
         covariances: ``(T, 3, 3)`` the reported covariances of the estimates (NaN where the
             estimate is NaN, or its covariance is not ``3 x 3``), for
-            :func:`agents.metrics.pose_nees`.
+            :func:`agents.evaluate.metrics.pose_nees`.
         updated: ``(T,)`` steps at which the localizer weighed its measurement, for
             localizers that count their updates (an ``updates`` attribute), else None.
     """

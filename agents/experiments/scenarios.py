@@ -4,12 +4,14 @@ A driver is the robot's *own control*, not its localizer. Two kinds:
 
 - :class:`OpenLoopDriver` replays a fixed list of ``(v, omega, steps)`` commands and never
   looks at the world (Exp 1 of the candidate-set paper: a closed polygon with straight lines
-  and turns in place; without contacts the simulated body moves exactly as commanded).
+  and turns in place; without contacts the simulated body moves exactly as commanded). The
+  commands themselves (:func:`~agents.policies.paths.polygon_commands`) are the policies'
+  open-loop paths, shared with the ``patrol`` policy.
 - Closed-loop drivers (:class:`SoccerDriver`, :class:`PatrolDriver`, :class:`ShoveDriver`)
   read the world's *true* state to decide their commands and may move the ball or a crowd
   member (a kick, a shove). They play the part of the paper's field robot's own controller
   and of the referee. Their knowledge never reaches a localizer: localizers are fed only
-  from the recorded observation leaves (:mod:`agents.replay`).
+  from the recorded observation leaves (:mod:`agents.experiments.replay`).
 
 Every driver has ``reset(env)`` (called right after ``env.reset``) and ``act(env)`` (the
 next action in ``[-1, 1]^2``), with ``env`` the unwrapped :class:`envs.LocalizationEnv`.
@@ -19,12 +21,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from agents.policies.paths import EXP1_VERTICES, Command, command_actions, polygon_commands, square_vertices
 from envs.crowds import SoccerCrowd
 from localizers.geometry import wrap_angle
 
@@ -33,21 +35,6 @@ if TYPE_CHECKING:
     from envs.world import World
 
 Action = NDArray[np.float32]
-
-#: Exp 1 path (ours): the paper's Fig. 11 is not in the OCR text. A convex octagon in the
-#: 5 m x 10 m field starting at a = (2.5, 8) facing +x (the world's start pose), clockwise.
-#: L5 (corner pole at (5, 10), visible up to 4.6 m) is in range on h-a-b-c-d (a: 3.2 m,
-#: d: 4.36 m) and out of range on d-e-f-g-h (h: 5.24 m), as the paper reports.
-EXP1_VERTICES: dict[str, tuple[float, float]] = {
-    "a": (2.5, 8.0),
-    "b": (3.8, 8.0),
-    "c": (4.3, 7.0),
-    "d": (4.3, 5.7),
-    "e": (3.5, 2.5),
-    "f": (1.5, 2.5),
-    "g": (0.7, 4.0),
-    "h": (0.7, 7.0),
-}
 
 
 class Driver(Protocol):
@@ -62,85 +49,6 @@ class Driver(Protocol):
     @property
     def done(self) -> bool:
         """Whether the scenario has ended."""
-
-
-@dataclass(frozen=True)
-class Command:
-    """Drive at ``v_mps`` and turn at ``omega_rps`` for ``steps`` steps."""
-
-    v_mps: float
-    omega_rps: float
-    steps: int
-
-
-def polygon_commands(
-    vertices: Sequence[tuple[float, float]],
-    start_heading_rad: float,
-    *,
-    speed_mps: float,
-    turn_rate_rps: float,
-    dt_s: float,
-    close: bool = True,
-) -> list[Command]:
-    """Open-loop commands for a polygon: turn in place at each vertex, then drive straight.
-
-    Each leg's speed (and each turn's rate) is lowered slightly from the nominal value so
-    that it lasts a whole number of steps and ends exactly on the vertex (heading).
-
-    Args:
-        vertices: ``(x, y)`` corners in driving order; the robot starts on the first.
-        start_heading_rad: the robot's heading at the first vertex.
-        speed_mps: nominal straight-line speed.
-        turn_rate_rps: nominal turn rate in place.
-        dt_s: the env's time step.
-        close: drive back to the first vertex and turn to ``start_heading_rad``.
-
-    Returns:
-        Commands in order (turns of zero angle are omitted).
-    """
-    if speed_mps <= 0 or turn_rate_rps <= 0 or dt_s <= 0:
-        raise ValueError(f"polygon_commands: speed, turn rate and dt must be > 0, got {speed_mps}, {turn_rate_rps}, {dt_s}")
-    points = [np.asarray(v, dtype=np.float64) for v in vertices]
-    if close:
-        points.append(points[0])
-    commands: list[Command] = []
-    heading = float(start_heading_rad)
-
-    def turn_to(target: float) -> None:
-        angle = float(wrap_angle(target - heading))
-        if abs(angle) < 1e-12:
-            return
-        steps = math.ceil(abs(angle) / (turn_rate_rps * dt_s))
-        commands.append(Command(0.0, angle / (steps * dt_s), steps))
-
-    for p, q in zip(points[:-1], points[1:]):
-        d = q - p
-        length = float(np.hypot(*d))
-        if length < 1e-12:
-            continue
-        target = math.atan2(d[1], d[0])
-        turn_to(target)
-        heading = target
-        steps = math.ceil(length / (speed_mps * dt_s))
-        commands.append(Command(length / (steps * dt_s), 0.0, steps))
-    if close:
-        turn_to(float(start_heading_rad))
-    return commands
-
-
-def command_actions(commands: Sequence[Command], max_speed_mps: float, max_turn_rate_rps: float) -> NDArray[np.float32]:
-    """``(steps, 2)`` actions in ``[-1, 1]`` that play ``commands`` on a robot with these limits.
-
-    Raises:
-        ValueError: naming a command beyond the robot's limits.
-    """
-    rows = []
-    for c in commands:
-        a = np.array([c.v_mps / max_speed_mps, c.omega_rps / max_turn_rate_rps], dtype=np.float32)
-        if not np.all(np.abs(a) <= 1.0):
-            raise ValueError(f"command {c} exceeds the robot's limits ({max_speed_mps} m/s, {max_turn_rate_rps} rad/s)")
-        rows.append(np.tile(a, (c.steps, 1)))
-    return np.concatenate(rows) if rows else np.zeros((0, 2), dtype=np.float32)
 
 
 class OpenLoopDriver:
@@ -185,15 +93,6 @@ def exp1_driver(env: LocalizationEnv, speed_mps: float = 0.5, turn_rate_rps: flo
         list(EXP1_VERTICES.values()), start[2], speed_mps=speed_mps, turn_rate_rps=turn_rate_rps, dt_s=env.config.dt_s
     )
     return OpenLoopDriver(commands, env.max_speed_mps, env.max_turn_rate_rps)
-
-
-def square_vertices(center_xy: tuple[float, float], side_m: float) -> list[tuple[float, float]]:
-    """Corners of an axis-aligned square, counter-clockwise from the lower-left one."""
-    if not side_m > 0:
-        raise ValueError(f"square_vertices: side_m must be > 0, got {side_m!r}")
-    cx, cy = center_xy
-    h = side_m / 2.0
-    return [(cx - h, cy - h), (cx + h, cy - h), (cx + h, cy + h), (cx - h, cy + h)]
 
 
 def square_driver(

@@ -43,7 +43,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
-from agents.policy_base import FixedPolicy, Observation, check_command, read_estimate
+from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate
 from localizers.geometry import ring_directions
 
 #: the states of :attr:`RouteFollower.phase`

@@ -1,0 +1,10 @@
+"""Reinforcement learning: the task ids, their reward and PPO training (``crowdloc train``).
+
+- :mod:`agents.rl.tasks`: the ``crowdloc/*Task-v0`` ids' entry point (a world, its
+  localizer and the reward, from a training config);
+- :mod:`agents.rl.rewards`: the active-localization reward wrapper;
+- :mod:`agents.rl.train`: training configs, PPO runs with exact resume, ``EVAL_SEED_BASE``.
+
+May import: ``envs``, ``localizers``, :mod:`agents.common`; never :mod:`agents.policies`,
+:mod:`agents.experiments`, :mod:`agents.evaluate`, :mod:`agents.tune`, :mod:`agents.papers`.
+"""
