@@ -1,9 +1,9 @@
-"""agents/ by role: each subpackage imports only the parts its ``__init__`` allows, and the old flat
+"""agents/ by role: each subpackage imports only the parts its ``__init__`` allows (the import graph of
+:mod:`tests.import_graph`, relative imports and imports inside functions included), and the old flat
 module names still import (one release) as the same module objects, with a warning naming the new path."""
 
 from __future__ import annotations
 
-import ast
 import importlib
 import sys
 from pathlib import Path
@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 import agents
+from tests.import_graph import import_graph
 
 ROOT = Path(agents.__file__).parent
 
@@ -32,38 +33,18 @@ def _part(module: str) -> str | None:
     return parts[1] if len(parts) > 1 and (ROOT / parts[1]).is_dir() else None
 
 
-def _imports(path: Path) -> set[str]:
-    """The agents modules a file imports anywhere (functions too), imports under TYPE_CHECKING aside."""
-    tree = ast.parse(path.read_text())
-    skip = {
-        id(n)
-        for node in ast.walk(tree)
-        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
-        for n in ast.walk(node)
-    }
-    found = set()
-    for node in ast.walk(tree):
-        if id(node) in skip:
-            continue
-        if isinstance(node, ast.Import):
-            found |= {a.name for a in node.names}
-        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
-            found |= {node.module} | {f"{node.module}.{a.name}" for a in node.names}
-    return {m for m in found if m.startswith("agents.")}
-
-
 def test_each_part_imports_only_what_its_init_allows() -> None:
     bad = []
-    for path in sorted(ROOT.rglob("*.py")):
-        part = _part("agents." + ".".join(path.relative_to(ROOT).with_suffix("").parts))
-        if part is None:
+    for module, targets in sorted(import_graph().items()):
+        part = _part(module)
+        if not module.startswith("agents.") or part is None:
             continue  # cli, demo: on top
-        for target in _imports(path):
+        for target in sorted(t for t in targets if t.startswith("agents.")):
             other = _part(target)
             if other is None and target.split(".")[1] in ("cli", "demo"):
-                bad.append(f"{path.relative_to(ROOT.parent)} imports {target} (cli and demo are on top)")
+                bad.append(f"{module} imports {target} (cli and demo are on top)")
             elif other is not None and other != part and other not in ALLOWED[part]:
-                bad.append(f"{path.relative_to(ROOT.parent)} imports {target} ({part} may import {sorted(ALLOWED[part])})")
+                bad.append(f"{module} imports {target} ({part} may import {sorted(ALLOWED[part])})")
     assert not bad, "\n".join(bad)
 
 
