@@ -190,6 +190,38 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ev.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def _add_benchmark(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    bench = sub.add_parser(
+        "benchmark",
+        help="the benchmark protocol (configs/benchmark/v1.yaml): every localizer whose sensor a world has x its policies x "
+        "crowd sizes x test seeds; results.json, results.csv, leaderboard.md",
+        description="Run the versioned benchmark protocol: in each of its worlds every localizer whose sensor the world has "
+        "(dead_reckoning everywhere), driven by the world's fixed policies, at each of its crowd sizes, on its test seeds "
+        "(disjoint from every seed of training, tuning, evaluation and the reproductions). Writes results.json and "
+        "results.csv (one row per world x localizer x policy x crowd size, with the protocol's name and digest), "
+        "leaderboard.md (each localizer's crowd sensitivity, then one table per world) and plots/ under --out.",
+    )
+    bench.add_argument("--protocol", default="v1", help="a shipped protocol name or a protocol YAML path (default v1)")
+    bench.add_argument("--worlds", nargs="+", metavar="ENV_ID", help="env ids of the protocol (default: all of them)")
+    bench.add_argument("--localizers", nargs="+", metavar="NAME",
+                       help="registered localizers (default: every one; each runs where the world has its sensor)")  # fmt: skip
+    bench.add_argument("--policies", nargs="+", metavar="POLICY", help="fixed policies (default: each world's protocol ones)")
+    bench.add_argument("--seeds", type=positive_int, metavar="N", help="the first N of the protocol's test seeds (default: all)")
+    bench.add_argument("--quick", action="store_true",
+                       help="the protocol's quick mode: a few seeds, short episodes; marked quick in every output, never "
+                       "comparable with a full run")  # fmt: skip
+    bench.add_argument("--plugins", nargs="+", metavar="MODULE", default=[],
+                       help="import these modules first: each registers its localizers (register_localizer) or fixed "
+                       "policies (register_policy), which are then named like built-ins")  # fmt: skip
+    bench.add_argument("--workers", type=positive_int, help="local worker processes (default: the core count)")
+    bench.add_argument(
+        "--out", type=Path, default=DEFAULT_RESULTS / "benchmark", help="output folder (default results/benchmark)"
+    )
+    bench.add_argument("--overwrite", action="store_true",
+                       help="run into an --out that is not empty: its earlier benchmark files are deleted first (other files stay)")  # fmt: skip
+    bench.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
 def _add_tune(sub: argparse._SubParsersAction[argparse.ArgumentParser], argv: Sequence[str]) -> None:
     tune = sub.add_parser(
         "tune",
@@ -284,6 +316,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     _add_worlds(sub)
     _add_train(sub)
     _add_eval(sub)
+    _add_benchmark(sub)
     _add_tune(sub, argv)
     _add_reproduce(sub, argv)
     _add_fit(sub, argv)
@@ -358,6 +391,13 @@ def _run_eval(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     return 0
 
 
+def _run_benchmark(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from agents.benchmark.cli import run_cli
+
+    run_cli(args)
+    return 0
+
+
 def _run_tune(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.tune import run_cli
 
@@ -416,6 +456,7 @@ _RUNNERS: dict[str, Callable[[argparse.Namespace, argparse.ArgumentParser], int]
     "demo": _run_demo,
     "train": _run_train,
     "eval": _run_eval,
+    "benchmark": _run_benchmark,
     "tune": _run_tune,
     "reproduce": _run_reproduce,
     "worlds": _run_worlds,

@@ -2,7 +2,7 @@
 
 This folder is package data (``configs/`` in the checkout, ``crowdloc_configs`` once installed;
 see ``package-dir`` in pyproject.toml): one YAML per name in ``worlds/``, ``localizers/``,
-``experiments/`` and ``tuning/``, and in ``rl_zoo3/`` one rl-zoo3 hyperparameter file of the
+``experiments/``, ``tuning/`` and ``benchmark/`` (the benchmark's protocols), and in ``rl_zoo3/`` one rl-zoo3 hyperparameter file of the
 task ids per algorithm (``ppo.yaml``). Code finds them through :func:`path` and :func:`names`
 (``importlib.resources``), never by paths relative to its own source, so they are found in a
 built wheel as in a checkout, and a user's own ``configs/`` folder cannot shadow them.
@@ -14,7 +14,7 @@ from importlib.resources import files
 from pathlib import Path
 
 #: the kinds of shipped configs, one folder each
-KINDS = ("worlds", "localizers", "experiments", "tuning", "rl_zoo3")
+KINDS = ("worlds", "localizers", "experiments", "tuning", "rl_zoo3", "benchmark")
 
 
 def path(*parts: str) -> Path:

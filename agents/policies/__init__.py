@@ -30,6 +30,7 @@ from agents.policies.fixed import (
     ceiling_targets,
     make_policy,
     read_estimate,
+    register_policy,
     sonar_cones,
 )
 
@@ -50,5 +51,6 @@ __all__ = [
     "check_command",
     "make_policy",
     "read_estimate",
+    "register_policy",
     "sonar_cones",
 ]

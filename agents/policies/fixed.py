@@ -63,6 +63,7 @@ __all__ = [
     "StopAndGo",
     "make_policy",
     "read_estimate",
+    "register_policy",
     "sonar_cones",
 ]
 
@@ -484,3 +485,23 @@ FIXED_POLICIES: dict[str, Any] = {
     "corridor_follower": CorridorFollower,
     "route_follower": RouteFollower,
 }
+
+
+def register_policy(name: str, cls: type[FixedPolicy]) -> type[FixedPolicy]:
+    """Add a fixed policy (a plug-in): a :class:`FixedPolicy` subclass built as ``cls(action_space, seed=seed)``.
+
+    Its ``needs_sensor`` / ``needs_feature`` say which worlds it can drive. Registering the same
+    class under its name again is a no-op.
+
+    Raises:
+        ConfigError: ``name`` is taken by another policy, or ``cls`` is not a FixedPolicy subclass.
+    """
+    from localizers.schema import ConfigError
+
+    if not (isinstance(cls, type) and issubclass(cls, FixedPolicy)):
+        raise ConfigError(f"policy {name!r} must be a FixedPolicy subclass, got {cls!r}")
+    current = FIXED_POLICIES.get(name)
+    if current is not None and current is not cls:
+        raise ConfigError(f"policy {name!r} is already registered ({current.__module__}.{current.__qualname__})")
+    FIXED_POLICIES[name] = cls
+    return cls

@@ -22,6 +22,7 @@ ALLOWED: dict[str, set[str]] = {
     "experiments": {"common", "policies"},
     "rl": {"common"},
     "evaluate": {"common", "policies", "experiments", "rl"},
+    "benchmark": {"common", "policies", "experiments", "rl", "evaluate"},
     "papers": {"common", "policies", "experiments", "rl", "evaluate"},
     "tune": {"common", "policies", "experiments", "rl", "evaluate", "papers"},
 }

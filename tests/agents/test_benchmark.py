@@ -1,0 +1,163 @@
+"""crowdloc benchmark: the protocol's loader and seeds, the command end to end (--quick, a plug-in
+localizer and policy from tests/agents/benchmark_plugin.py), determinism across worker counts, and
+its refusals."""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from agents.benchmark.protocol import RESERVED_BELOW, load_protocol, protocol_digest, protocol_path
+from agents.cli import main
+from agents.policies import FIXED_POLICIES
+from localizers.registry import LOCALIZERS
+from localizers.schema import ConfigError
+
+PLUGIN = "tests.agents.benchmark_plugin"
+SMALL = ["--quick", "--worlds", "crowdloc/RoboCupStatic-v0", "crowdloc/CrowdedRoom-v0", "--seeds", "1", "--no-progress"]
+
+
+@pytest.fixture
+def plugin() -> Iterator[None]:
+    """The plug-in's registrations undone after the test (other tests walk the registries)."""
+    yield
+    LOCALIZERS.pop("start_pose", None)
+    FIXED_POLICIES.pop("straight_ahead", None)
+    sys.modules.pop(PLUGIN, None)
+
+
+def _bench(tmp_path: Path, *extra: str, name: str = "out") -> dict[str, Any]:
+    out = tmp_path / name
+    assert main(["benchmark", *extra, "--out", str(out)]) == 0
+    return json.loads((out / "results.json").read_text())  # type: ignore[no-any-return]
+
+
+def test_quick_run_with_a_plugin_end_to_end(tmp_path: Path, plugin: None, capsys: pytest.CaptureFixture[str]) -> None:
+    doc = _bench(tmp_path, *SMALL, "--localizers", "dead_reckoning", "start_pose", "resection",
+                 "--policies", "random_walk", "straight_ahead", "--plugins", PLUGIN, "--workers", "1")  # fmt: skip
+    printed = capsys.readouterr().out
+    # resection reads bearings: left out of the room with a line, not an error
+    assert "left out: resection in crowdloc/CrowdedRoom-v0 needs a bearing_camera sensor" in printed
+    protocol = load_protocol()
+    assert doc["protocol"] == protocol.name and doc["quick"] is True
+    assert doc["protocol_digest"] == protocol_digest(protocol)
+    rows = doc["rows"]
+    assert all(r["quick"] is True and r["protocol_digest"] == doc["protocol_digest"] for r in rows)
+    cells = {(r["world"], r["localizer"], r["policy"], r["crowd_size"]) for r in rows}
+    static, room = protocol.worlds["crowdloc/RoboCupStatic-v0"], protocol.worlds["crowdloc/CrowdedRoom-v0"]
+    expected = {("crowdloc/RoboCupStatic-v0", loc, pol, c) for loc in ("dead_reckoning", "start_pose", "resection")
+                for pol in ("random_walk", "straight_ahead") for c in static.crowd_sizes}  # fmt: skip
+    expected |= {("crowdloc/CrowdedRoom-v0", loc, pol, c) for loc in ("dead_reckoning", "start_pose")
+                 for pol in ("random_walk", "straight_ahead") for c in room.crowd_sizes}  # fmt: skip
+    assert cells == expected and len(rows) == len(expected)
+    still = next(r for r in rows if r["localizer"] == "start_pose" and r["policy"] == "straight_ahead")
+    assert still["error_mean_m"] > 0.0 and still["nees_median"] is None  # it moved; no covariance reported
+    out = tmp_path / "out"
+    board = (out / "leaderboard.md").read_text()
+    assert "QUICK RUN" in board and doc["protocol_digest"][:16] in board and "| start_pose | straight_ahead |" in board
+    assert len((out / "results.csv").read_text().splitlines()) == len(rows) + 1
+    assert {s["localizer"] for s in doc["crowd_sensitivity"]} == {"dead_reckoning", "start_pose", "resection"}
+    assert sorted(p.name for p in (out / "plots").iterdir()) == ["crowdloc_CrowdedRoom-v0.png", "crowdloc_RoboCupStatic-v0.png"]
+
+
+def test_same_numbers_on_one_worker_and_two(tmp_path: Path, plugin: None) -> None:
+    args = ("--quick", "--worlds", "crowdloc/RoboCupStatic-v0", "--seeds", "2", "--no-progress", "--plugins", PLUGIN,
+            "--localizers", "dead_reckoning", "start_pose", "--policies", "random_walk")  # fmt: skip
+    one = _bench(tmp_path, *args, "--workers", "1", name="one")
+    two = _bench(tmp_path, *args, "--workers", "2", name="two")
+    assert one["rows"] == two["rows"] and one["crowd_sensitivity"] == two["crowd_sensitivity"]
+
+
+@pytest.mark.parametrize(
+    ("flags", "named"),
+    [
+        (["--worlds", "crowdloc/Nowhere-v0"], "'crowdloc/Nowhere-v0' is not a world of crowdloc-benchmark-v1"),
+        (["--localizers", "no_such_localizer"], "unknown localizer 'no_such_localizer'"),
+        (["--policies", "moonwalk"], "unknown policy 'moonwalk'"),
+        (["--plugins", "no_such_plugin_module"], "--plugins no_such_plugin_module: cannot import it"),
+        (["--seeds", "21"], "--seeds must be from 1 to 20"),
+    ],
+)
+def test_refusals_name_what_is_unknown(tmp_path: Path, flags: list[str], named: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["benchmark", "--quick", *flags, "--out", str(tmp_path / "out")])
+    assert exit_info.value.code == 2
+    assert named in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()  # refused before anything was written
+
+
+def test_an_out_that_is_not_empty_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "keep.txt").write_text("mine")
+    with pytest.raises(SystemExit):
+        main(["benchmark", *SMALL, "--localizers", "dead_reckoning", "--out", str(tmp_path)])
+    assert "is not empty" in capsys.readouterr().err and (tmp_path / "keep.txt").read_text() == "mine"
+
+
+def _protocol_text(edit: Any) -> str:
+    data = yaml.safe_load(protocol_path("v1").read_text())
+    edit(data)
+    return yaml.safe_dump(data, sort_keys=False)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d.update(colour="red"), "unknown key 'colour'"),
+        (lambda d: d.pop("seeds"), "missing required key 'seeds'"),
+        (
+            lambda d: d["worlds"].update({"crowdloc/Nowhere-v0": d["worlds"]["crowdloc/CrowdedRoom-v0"]}),
+            "worlds.crowdloc/Nowhere-v0: unknown env id",
+        ),
+        (lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(crowd_sizes=[0, 8, 16]), "must end at the world's maximum 30"),
+        (lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(crowd_sizes=[4, 30]), "must start at 0"),
+        (lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(policies=["moonwalk"]), "unknown policy 'moonwalk'"),
+        (lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(policies=["route_follower"]), "'route_follower' cannot drive"),
+        (lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(start="sometimes"), "'sometimes' is not one of"),
+        (lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(failure_m=0), "failure_m must be finite and > 0"),
+        (lambda d: d["seeds"].update(first=2**31), f"first must be >= {RESERVED_BELOW}"),
+        (lambda d: d["seeds"].update(first=2**32 - 5), "first + count must be <= 2**32"),
+        (lambda d: d["quick"].update(seeds=50), "quick.seeds (50) exceeds seeds.count (20)"),
+    ],
+)
+def test_the_loader_refuses_a_bad_protocol_naming_file_and_key(tmp_path: Path, edit: Any, message: str) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(_protocol_text(edit))
+    with pytest.raises(ConfigError, match="bad.yaml") as info:
+        load_protocol(path)
+    assert message in str(info.value)
+
+
+def test_an_unknown_protocol_name_lists_the_shipped_ones() -> None:
+    with pytest.raises(ConfigError, match="shipped: v1"):
+        load_protocol("v0")
+
+
+def test_the_test_seeds_are_no_other_commands_seeds() -> None:
+    """The seeds every other command draws, collected, meet none of the protocol's."""
+    from agents.demo import VERDICT_SEEDS
+    from agents.evaluate.spec import FIRST_SEED_MAX, EvalSpec
+    from agents.papers.bearing_candidates.jobs import DEFAULT_PUSH_SEEDS, DEFAULT_SEEDS, DEFAULT_SWEEP_SEEDS
+    from agents.papers.ceiling_target import DEFAULT_SEEDS as CEILING_SEEDS
+    from agents.papers.lidar_far_point.experiment import DEFAULT_SEEDS as LIDAR_SEEDS
+    from agents.papers.lidar_far_point.experiment import PILOT_SEEDS
+    from agents.rl.train import EVAL_SEED_BASE
+    from agents.tune.objective import eval_seeds, tuning_seeds
+
+    mine = set(load_protocol().seeds.seeds)
+    assert min(mine) >= RESERVED_BELOW
+    others = set(tuning_seeds(10_000)) | set(eval_seeds(10_000)) | set(range(max(PILOT_SEEDS) + 1))
+    others |= set(range(max(DEFAULT_SEEDS, DEFAULT_SWEEP_SEEDS, DEFAULT_PUSH_SEEDS, CEILING_SEEDS, LIDAR_SEEDS) + 10_000))
+    others |= {EVAL_SEED_BASE + i for i in range(20 + VERDICT_SEEDS + 1000)}  # demo's table and verdict, validation at 1000
+    # crowdloc eval's last reachable range: the largest first seed, with up to 2**29 - 1 seeds
+    last = EvalSpec(policies=("random_walk",), localizers=("dead_reckoning",), crowd_sizes=(0,), seeds=3,
+                    first_seed=FIRST_SEED_MAX, env_id="crowdloc/RoboCupStatic-v0").eval_seeds  # fmt: skip
+    assert last[0] + 2**29 - 1 < RESERVED_BELOW
+    others |= set(last)
+    assert all(s < EVAL_SEED_BASE for s in tuning_seeds(10_000))  # training and tuning: below 2**31
+    assert not mine & others
