@@ -38,6 +38,9 @@ from localizers.schema import check, check_at_most, check_ranges
 __all__ = ["LARGE_MAP_PARAMS", "MAX_TABLE_DIRECTIONS", "LidarMCLParams", "large_map_mcl", "large_map_params"]
 
 _log = logging.getLogger("localizers.mcl_lidar")  # the localizer's logger, whose choice it logs
+#: the large-map choices already logged in this process (a benchmark makes an env per episode: the
+#: warning is said once, then at debug level)
+_told: set[tuple[Any, ...]] = set()
 
 
 #: mcl_lidar's parameters where the beam model's ray-cast table of the world's map would exceed
@@ -282,7 +285,11 @@ def large_map_mcl(
     if megabytes <= resolved.max_table_mb:
         return params
     chosen = {**LARGE_MAP_PARAMS, **(params or {})}
-    _log.warning(
+    said = (who, shape, tuple(sorted(chosen.items())))
+    level = logging.DEBUG if said in _told else logging.WARNING
+    _told.add(said)
+    _log.log(
+        level,
         "%s: the beam model's ray-cast table of this %g m x %g m map would be %d x %d cells x %d directions "
         "(%.0f MB, above max_table_mb %g): using %s (the campus reference's likelihood field; give localizer_params "
         "model=... to choose)",

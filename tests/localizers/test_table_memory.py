@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the env ids)
-from localizers import beam_model, mcl_lidar, range_table
+from localizers import beam_model, mcl_lidar, mcl_lidar_params, range_table
 from localizers.base import LandmarkMap
 from localizers.beam_model import LikelihoodFieldModel
 from localizers.mcl_lidar import LARGE_MAP_PARAMS, LidarMCL, LidarMCLParams, large_map_params
@@ -83,12 +83,23 @@ def _env(landmarks: LandmarkMap) -> SimpleNamespace:
     return SimpleNamespace(landmark_map=landmarks, sensor_metadata={"lidar": {"type": "lidar"}})
 
 
+@pytest.fixture(autouse=True)
+def nothing_told(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each test starts as a fresh process would: no large-map choice logged yet."""
+    monkeypatch.setattr(mcl_lidar_params, "_told", set())
+
+
 def test_a_large_world_gets_the_campus_references_likelihood_field(caplog: pytest.LogCaptureFixture) -> None:
     assert spec("mcl_lidar").prepare == "localizers.mcl_lidar:large_map_params"
     with caplog.at_level(logging.WARNING, logger=mcl_lidar.__name__):
         chosen = large_map_params(_env(CAMPUS), "lidar", None)
     assert chosen == LARGE_MAP_PARAMS
     assert "3000 x 2000 cells x 720 directions (17280 MB" in caplog.text and "likelihood_field" in caplog.text
+    # said once a process: the next env of the same world (a benchmark's next episode) is told at debug level
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger=mcl_lidar.__name__):
+        assert large_map_params(_env(CAMPUS), "lidar", None) == LARGE_MAP_PARAMS
+    assert caplog.text == ""
     # the user's own values are kept over the large-map ones
     assert large_map_params(_env(CAMPUS), "lidar", {"sampling": 0.5}) == {**LARGE_MAP_PARAMS, "sampling": 0.5}
     # a model the user names is left alone (the beam model is then refused when the filter is made)
