@@ -176,15 +176,20 @@ def crowdloc_version() -> str:
 
 def protocol_digest(protocol: Protocol) -> str:
     """sha256 (hex) of what decides a number: the protocol file, each of its worlds' YAML (in the
-    protocol's order) and crowdloc's version."""
+    protocol's order), the parameter file of every built-in localizer (``configs/localizers/``, by
+    name) and crowdloc's version. A plug-in's own parameters are the plug-in's to cite."""
     import gymnasium as gym
 
     from envs.config import world_path
+    from localizers.registry import BUILTIN_LOCALIZERS, params_path
 
     h = hashlib.sha256()
     h.update(Path(protocol.path).read_bytes())
     for env_id in protocol.worlds:
         world = gym.spec(env_id).kwargs["world"]
         h.update(env_id.encode() + b"\0" + world_path(world).read_bytes())
+    for name in sorted(BUILTIN_LOCALIZERS):  # not the plug-ins a process has imported: one digest everywhere
+        path = params_path(name)
+        h.update(name.encode() + b"\0" + (path.read_bytes() if path.is_file() else b""))
     h.update(crowdloc_version().encode())
     return h.hexdigest()

@@ -4,6 +4,7 @@ its refusals."""
 
 from __future__ import annotations
 
+import importlib
 import json
 import sys
 from collections.abc import Iterator
@@ -161,3 +162,21 @@ def test_the_test_seeds_are_no_other_commands_seeds() -> None:
     others |= set(last)
     assert all(s < EVAL_SEED_BASE for s in tuning_seeds(10_000))  # training and tuning: below 2**31
     assert not mine & others
+
+
+def test_the_digest_follows_the_localizers_parameters_and_not_the_plugins(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, plugin: None
+) -> None:
+    """A built-in localizer's parameter file decides its numbers, so it decides the digest; a plug-in
+    registered in this process (the fixture's) does not change it."""
+    from localizers import registry
+
+    protocol = load_protocol("v1")
+    before = protocol_digest(protocol)
+    importlib.import_module(PLUGIN)  # registers the localizer start_pose
+    assert "start_pose" in LOCALIZERS and protocol_digest(protocol) == before
+    edited = tmp_path / "kalman.yaml"
+    edited.write_text(registry.params_path("kalman").read_text() + "\n# an edit\n")
+    real = registry.params_path
+    monkeypatch.setattr(registry, "params_path", lambda name: edited if name == "kalman" else real(name))
+    assert protocol_digest(protocol) != before
