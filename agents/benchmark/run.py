@@ -9,6 +9,7 @@ failure threshold.
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -31,12 +32,44 @@ from localizers.schema import ConfigError, check
 EPISODE_KEYS = ("error_mean_m", "failure_share", "availability", "first_fix_s", "nees_median", "inside_95")
 
 
-def load_plugins(modules: Sequence[str]) -> None:
-    """Import the user's modules (``--plugins``): each registers its localizers or policies on import.
+#: the entry-point groups under which an installed package registers localizers and fixed policies
+#: (each entry point names a module, imported like a ``--plugins`` module: it registers on import)
+ENTRY_POINT_GROUPS = ("crowdloc.localizers", "crowdloc.policies")
+_installed_loaded = False  # the installed packages' entry points are loaded once a process
+
+
+def load_installed_plugins() -> tuple[str, ...]:
+    """Import every module that an installed package names under :data:`ENTRY_POINT_GROUPS`
+    (the way pytest and Gymnasium find plug-ins), once a process; returns ``group:name`` of each.
 
     Raises:
-        ConfigError: naming a module that cannot be imported and why.
+        ConfigError: naming an entry point that cannot be loaded, its package and why.
     """
+    global _installed_loaded
+    loaded: list[str] = []
+    if _installed_loaded:
+        return ()
+    for group in ENTRY_POINT_GROUPS:
+        for entry in importlib.metadata.entry_points(group=group):
+            try:
+                entry.load()
+            except Exception as exc:  # the package's own error, in one line
+                package = entry.dist.name if entry.dist is not None else "an installed package"
+                raise ConfigError(f"entry point {entry.name} = {entry.value} ({group}, from {package}): "
+                                  f"cannot load it ({type(exc).__name__}: {exc})") from None  # fmt: skip
+            loaded.append(f"{group}:{entry.name}")
+    _installed_loaded = True
+    return tuple(loaded)
+
+
+def load_plugins(modules: Sequence[str]) -> None:
+    """Load the installed packages' plug-ins (:func:`load_installed_plugins`), then import the
+    user's modules (``--plugins``): each registers its localizers or policies on import.
+
+    Raises:
+        ConfigError: naming an entry point or a module that cannot be imported, and why.
+    """
+    load_installed_plugins()
     for name in modules:
         try:
             importlib.import_module(name)

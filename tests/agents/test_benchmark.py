@@ -5,6 +5,7 @@ its refusals."""
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
 import json
 import sys
 from collections.abc import Iterator
@@ -180,3 +181,22 @@ def test_the_digest_follows_the_localizers_parameters_and_not_the_plugins(
     real = registry.params_path
     monkeypatch.setattr(registry, "params_path", lambda name: edited if name == "kalman" else real(name))
     assert protocol_digest(protocol) != before
+
+
+def test_an_installed_packages_entry_point_enters_like_a_plugin(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, plugin: None
+) -> None:
+    """A package that declares ``[project.entry-points."crowdloc.localizers"]`` is loaded on start and
+    its localizer named like a built-in, without --plugins."""
+    from agents.benchmark import run
+
+    found = {"crowdloc.localizers": [importlib.metadata.EntryPoint("start_pose", PLUGIN, "crowdloc.localizers")]}
+    monkeypatch.setattr(run.importlib.metadata, "entry_points", lambda group: found.get(group, []))
+    monkeypatch.setattr(run, "_installed_loaded", False)
+    doc = _bench(tmp_path, *SMALL, "--localizers", "start_pose", "--policies", "random_walk")
+    assert {r["localizer"] for r in doc["rows"]} == {"start_pose"}
+    broken = {"crowdloc.policies": [importlib.metadata.EntryPoint("oops", "no_such_module_here", "crowdloc.policies")]}
+    monkeypatch.setattr(run.importlib.metadata, "entry_points", lambda group: broken.get(group, []))
+    monkeypatch.setattr(run, "_installed_loaded", False)
+    with pytest.raises(ConfigError, match=r"entry point oops = no_such_module_here \(crowdloc.policies, .*ModuleNotFoundError"):
+        run.load_plugins(())
