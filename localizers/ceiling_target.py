@@ -218,9 +218,11 @@ class CeilingTargetParams:
             f"ceiling_target.plan_missing_share must be in (0, 1], got {self.plan_missing_share}",
         )
         check(0 <= self.plan_min_value <= 255, f"ceiling_target.plan_min_value must be in [0, 255], got {self.plan_min_value}")
-        for name in ("lost_offset_m", "lost_after_s", "plan_after_s", "plan_min_area_m2", "plan_expected_m2"):
-            value = getattr(self, name)
-            check(not math.isnan(value) and value > 0.0, f"ceiling_target.{name} must be > 0 (inf: never), got {value!r}")
+        check_ranges(
+            self,
+            "ceiling_target",
+            positive_or_inf=("lost_offset_m", "lost_after_s", "plan_after_s", "plan_min_area_m2", "plan_expected_m2"),
+        )
         check(
             self.mask_px >= 3 and self.mask_px % 2 == 1, f"ceiling_target.mask_px must be an odd number >= 3, got {self.mask_px}"
         )

@@ -212,9 +212,7 @@ class FarLandmarkParams:
             f"{name}.resample_ess_fraction must be in (0, 1], got {self.resample_ess_fraction!r}",
         )
         check_max_spread(name, self.max_spread_m)
-        for field in ("lost_gate", "lost_after_s"):
-            value = getattr(self, field)
-            check(value > 0.0, f"{name}.{field} must be a number > 0 (inf: never lost), got {value!r}")  # false for NaN
+        check_ranges(self, name, positive_or_inf=("lost_gate", "lost_after_s"))
         check(
             self.search_radius_m <= 200.0 * self.search_cell_m,
             f"{name}.search_radius_m {self.search_radius_m!r} must be at most 200 search_cell_m ({self.search_cell_m!r}): "

@@ -227,19 +227,33 @@ def check(condition: bool, message: str) -> None:
         raise ConfigError(message)
 
 
-def check_ranges(obj: object, where: str, *, positive: Iterable[str] = (), non_negative: Iterable[str] = ()) -> None:
+def check_ranges(
+    obj: object,
+    where: str,
+    *,
+    positive: Iterable[str] = (),
+    non_negative: Iterable[str] = (),
+    positive_or_inf: Iterable[str] = (),
+) -> None:
     """Raise :class:`ConfigError` unless each field of ``obj`` named in ``positive`` is a finite
-    number > 0 and each in ``non_negative`` a finite number >= 0, naming ``where.field`` and its value.
+    number > 0, each in ``non_negative`` a finite number >= 0 and each in ``positive_or_inf`` a
+    number > 0 where ``inf`` means no limit (a time after which a localizer is lost: never), naming
+    ``where.field`` and its value.
 
     Used in dataclass ``__post_init__`` range checks (``where``: the class or section name).
     """
-    for bound, names in (("> 0", positive), (">= 0", non_negative)):
+    rules = (
+        (positive, True, lambda v: v > 0, "finite and > 0"),
+        (non_negative, True, lambda v: v >= 0, "finite and >= 0"),
+        (positive_or_inf, False, lambda v: v > 0, "> 0 (inf: no limit)"),
+    )
+    for names, finite, holds, bound in rules:
         for name in names:
             value = getattr(obj, name)
-            number = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+            number = isinstance(value, numbers.Real) and not isinstance(value, bool) and not math.isnan(value)
             check(
-                number and (value > 0 if bound == "> 0" else value >= 0),
-                f"{where}.{name} must be finite and {bound}, got {value!r}",
+                number and (math.isfinite(value) or not finite) and holds(value),
+                f"{where}.{name} must be {bound}, got {value!r}",
             )
 
 

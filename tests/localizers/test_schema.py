@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -225,3 +226,14 @@ def test_check_ranges_accepts_numpy_numbers_and_refuses_numpy_bools() -> None:
     check_ranges(_Ranged(np.int64(2), np.float32(0.5)), "box", positive=("gain",), non_negative=("margin",))
     with pytest.raises(ConfigError, match="box.gain must be finite and > 0"):
         check_ranges(_Ranged(np.bool_(True), 0.0), "box", positive=("gain",))
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.nan, -math.inf, "1", True, None])
+def test_check_ranges_positive_or_inf_refuses_all_but_numbers_above_zero(bad: Any) -> None:
+    with pytest.raises(ConfigError, match=rf"^box.gain must be > 0 \(inf: no limit\), got {re.escape(repr(bad))}$"):
+        check_ranges(_Ranged(bad, 0.0), "box", positive_or_inf=("gain",))
+
+
+def test_check_ranges_positive_or_inf_takes_inf_as_no_limit() -> None:
+    check_ranges(_Ranged(math.inf, 0.0), "box", positive_or_inf=("gain",))
+    check_ranges(_Ranged(np.float64(0.5), 0.0), "box", positive_or_inf=("gain",))
