@@ -92,6 +92,7 @@ from localizers.ceiling_vision import (
     plan_evidence,
     sight_targets,
 )
+from localizers.contradiction import ContradictionClock
 from localizers.dead_reckoning import dead_reckon
 from localizers.geometry import wrap_angle
 from localizers.schema import ConfigError, check, check_ranges
@@ -300,8 +301,10 @@ class CeilingTargetLocalizer:
         self.last_fix: Sighting | None = None
         self.fixes = 0
         self._lost = False
-        self._unseen_s = 0.0  # how long a target predicted wholly in view has not been seen
-        self._contradicted_s = 0.0  # how long the ceiling plan has contradicted the estimate
+        #: how long a target predicted wholly in view has not been seen (``lost_after_s``)
+        self._unseen = ContradictionClock(params.lost_after_s, self._dt)
+        #: how long the ceiling plan has contradicted the estimate (``plan_after_s``)
+        self._plan_clock = ContradictionClock(params.plan_after_s, self._dt)
         #: what the last image said of the estimate against the ceiling plan (None: not compared)
         self.last_plan: PlanEvidence | None = None
 
@@ -310,7 +313,9 @@ class CeilingTargetLocalizer:
         del rng  # deterministic
         self._ready = True
         self.last_sightings, self.last_fix, self.fixes = [], None, 0
-        self._lost, self._unseen_s, self._contradicted_s, self.last_plan = False, 0.0, 0.0, None
+        self._lost, self.last_plan = False, None
+        self._unseen.reset()
+        self._plan_clock.reset()
         if prior is not None and prior.valid and np.isfinite(prior.as_array()).all():
             self._pose = np.array([prior.x_m, prior.y_m, wrap_angle(prior.theta_rad)])
             cov = finite_covariance(prior)
@@ -347,12 +352,14 @@ class CeilingTargetLocalizer:
         fix, contradicted = self._choose(self.last_sightings)
         if fix is None:
             plan_lost = self._check_plan(image, measurement.camera, self._plans.get(measurement.feature))
-            self._lost = self._lost or contradicted or plan_lost or self._unseen_s >= self._params.lost_after_s - 1e-9
+            self._lost = self._lost or contradicted or plan_lost or self._unseen.lost
             return
         self.last_fix, self.last_plan = fix, None
         self.fixes += 1
         was_lost = self._lost
-        self._lost, self._unseen_s, self._contradicted_s = False, 0.0, 0.0
+        self._lost = False
+        self._unseen.reset()
+        self._plan_clock.reset()
         if self._pose is None or self._params.fusion == "reset" or contradicted or was_lost:
             self._pose = fix.pose.copy()
             self._cov = self._fix_cov.copy()
@@ -378,7 +385,7 @@ class CeilingTargetLocalizer:
             or not math.isfinite(p.plan_after_s)
             or not within_spread(self._cov, p.max_spread_m)
         ):
-            self._contradicted_s = 0.0
+            self._plan_clock.reset()
             return False
         points = self._cells.get(camera)
         if points is None:
@@ -390,18 +397,15 @@ class CeilingTargetLocalizer:
         against = evidence.unexplained_m2 >= area or (
             evidence.expected_m2 >= p.plan_expected_m2 and evidence.missing_m2 >= p.plan_missing_share * evidence.expected_m2
         )
-        if against:
-            self._contradicted_s += self._dt
-        elif evidence.matched_m2 >= area:
-            self._contradicted_s = 0.0
-        return self._contradicted_s >= p.plan_after_s - 1e-9
+        # white where the plan has it agrees; a frame with neither (people hiding the ceiling) says nothing
+        return self._plan_clock.tick(True if against else False if evidence.matched_m2 >= area else None)
 
     def _watch(self, targets: TargetMap, camera: CameraIntrinsics) -> None:
         """Count the time a target that the estimate puts wholly in view goes unseen (``lost_after_s``)."""
         if self._pose is None or self._lost or self.last_sightings or not math.isfinite(self._params.lost_after_s):
-            self._unseen_s = 0.0
+            self._unseen.reset()
             return
-        self._unseen_s = self._unseen_s + self._dt if self._target_in_view(targets, camera) else 0.0
+        self._unseen.tick(self._target_in_view(targets, camera))
 
     def _target_in_view(self, targets: TargetMap, camera: CameraIntrinsics) -> bool:
         """Whether the estimate puts both ends of some target ``view_margin_m`` inside the camera's footprint."""

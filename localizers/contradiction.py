@@ -7,7 +7,7 @@ carried away, its odometry jumped, or it locked onto a wrong pose). The median m
 misidentified landmark or one distractor harmless; frames with fewer than two measurements say
 nothing either way.
 
-:class:`ContradictionClock` keeps the time for any residual; :class:`Contradiction` is the
+:class:`ContradictionClock` keeps the time for any per-frame verdict or residual; :class:`Contradiction` is the
 bearings' (the absolute wrapped bearing residual against ``residual_rad``), used by
 ``candidate_sets`` (which restarts from the bearings) and ``mcl_bearing`` (which claims no pose
 while lost). ``far_landmark_pf`` folds in the median Mahalanobis distance of its stereo
@@ -47,17 +47,17 @@ def median_abs_residual(
 
 
 class ContradictionClock:
-    """How long the measurements have contradicted a localizer's estimate (module docstring), for
-    any per-frame residual: :meth:`fold` takes a frame's median residual.
+    """How long the measurements have contradicted a localizer's estimate (module docstring):
+    :meth:`tick` takes a frame's verdict, :meth:`fold` a frame's median residual against ``threshold``.
 
     Args:
-        threshold: a frame's median residual above this contradicts the estimate.
-        after_s: contradicted on every frame (with >= 2 measurements) for this long: lost (inf: never).
+        after_s: contradicted on every frame that says anything for this long: lost (inf: never).
         dt_s: the time between frames.
+        threshold: a frame's median residual above this contradicts the estimate (:meth:`fold`).
     """
 
-    def __init__(self, threshold: float, after_s: float, dt_s: float) -> None:
-        self.threshold, self.after_s, self._dt = threshold, after_s, dt_s
+    def __init__(self, after_s: float, dt_s: float, threshold: float = math.inf) -> None:
+        self.after_s, self._dt, self.threshold = after_s, dt_s, threshold
         self.contradicted_s = 0.0
 
     def reset(self) -> None:
@@ -67,11 +67,16 @@ class ContradictionClock:
     def lost(self) -> bool:
         return self.contradicted_s >= self.after_s - 1e-9
 
+    def tick(self, contradicted: bool | None) -> bool:
+        """Fold in one frame that contradicts the estimate (True), agrees with it (False, which
+        restarts the clock) or says nothing (None); returns :attr:`lost`."""
+        if contradicted is not None:
+            self.contradicted_s = self.contradicted_s + self._dt if contradicted else 0.0
+        return self.lost
+
     def fold(self, residual: float | None) -> bool:
         """Fold in one frame's median residual (None: a frame that says nothing); returns :attr:`lost`."""
-        if residual is not None:
-            self.contradicted_s = self.contradicted_s + self._dt if residual > self.threshold else 0.0
-        return self.lost
+        return self.tick(None if residual is None else residual > self.threshold)
 
 
 class Contradiction(ContradictionClock):
@@ -85,7 +90,7 @@ class Contradiction(ContradictionClock):
     """
 
     def __init__(self, landmarks_xy: NDArray[np.float64], residual_rad: float, after_s: float, dt_s: float) -> None:
-        super().__init__(residual_rad, after_s, dt_s)
+        super().__init__(after_s, dt_s, threshold=residual_rad)
         self._x = np.ascontiguousarray(landmarks_xy[:, 0], dtype=np.float64)
         self._y = np.ascontiguousarray(landmarks_xy[:, 1], dtype=np.float64)
         self.residual_rad = residual_rad

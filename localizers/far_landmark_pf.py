@@ -414,7 +414,7 @@ class FarLandmarkPF:
         self._near: tuple[tuple[int, ...], IntArray, Array, IntArray, Array] | None = None
         #: the detections the estimate's pose used at the last update, in the world frame (for drawing)
         self.used_xy = np.zeros((0, 2))
-        self._clock = ContradictionClock(params.lost_gate, params.lost_after_s, self._dt)
+        self._clock = ContradictionClock(params.lost_after_s, self._dt, threshold=params.lost_gate)
         self._lost = False
         #: how many times the filter re-localized (searched the scene map) since the reset
         self.searches = 0
