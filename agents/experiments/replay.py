@@ -33,7 +33,7 @@ import envs  # noqa: F401  (registers the crowdloc ids)
 from agents.experiments.scenarios import Driver
 from envs.localization_env import LocalizationEnv
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
-from localizers.measurements import decode, find_sensor, measurement_kind, readable_kinds, sensor_map
+from localizers.measurements import decode, find_sensor, measurement_kind, odometry_delta, readable_kinds, sensor_map
 from localizers.registry import make_localizer, measurement_in, spec
 from localizers.wrappers import _SEED_SALT
 
@@ -373,7 +373,7 @@ def fed_slots(stream: Sequence[Any], count: int) -> NDArray[np.bool_]:
 
 def odometry_deltas(recording: Recording) -> list[OdometryDelta]:
     """The ``T - 1`` odometry increments a localizer is fed (steps 1..T-1), from the odometry leaves."""
-    return [OdometryDelta(float(d[0]), float(d[1]), float(d[2])) for d in recording.odometry[1:]]
+    return [odometry_delta(d) for d in recording.odometry[1:]]
 
 
 @dataclass(frozen=True)
