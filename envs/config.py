@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 import crowdloc_configs
 from envs.crowds.base import CrowdConfig
 from envs.features.base import FeatureConfig, Segment
-from envs.floor import FloorGrid
+from envs.floor import FloorGrid, floor_grid
 from envs.sensors.base import SensorConfig
 from envs.view import (
     BACKGROUND_PAD_PX,
@@ -557,7 +557,7 @@ class WorldConfig:
         a, b = self._interior_floor_walls
         polygons = [piece.footprint() for piece in self.furniture if piece.kind == "box"]
         polygons += [solid.corners for feature in self.features.values() for solid in feature.solids() if solid.bottom_m <= 0.0]
-        return FloorGrid(self.arena_m, np.hstack([a, b]), polygons, self.robot.radius_m, WALL_RADIUS_M)
+        return floor_grid(self.arena_m, np.hstack([a, b]), polygons, self.robot.radius_m, WALL_RADIUS_M)
 
     @functools.cached_property
     def _interior_floor_walls(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -18,6 +18,7 @@ therefore count as open, never the other way round.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 
@@ -88,3 +89,36 @@ class FloorGrid:
         col, row = self._pixel(x, y)
         ny, nx = self._main.shape
         return bool(np.any(self._main[max(row - 1, 0) : min(row + 2, ny), max(col - 1, 0) : min(col + 2, nx)]))
+
+
+def floor_grid(
+    arena_m: tuple[float, float, float, float],
+    segments: NDArray[np.float64],
+    polygons: Sequence[NDArray[np.float64]],
+    clearance_m: float,
+    wall_radius_m: float,
+) -> FloorGrid:
+    """The :class:`FloorGrid` of this geometry, made once a process: every ``gym.make`` builds its
+    world's config anew (a benchmark, one env per episode), and the grid is the same each time."""
+    return _floor_grid(
+        tuple(float(v) for v in arena_m),
+        tuple(tuple(row) for row in np.asarray(segments, dtype=np.float64).reshape(-1, 4).tolist()),
+        tuple(tuple(tuple(corner) for corner in np.asarray(p, dtype=np.float64).tolist()) for p in polygons),
+        float(clearance_m),
+        float(wall_radius_m),
+    )
+
+
+@functools.lru_cache(maxsize=16)
+def _floor_grid(
+    arena_m: tuple[float, ...],
+    segments: tuple[tuple[float, ...], ...],
+    polygons: tuple[tuple[tuple[float, ...], ...], ...],
+    clearance_m: float,
+    wall_radius_m: float,
+) -> FloorGrid:
+    xmin, ymin, xmax, ymax = arena_m
+    rows = np.array(segments, dtype=np.float64).reshape(-1, 4)
+    return FloorGrid(
+        (xmin, ymin, xmax, ymax), rows, [np.array(p, dtype=np.float64) for p in polygons], clearance_m, wall_radius_m
+    )
