@@ -32,7 +32,7 @@ import numpy as np
 
 from agents.benchmark.protocol import crowdloc_version, protocol_digest
 from agents.benchmark.run import EPISODE_KEYS, BenchmarkPlan, EpisodeScore
-from agents.evaluate.stats import Stat, bootstrap_ci
+from agents.evaluate.stats import Stat
 
 #: what ``crowdloc benchmark`` writes in ``--out`` (what ``--overwrite`` deletes)
 BENCHMARK_OUTPUTS = ("results.json", "results.csv", "leaderboard.md", "plots/*.png")
@@ -66,13 +66,6 @@ class Sensitivity:
     rank: int  # by error_mean_m at the world's default crowd under ``policy`` (1 = lowest error)
 
 
-def _stat(values: Sequence[float], rng: np.random.Generator) -> Stat:
-    v = np.asarray(values, dtype=np.float64)
-    finite = v[np.isfinite(v)]
-    lo, hi = bootstrap_ci(finite, RESAMPLES, rng=rng)
-    return Stat(float(finite.mean()) if finite.size else math.nan, lo, hi, int(finite.size))
-
-
 def aggregate(scores: Sequence[EpisodeScore]) -> tuple[Row, ...]:
     """The rows, in the order of the episodes (the plan's); bootstrap streams ``[group, metric]``."""
     groups: dict[tuple[str, str, str, int], list[EpisodeScore]] = {}
@@ -80,7 +73,9 @@ def aggregate(scores: Sequence[EpisodeScore]) -> tuple[Row, ...]:
         groups.setdefault((s.env_id, s.cell.localizer, s.cell.policy, s.cell.crowd_size), []).append(s)
     rows = []
     for g, (key, eps) in enumerate(groups.items()):
-        stats = {k: _stat([e.values[k] for e in eps], np.random.default_rng([g, m])) for m, k in enumerate(EPISODE_KEYS)}
+        stats = {
+            k: Stat.of([e.values[k] for e in eps], RESAMPLES, np.random.default_rng([g, m])) for m, k in enumerate(EPISODE_KEYS)
+        }
         pooled = np.concatenate([e.errors_m for e in eps])
         p95 = float(np.percentile(pooled, 95)) if pooled.size else math.nan
         rows.append(Row(*key, episodes=len(eps), stats=stats, error_p95_m=p95))

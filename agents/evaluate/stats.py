@@ -48,6 +48,14 @@ class Stat:
     high: float
     n: int
 
+    @classmethod
+    def of(cls, values: ArrayLike, resamples: int, rng: np.random.Generator) -> Stat:
+        """The mean of the finite ``values``, its :func:`bootstrap_ci` and their count."""
+        v = np.asarray(values, dtype=np.float64).reshape(-1)
+        finite = v[np.isfinite(v)]
+        lo, hi = bootstrap_ci(finite, resamples, rng=rng)
+        return cls(float(finite.mean()) if finite.size else math.nan, lo, hi, int(finite.size))
+
 
 @dataclass(frozen=True)
 class SummaryRow:
@@ -99,10 +107,8 @@ def summarize(
     for g, (key, eps) in enumerate(groups.items()):
         stats = {}
         for name in keys:
-            v = np.array([ep.metrics.get(name, math.nan) for ep in eps], dtype=np.float64)
-            finite = v[np.isfinite(v)]
-            lo, hi = bootstrap_ci(finite, resamples, rng=np.random.default_rng([seed, g, stream[name]]))
-            stats[name] = Stat(float(finite.mean()) if finite.size else math.nan, lo, hi, int(finite.size))
+            values = [ep.metrics.get(name, math.nan) for ep in eps]
+            stats[name] = Stat.of(values, resamples, np.random.default_rng([seed, g, stream[name]]))
         rows.append(SummaryRow(*key, episodes=len(eps), stats=stats))
     return tuple(rows)
 
