@@ -32,7 +32,7 @@ from typing import Any, Literal
 
 from localizers.base import DEFAULT_MAX_SPREAD_M, check_max_spread
 from localizers.particles import MAX_PARTICLES, PARTICLE_MEMORY
-from localizers.range_table import MAX_TABLE_MB, range_table_shape
+from localizers.range_table import MAX_TABLE_MB, RANGE_TABLE_ENTRY_BYTES, range_table_shape, table_megabytes
 from localizers.schema import check, check_at_most, check_ranges
 
 __all__ = ["LARGE_MAP_PARAMS", "MAX_TABLE_DIRECTIONS", "LidarMCLParams", "large_map_mcl", "large_map_params"]
@@ -281,7 +281,7 @@ def large_map_mcl(
         return params
     bounds = sensor_map(env.landmark_map, env.sensor_metadata[sensor]).bounds_m
     shape = range_table_shape(bounds, resolved.table_resolution_m, resolved.table_directions)
-    megabytes = math.prod(shape) * 4 / 1e6
+    megabytes = table_megabytes(shape, RANGE_TABLE_ENTRY_BYTES)
     if megabytes <= resolved.max_table_mb:
         return params
     chosen = {**LARGE_MAP_PARAMS, **(params or {})}

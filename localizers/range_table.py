@@ -46,15 +46,24 @@ _TABLE_FORMAT = b"crowdloc-range-table-v1"
 MAX_TABLE_MB = 1024.0
 
 
+#: bytes an entry of the beam model's ray-cast table takes (float32 ranges)
+RANGE_TABLE_ENTRY_BYTES = 4
+
+
+def table_megabytes(shape: tuple[int, ...], bytes_per_entry: float) -> float:
+    """The memory of a table of ``shape`` at ``bytes_per_entry``, in MB (10**6 bytes)."""
+    return math.prod(shape) * bytes_per_entry / 1e6
+
+
 def check_table_size(what: str, shape: tuple[int, ...], bytes_per_entry: float, max_mb: float, advice: str) -> float:
-    """The memory of a table of ``shape`` at ``bytes_per_entry`` in MB (10**6 bytes), estimated
-    before it is allocated.
+    """The memory of a table of ``shape`` at ``bytes_per_entry`` in MB (:func:`table_megabytes`),
+    estimated before it is allocated.
 
     Raises:
         ConfigError: when it exceeds ``max_mb``, naming ``what``, its shape, the estimate, the
             bound and ``advice`` (what to change).
     """
-    megabytes = math.prod(shape) * bytes_per_entry / 1e6
+    megabytes = table_megabytes(shape, bytes_per_entry)
     if not megabytes <= max_mb:
         raise ConfigError(
             f"{what} of {' x '.join(f'{n:,}' for n in shape)} entries would need about {megabytes:,.0f} MB, above the bound "
@@ -80,7 +89,7 @@ def check_range_table_size(
     check_table_size(
         "the beam model's ray-cast table (cells x cells x directions)",
         shape,
-        4,
+        RANGE_TABLE_ENTRY_BYTES,
         max_mb,
         "use the likelihood field (model: likelihood_field), a coarser table_resolution_m, fewer table_directions or a "
         "larger max_table_mb",
