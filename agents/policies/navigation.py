@@ -519,11 +519,7 @@ class CorridorFollower(FixedPolicy):
         bend = 0.0
         if left + right <= 2 * p.wall_distance_m + p.slow_range_m / 4:  # both sides see a wall: keep to the middle
             bend = float(np.clip(p.lateral_gain_rad_per_m * 0.5 * (left - right), -p.max_steer_rad, p.max_steer_rad))
-        speed = p.cruise
-        if ahead < p.slow_range_m:  # as in _drive: a constant deceleration toward the clearance
-            room = max(0.0, ahead - p.clearance_m) / (p.slow_range_m - p.clearance_m)
-            speed = max(p.creep, p.cruise * math.sqrt(room))
-        return np.array([speed, self._turn_command(bend)])
+        return np.array([self._yield_speed(ahead), self._turn_command(bend)])
 
     def _turn(self, heading_rad: float, then: str) -> None:
         self.phase, self._turn_to, self._after_turn = "turn", heading_rad, then
@@ -545,6 +541,16 @@ class CorridorFollower(FixedPolicy):
         ``slow_down_m`` (not below ``creep``), the last step sized to land on the spot."""
         speed = max(self.params.creep, self.params.cruise * min(1.0, distance_m / self.params.slow_down_m))
         return min(speed, distance_m / (self.params.max_speed_mps * self.params.dt_s))
+
+    def _yield_speed(self, ahead_m: float) -> float:
+        """Forward speed (action units) with the straight-ahead sonar reading ``ahead_m``: ``cruise``
+        beyond ``slow_range_m``, then a constant deceleration toward ``clearance_m`` (v ~ sqrt of the
+        distance left), not below ``creep``."""
+        p = self.params
+        if ahead_m >= p.slow_range_m:
+            return float(p.cruise)
+        left = max(0.0, ahead_m - p.clearance_m) / (p.slow_range_m - p.clearance_m)
+        return float(max(p.creep, p.cruise * math.sqrt(left)))
 
     def _remeasure(self) -> None:
         self.remeasures += 1
@@ -607,9 +613,8 @@ class CorridorFollower(FixedPolicy):
         self._blocked_s = 0.0
         if self._avoid_side:
             speed = min(speed, self.params.avoid_speed)
-        elif ahead < self.params.slow_range_m:  # a constant deceleration: v ~ sqrt(distance left)
-            left = max(0.0, ahead - self.params.clearance_m) / (self.params.slow_range_m - self.params.clearance_m)
-            speed = min(speed, max(self.params.creep, self.params.cruise * math.sqrt(left)))
+        elif ahead < self.params.slow_range_m:
+            speed = min(speed, self._yield_speed(ahead))
         return np.array([speed, turn])
 
     def blocked(self, ranges: NDArray[np.float64]) -> bool:
