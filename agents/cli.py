@@ -205,7 +205,8 @@ def _add_benchmark(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     bench.add_argument("--worlds", nargs="+", metavar="ENV_ID", help="env ids of the protocol (default: all of them)")
     bench.add_argument("--localizers", nargs="+", metavar="NAME",
                        help="registered localizers (default: every one; each runs where the world has its sensor)")  # fmt: skip
-    bench.add_argument("--policies", nargs="+", metavar="POLICY", help="fixed policies (default: each world's protocol ones)")
+    bench.add_argument("--policies", nargs="+", metavar="POLICY",
+                       help="fixed policies, or ppo:PATH.zip for a trained one (default: each world's protocol ones)")  # fmt: skip
     bench.add_argument("--seeds", type=positive_int, metavar="N", help="the first N of the protocol's test seeds (default: all)")
     bench.add_argument("--quick", action="store_true",
                        help="the protocol's quick mode: a few seeds, short episodes; marked quick in every output, never "
@@ -214,11 +215,16 @@ def _add_benchmark(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
                        help="import these modules first: each registers its localizers (register_localizer) or fixed "
                        "policies (register_policy), which are then named like built-ins")  # fmt: skip
     bench.add_argument("--workers", type=positive_int, help="local worker processes (default: the core count)")
+    bench.add_argument("--ray-address", metavar="ADDRESS",
+                       help="run the episodes on this Ray cluster ('auto', 'ray://host:10001') instead of local processes")  # fmt: skip
     bench.add_argument(
         "--out", type=Path, default=DEFAULT_RESULTS / "benchmark", help="output folder (default results/benchmark)"
     )
     bench.add_argument("--overwrite", action="store_true",
                        help="run into an --out that is not empty: its earlier benchmark files are deleted first (other files stay)")  # fmt: skip
+    bench.add_argument("--resume", action="store_true",
+                       help="continue an interrupted run in --out (the same options): play only the episodes its "
+                       "journal (episodes.jsonl) lacks, then write the tables of the whole run")  # fmt: skip
     bench.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 

@@ -11,6 +11,11 @@ first fix ``t0`` on; a row's
 - ``availability``: the mean share of steps with a pose; ``first_fix_s``: the mean time to ``t0``;
 - ``nees_median``, ``inside_95``: the mean over episodes of the median NEES and of the share of
   steps inside the reported 95 % region (NaN for a localizer that reports no covariance);
+- ``error_bound_ratio``: the mean over episodes of the RMS position error over the RMS posterior
+  Cramer-Rao bound along the true path, where a bound exists (bearing localizers:
+  :mod:`agents.evaluate.bearings`);
+- ``update_ms``: the median over episodes of the localizer's mean wall time per step (predict and
+  update) on the machine that ran it: a cost, without an interval, not comparable across machines;
 
 each mean with a 95 % percentile bootstrap interval over the episodes
 (:func:`agents.evaluate.bootstrap_ci`). The crowd sensitivity of a localizer in a world is
@@ -35,7 +40,7 @@ from agents.benchmark.run import EPISODE_KEYS, BenchmarkPlan, EpisodeScore
 from agents.evaluate.stats import Stat
 
 #: what ``crowdloc benchmark`` writes in ``--out`` (what ``--overwrite`` deletes)
-BENCHMARK_OUTPUTS = ("results.json", "results.csv", "leaderboard.md", "plots/*.png")
+BENCHMARK_OUTPUTS = ("results.json", "results.csv", "leaderboard.md", "episodes.jsonl", "plots/*.png")
 RESAMPLES = 2000
 
 
@@ -50,6 +55,7 @@ class Row:
     episodes: int
     stats: dict[str, Stat]
     error_p95_m: float
+    update_ms: float  # the median over its episodes of each one's mean cost per step (a timing: not comparable across machines)
 
 
 @dataclass(frozen=True)
@@ -78,7 +84,9 @@ def aggregate(scores: Sequence[EpisodeScore]) -> tuple[Row, ...]:
         }
         pooled = np.concatenate([e.errors_m for e in eps])
         p95 = float(np.percentile(pooled, 95)) if pooled.size else math.nan
-        rows.append(Row(*key, episodes=len(eps), stats=stats, error_p95_m=p95))
+        costs = [e.update_ms for e in eps if math.isfinite(e.update_ms)]
+        cost = float(np.median(costs)) if costs else math.nan
+        rows.append(Row(*key, episodes=len(eps), stats=stats, error_p95_m=p95, update_ms=cost))
     return tuple(rows)
 
 
@@ -169,7 +177,8 @@ def leaderboard(plan: BenchmarkPlan, rows: Sequence[Row], sens: Sequence[Sensiti
                   f"Policies {', '.join(world.policies)}; {world.spec.episode_steps} steps per episode; start "
                   f"{world.world.start}; failure: error >= {world.world.failure_m:g} m.", "",
                   "| localizer | policy | crowd | mean error m | p95 error m | failure share | availability | "
-                  "first fix s | NEES median | inside 95 % |", "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+                  "first fix s | NEES median | inside 95 % | error / CRB | update ms |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
         for r in rows:
             if r.world != world.env_id:
                 continue
@@ -177,7 +186,8 @@ def leaderboard(plan: BenchmarkPlan, rows: Sequence[Row], sens: Sequence[Sensiti
             nees = "no covariance" if r.stats["nees_median"].n == 0 else _fmt_stat(st["nees_median"])
             lines.append(f"| {r.localizer} | {r.policy} | {r.crowd_size} | {_fmt_stat(st['error_mean_m'])} | "
                          f"{_fmt(r.error_p95_m)} | {_fmt_stat(st['failure_share'])} | {_fmt_stat(st['availability'])} | "
-                         f"{_fmt_stat(st['first_fix_s'], 1)} | {nees} | {_fmt_stat(st['inside_95'])} |")  # fmt: skip
+                         f"{_fmt_stat(st['first_fix_s'], 1)} | {nees} | {_fmt_stat(st['inside_95'])} | "
+                         f"{_fmt_stat(st['error_bound_ratio'])} | {_fmt(r.update_ms, 3)} |")  # fmt: skip
     if plan.left_out:
         lines += ["", "## Left out", ""] + [f"- {line}" for line in plan.left_out]
     return "\n".join(lines) + "\n"
@@ -185,7 +195,7 @@ def leaderboard(plan: BenchmarkPlan, rows: Sequence[Row], sens: Sequence[Sensiti
 
 def _row_dict(r: Row) -> dict[str, Any]:
     out: dict[str, Any] = {"world": r.world, "localizer": r.localizer, "policy": r.policy, "crowd_size": r.crowd_size,
-                           "episodes": r.episodes, "error_p95_m": r.error_p95_m}  # fmt: skip
+                           "episodes": r.episodes, "error_p95_m": r.error_p95_m, "update_ms": r.update_ms}  # fmt: skip
     for key, stat in r.stats.items():
         out.update({key: stat.mean, f"{key}_low": stat.low, f"{key}_high": stat.high, f"{key}_n": stat.n})
     return out

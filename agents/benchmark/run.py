@@ -21,15 +21,27 @@ from numpy.typing import NDArray
 from agents.benchmark.protocol import Protocol, WorldProtocol
 from agents.evaluate import metrics
 from agents.evaluate.episode import run_episode
-from agents.evaluate.spec import Cell, EvalSpec, crowdloc_ids, runnable_policies, world_of
+from agents.evaluate.spec import (
+    PPO_PREFIX,
+    Cell,
+    EvalSpec,
+    check_observation_space,
+    check_policy,
+    crowdloc_ids,
+    load_ppo,
+    runnable_policies,
+    world_of,
+)
 from agents.policies import FIXED_POLICIES
 from localizers.measurements import find_sensor
 from localizers.registry import LOCALIZERS, measurement_in
 from localizers.registry import spec as localizer_spec
 from localizers.schema import ConfigError, check
 
-#: the per-episode values of :func:`score_task`, in the tables' order
-EPISODE_KEYS = ("error_mean_m", "failure_share", "availability", "first_fix_s", "nees_median", "inside_95")
+#: the per-episode values of :func:`score_task`, in the tables' order (a new key goes last: each key's
+#: index is its bootstrap stream, so the others keep their intervals)
+EPISODE_KEYS = ("error_mean_m", "failure_share", "availability", "first_fix_s", "nees_median", "inside_95",
+                "error_bound_ratio")  # fmt: skip
 
 
 #: the entry-point groups under which an installed package registers localizers and fixed policies
@@ -121,15 +133,28 @@ class Task:
     env_id: str
     failure_m: float
 
+    @property
+    def key(self) -> tuple[str, Cell]:
+        """Which task of the plan it is (its :class:`EpisodeScore` has the same)."""
+        return self.env_id, self.cell
+
 
 @dataclass(frozen=True)
 class EpisodeScore:
-    """One episode's values (:data:`EPISODE_KEYS`) and its position errors from the first fix on (finite ones)."""
+    """One episode's values (:data:`EPISODE_KEYS`), its position errors from the first fix on (finite
+    ones) and the localizer's mean cost per step in ms on the machine that played it (not a value:
+    it differs between runs)."""
 
     env_id: str
     cell: Cell
     values: dict[str, float]
     errors_m: NDArray[np.float64]
+    update_ms: float = math.nan
+
+    @property
+    def key(self) -> tuple[str, Cell]:
+        """Which task of the plan it scores."""
+        return self.env_id, self.cell
 
 
 def _supports(localizer: str, sensors: dict[str, dict[str, Any]], env_id: str) -> str | None:
@@ -139,6 +164,24 @@ def _supports(localizer: str, sensors: dict[str, dict[str, Any]], env_id: str) -
     except ConfigError as exc:
         return f"left out: {exc}"
     return None
+
+
+def _check_ppo(policy: str, env_id: str, localizer: str, env_kwargs: dict[str, Any]) -> None:
+    """A trained policy enters where it observes what the protocol's world gives, nothing else.
+
+    Raises:
+        ConfigError: a missing file, or a policy trained on other observations (naming them).
+    """
+    import gymnasium as gym
+
+    check_policy(policy)
+    env = gym.make(env_id, localizer=localizer, **env_kwargs)
+    try:
+        check_observation_space(policy, load_ppo(policy[len(PPO_PREFIX) :]).observation_space, env.observation_space,
+                                hint=f"the benchmark plays every entry in the protocol's conditions: train it on {env_id} "
+                                "as the protocol has it (no added sensors or conditions)")  # fmt: skip
+    finally:
+        env.close()
 
 
 def plan_benchmark(
@@ -175,7 +218,9 @@ def plan_benchmark(
     for name in localizers or ():
         localizer_spec(name)  # raises, naming the known ones
     for name in policies or ():
-        check(name in FIXED_POLICIES, f"--policies: unknown policy {name!r}; fixed policies: {', '.join(FIXED_POLICIES)}")
+        check(name in FIXED_POLICIES or name.startswith(PPO_PREFIX),
+              f"--policies: unknown policy {name!r}; fixed policies: {', '.join(FIXED_POLICIES)}, "
+              f"or {PPO_PREFIX}PATH.zip for a trained one")  # fmt: skip
     limit = protocol.quick.seeds if quick and seeds is None else protocol.seeds.count
     count = limit if seeds is None else seeds
     check(1 <= count <= protocol.seeds.count,
@@ -196,7 +241,7 @@ def plan_benchmark(
                 left_out.append(why)
         drivers = []
         for name in policies or world.policies:
-            if name in runnable_policies(config):
+            if name.startswith(PPO_PREFIX) or name in runnable_policies(config):  # EvalSpec checks a PPO's observations
                 drivers.append(name)
             else:
                 left_out.append(
@@ -205,9 +250,13 @@ def plan_benchmark(
         if not runs or not drivers:
             left_out.append(f"left out: {env_id}: no {'localizer' if not runs else 'policy'} of this run can play there")
             continue
+        kwargs = {} if prior is None else {"prior": prior}
+        for name in drivers:
+            if name.startswith(PPO_PREFIX):
+                _check_ppo(name, env_id, runs[0], kwargs)
         steps = protocol.quick.episode_steps if quick else world.episode_steps
         spec = EvalSpec(policies=tuple(drivers), localizers=tuple(runs), crowd_sizes=world.crowd_sizes, seeds=1,
-                        episode_steps=steps, env_id=env_id, env_kwargs={} if prior is None else {"prior": prior})  # fmt: skip
+                        episode_steps=steps, env_id=env_id, env_kwargs=kwargs)  # fmt: skip
         plans.append(WorldPlan(env_id, world, spec, tuple(runs), tuple(drivers)))
     check(bool(plans), "nothing to run: " + "; ".join(left_out))
     return BenchmarkPlan(protocol, tuple(plans), protocol.seeds.seeds[:count], quick, tuple(left_out), tuple(plugins))
@@ -227,6 +276,8 @@ def score_task(task: Task) -> EpisodeScore:
         "first_fix_s": episode.metrics["first_fix_s"],
         "nees_median": fit.nees_median if covariance else math.nan,
         "inside_95": fit.inside_95 if covariance else math.nan,
+        "error_bound_ratio": episode.metrics.get("error_bound_ratio", math.nan),  # where a bound exists (bearings)
     }
     kept = errors[t0:] if t0 is not None else errors[:0]
-    return EpisodeScore(task.env_id, task.cell, values, np.asarray(kept[np.isfinite(kept)], dtype=np.float64))
+    finite = np.asarray(kept[np.isfinite(kept)], dtype=np.float64)
+    return EpisodeScore(task.env_id, task.cell, values, finite, episode.update_ms)

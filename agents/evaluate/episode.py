@@ -67,6 +67,9 @@ class Episode(Track):
     cell: Cell = field(kw_only=True)
     metrics: Mapping[str, float] = field(kw_only=True)
     series: Mapping[str, NDArray[Any]] = field(default_factory=dict, kw_only=True)
+    #: mean wall time (ms) of the localizer's predict and update per step on the machine that played
+    #: it: a cost, not a metric (it differs between runs and machines; no table of eval shows it)
+    update_ms: float = field(default=float("nan"), kw_only=True)
 
     def __getattr__(self, name: str) -> NDArray[Any]:  # only called for names that are not attributes
         series = self.__dict__.get("series", {})  # not self.series: unpickling asks before the fields exist
@@ -84,6 +87,7 @@ class Rollout:
     context: EpisodeContext
     frames: list[NDArray[np.uint8]]
     jump_index: int | None = None  # with a kidnap: the first row recorded after the jump (None: no jump)
+    update_ms: float = float("nan")  # mean wall time of the localizer's predict and update per step
 
 
 class _PPOPolicy:
@@ -201,9 +205,10 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
             carry_away(base.world, kidnap_rng, kidnap.min_distance_m,  # type: ignore[attr-defined]
                        max_distance_m=kidnap.max_distance_m, keep_heading=kidnap.keep_heading)  # fmt: skip
             jump_index = step + 1
+    seconds, updates = env.get_wrapper_attr("update_seconds"), env.get_wrapper_attr("updates")
     env.close()
     collected = {name: np.stack(values) for name, values in recorder.collected.items()}
-    return Rollout(recorder.track(), collected, context, frames, jump_index)
+    return Rollout(recorder.track(), collected, context, frames, jump_index, 1000.0 * seconds / max(updates, 1))
 
 
 def episode_metrics(track: Track) -> dict[str, float]:
@@ -247,7 +252,7 @@ def run_episode(spec: EvalSpec, cell: Cell) -> Episode:
         values.update(got)
         series.update(arrays)
     core = {f.name: getattr(track, f.name) for f in dataclasses.fields(Track)}
-    return Episode(**core, cell=cell, metrics=values, series=series)
+    return Episode(**core, cell=cell, metrics=values, series=series, update_ms=played.update_ms)
 
 
 def run_task(task: tuple[EvalSpec, Cell]) -> Episode:

@@ -231,8 +231,13 @@ def crowdloc_ids() -> list[str]:
     return sorted(i for i in gym.registry if i.startswith("crowdloc/") and i not in envs.TASK_CONFIGS)
 
 
-def check_observation_space(policy: str, expected: spaces.Space[Any], given: spaces.Space[Any]) -> None:
-    """Raise a ConfigError unless the env's observation space is the one ``policy`` was trained on."""
+_TRAINING_CONDITIONS = "evaluate it in its training conditions (crowdloc eval --conditions <its training config>)"
+
+
+def check_observation_space(policy: str, expected: spaces.Space[Any], given: spaces.Space[Any],
+                            hint: str = _TRAINING_CONDITIONS) -> None:  # fmt: skip
+    """Raise a ConfigError (ending with ``hint``) unless the env's observation space is the one
+    ``policy`` was trained on."""
     if expected == given:
         return
     want = {k: v.shape for k, v in expected.spaces.items()} if isinstance(expected, spaces.Dict) else {"": expected.shape}
@@ -240,8 +245,7 @@ def check_observation_space(policy: str, expected: spaces.Space[Any], given: spa
     diffs = [f"{k}: policy {want.get(k, 'absent')}, env {have.get(k, 'absent')}" for k in sorted(set(want) | set(have))
              if want.get(k) != have.get(k)] or ["same keys and shapes, different bounds"]  # fmt: skip
     raise ConfigError(
-        f"policy {policy!r} was trained on other observations than these conditions give ({'; '.join(diffs)}): "
-        "evaluate it in its training conditions (crowdloc eval --conditions <its training config>)"
+        f"policy {policy!r} was trained on other observations than these conditions give ({'; '.join(diffs)}): {hint}"
     )
 
 

@@ -153,7 +153,7 @@ def evaluate(
     todo = [c for c in cells if c not in done]
     ran = run_tasks(run_task, [(spec, c) for c in todo], workers=workers, ray_address=ray_address, desc="eval",
                     progress=progress, on_result=None if journal is None else lambda _, episode: journal.append(episode))  # fmt: skip
-    by_cell = {**done, **dict(zip(todo, ran))}
+    by_cell: dict[Any, Episode] = {**done, **dict(zip(todo, ran))}
     episodes = [by_cell[c] for c in cells]  # grid order, however the episodes finished or were split between runs
     summary = summarize(episodes, spec.bootstrap_resamples, spec.bootstrap_seed, spec.metrics)
     return EvalResult(spec, tuple(episodes), summary, time.perf_counter() - start)

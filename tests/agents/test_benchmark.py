@@ -73,7 +73,13 @@ def test_same_numbers_on_one_worker_and_two(tmp_path: Path, plugin: None) -> Non
             "--localizers", "dead_reckoning", "start_pose", "--policies", "random_walk")  # fmt: skip
     one = _bench(tmp_path, *args, "--workers", "1", name="one")
     two = _bench(tmp_path, *args, "--workers", "2", name="two")
-    assert one["rows"] == two["rows"] and one["crowd_sensitivity"] == two["crowd_sensitivity"]
+    assert _numbers(one["rows"]) == _numbers(two["rows"]) and one["crowd_sensitivity"] == two["crowd_sensitivity"]
+    assert all(r["update_ms"] > 0 for r in one["rows"] + two["rows"])  # a timing: measured, never compared
+
+
+def _numbers(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows without the update cost, a timing that differs between runs."""
+    return [{k: v for k, v in r.items() if k != "update_ms"} for r in rows]
 
 
 @pytest.mark.parametrize(
@@ -200,3 +206,36 @@ def test_an_installed_packages_entry_point_enters_like_a_plugin(
     monkeypatch.setattr(run, "_installed_loaded", False)
     with pytest.raises(ConfigError, match=r"entry point oops = no_such_module_here \(crowdloc.policies, .*ModuleNotFoundError"):
         run.load_plugins(())
+
+
+def test_a_stopped_run_resumes_to_the_numbers_of_an_uninterrupted_one(tmp_path: Path, plugin: None,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    args = ("--quick", "--worlds", "crowdloc/RoboCupStatic-v0", "--no-progress", "--plugins", PLUGIN,
+            "--localizers", "dead_reckoning", "start_pose", "--policies", "random_walk", "--workers", "1")  # fmt: skip
+    whole = _bench(tmp_path, *args, "--seeds", "2", name="whole")
+    # a run stopped after its first seed (it plays seed by seed), its last line torn by the kill
+    _bench(tmp_path, *args, "--seeds", "1", name="split")
+    journal = tmp_path / "split" / "episodes.jsonl"
+    lines = journal.read_text().splitlines(keepends=True)
+    journal.write_text("".join(lines[:-1]) + lines[-1][: len(lines[-1]) // 2])
+    capsys.readouterr()
+    resumed = _bench(tmp_path, *args, "--seeds", "2", "--resume", name="split")
+    assert "--resume: 7 of the 16 episodes are in" in capsys.readouterr().out  # 8 of seed 1, one torn
+    assert _numbers(resumed["rows"]) == _numbers(whole["rows"])
+    assert resumed["crowd_sensitivity"] == whole["crowd_sensitivity"]
+    # a prefix of the journal's seeds: its first seed's episodes only, nothing played
+    first = _bench(tmp_path, *args, "--seeds", "1", "--resume", name="split")
+    assert "--resume: 8 of the 8 episodes are in" in capsys.readouterr().out
+    assert all(r["episodes"] == 1 for r in first["rows"])
+
+
+def test_resume_refuses_another_run_naming_what_differs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["--quick", "--worlds", "crowdloc/RoboCupStatic-v0", "--seeds", "1", "--no-progress", "--workers", "1",
+            "--localizers", "dead_reckoning", "--policies", "random_walk"]  # fmt: skip
+    _bench(tmp_path, *args)
+    with pytest.raises(SystemExit):
+        main(["benchmark", *args[:-1], "patrol", "--resume", "--out", str(tmp_path / "out")])
+    assert "is a run of another benchmark (worlds:" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["benchmark", *args, "--resume", "--overwrite", "--out", str(tmp_path / "out")])
+    assert "give one" in capsys.readouterr().err
