@@ -9,7 +9,7 @@ import platform
 import sys
 from pathlib import Path
 
-from benchmarks import bench_ceiling, bench_envs, bench_lidar, bench_localizers, bench_stereo, bench_train
+from benchmarks import bench_benchmark, bench_ceiling, bench_envs, bench_lidar, bench_localizers, bench_stereo, bench_train
 from benchmarks.common import Result
 
 SUITES = {
@@ -19,6 +19,7 @@ SUITES = {
     "ceiling": bench_ceiling.run_all,
     "stereo": bench_stereo.run_all,
     "training": bench_train.run_all,
+    "benchmark": bench_benchmark.run_all,
 }
 
 HEADER = """# Benchmarks

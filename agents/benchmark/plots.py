@@ -1,5 +1,6 @@
 """The benchmark's figures: per world, mean error and failure share against crowd size, one line per
-localizer (under the world's first policy), with the bootstrap intervals as bars."""
+localizer (under the world's first policy), with the bootstrap intervals as bars; and the overview,
+localizers x worlds (:func:`plot_overview`)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from agents.common.plots import plt, save_figure
 from agents.evaluate.spec import slug
 
 if TYPE_CHECKING:
-    from agents.benchmark.results import Row
+    from agents.benchmark.results import Row, Sensitivity
     from agents.benchmark.run import BenchmarkPlan
 
 
@@ -41,3 +42,60 @@ def plot_worlds(folder: Path, plan: BenchmarkPlan, rows: Sequence[Row]) -> dict[
         title = f"{world.env_id}, {policy}, {len(plan.seeds)} seeds{quick}"
         written[world.env_id] = save_figure(fig, folder / f"{slug(world.env_id)}.png", title)
     return written
+
+
+def _times(ratio: float) -> str:
+    """A ratio in two significant digits, without an exponent."""
+    return f"{ratio:.2g}" if ratio < 100 else f"{ratio:.0f}"
+
+
+def _short(env_id: str) -> str:
+    return env_id.removeprefix("crowdloc/").removesuffix("-v0")
+
+
+def plot_overview(path: Path, plan: BenchmarkPlan, rows: Sequence[Row], sens: Sequence[Sensitivity]) -> Path:
+    """``plots/overview.png``: the league at a glance, localizers x worlds under each world's first
+    policy. Left: the crowd sensitivity (error at the largest crowd / at crowd 0; colour on a log
+    scale, white = 1, red = the crowd hurts), its interval below it. Right: the mean error at the
+    largest crowd (colour on a log scale), the rank at the default crowd below it. An empty cell: the
+    world lacks the localizer's sensor."""
+    import numpy as np
+    from matplotlib.colors import LogNorm, TwoSlopeNorm
+
+    worlds = [w.env_id for w in plan.worlds]
+    localizers = list(dict.fromkeys(s.localizer for s in sens))
+    ratio = np.full((len(localizers), len(worlds)), np.nan)
+    error = np.full_like(ratio, np.nan)
+    ratio_text = [["" for _ in worlds] for _ in localizers]
+    error_text = [["" for _ in worlds] for _ in localizers]
+    for s in sens:
+        i, j = localizers.index(s.localizer), worlds.index(s.world)
+        ratio[i, j] = s.ratio
+        ci = f"\n[{_times(s.low)}, {_times(s.high)}]" if np.isfinite(s.low) and len(plan.seeds) > 1 else ""
+        ratio_text[i][j] = f"{_times(s.ratio)}x{ci}" if np.isfinite(s.ratio) else "–"
+        top = next((r for r in rows if r.world == s.world and r.localizer == s.localizer and r.policy == s.policy
+                    and r.crowd_size == s.crowd_max), None)  # fmt: skip
+        if top is not None:
+            error[i, j] = top.stats["error_mean_m"].mean
+            rank = f"\n#{s.rank}" if s.rank else ""
+            error_text[i][j] = (f"{error[i, j]:.2g} m" if np.isfinite(error[i, j]) else "–") + rank
+    fig, axes = plt.subplots(1, 2, figsize=(3.0 + 2.2 * len(worlds), 1.2 + 0.55 * len(localizers)))
+    logs = np.log10(np.where(ratio > 0, ratio, np.nan))
+    span = float(np.nanmax(np.abs(logs))) if np.isfinite(logs).any() else 1.0
+    span = max(span, 0.1)
+    panels = [
+        (axes[0], logs, ratio_text, "RdBu_r", TwoSlopeNorm(0.0, -span, span), "crowd sensitivity (largest crowd / crowd 0)"),
+        (axes[1], error, error_text, "viridis", LogNorm() if (error > 0).any() else None, "mean error at the largest crowd (rank at the default)"),
+    ]  # fmt: skip
+    for ax, values, text, cmap, norm, title in panels:
+        image = ax.imshow(np.ma.masked_invalid(values), cmap=cmap, norm=norm, aspect="auto")
+        for i in range(len(localizers)):
+            for j in range(len(worlds)):
+                r, g, b, _ = image.cmap(image.norm(values[i, j])) if np.isfinite(values[i, j]) else (1, 1, 1, 1)
+                dark = 0.299 * r + 0.587 * g + 0.114 * b < 0.5
+                ax.text(j, i, text[i][j], ha="center", va="center", fontsize=7, color="white" if dark else "black")
+        ax.set_xticks(range(len(worlds)), [_short(w) for w in worlds], rotation=20, fontsize=8)
+        ax.set_yticks(range(len(localizers)), localizers, fontsize=8)
+        ax.set_title(title, fontsize=9)
+    quick = " (quick run)" if plan.quick else ""
+    return save_figure(fig, path, f"{plan.protocol.name}: {len(plan.seeds)} seeds{quick}")

@@ -226,7 +226,8 @@ def write_results(out: Path, plan: BenchmarkPlan, scores: Sequence[EpisodeScore]
         writer.writeheader()
         writer.writerows(tagged)
     written["leaderboard"].write_text(leaderboard(plan, rows, sens, head))
-    from agents.benchmark.plots import plot_worlds
+    from agents.benchmark.plots import plot_overview, plot_worlds
 
     written.update(plot_worlds(out / "plots", plan, rows))
+    written["overview"] = plot_overview(out / "plots" / "overview.png", plan, rows, sens)
     return written

@@ -1,12 +1,14 @@
-"""crowdloc benchmark: the protocol's loader and seeds, the command end to end (--quick, a plug-in
-localizer and policy from tests/agents/benchmark_plugin.py), determinism across worker counts, and
-its refusals."""
+"""crowdloc benchmark: the protocol's loader and seeds, the command end to end (--quick, the plug-in
+localizer and policy of docs/benchmark.md, copied outside the repository), determinism across
+worker counts, resuming, and its refusals."""
 
 from __future__ import annotations
 
 import importlib
 import importlib.metadata
 import json
+import os
+import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -21,14 +23,26 @@ from agents.policies import FIXED_POLICIES
 from localizers.registry import LOCALIZERS
 from localizers.schema import ConfigError
 
-PLUGIN = "tests.agents.benchmark_plugin"
+PLUGIN = "my_crowdloc_entry"
+REPO = Path(__file__).resolve().parents[2]
 SMALL = ["--quick", "--worlds", "crowdloc/RoboCupStatic-v0", "crowdloc/CrowdedRoom-v0", "--seeds", "1", "--no-progress"]
 
 
+def plugin_example() -> str:
+    """The complete plug-in module that docs/benchmark.md shows (the python block after its marker)."""
+    text = (REPO / "docs" / "benchmark.md").read_text()
+    after = text.split(f"<!-- plug-in example: {PLUGIN}.py -->", 1)[1]
+    return after.split("```python\n", 1)[1].split("```", 1)[0]
+
+
 @pytest.fixture
-def plugin() -> Iterator[None]:
-    """The plug-in's registrations undone after the test (other tests walk the registries)."""
-    yield
+def plugin(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """The docs' example written to a folder outside the repository, on sys.path; its registrations
+    undone after the test (other tests walk the registries)."""
+    folder = tmp_path_factory.mktemp("user_code")
+    (folder / f"{PLUGIN}.py").write_text(plugin_example())
+    monkeypatch.syspath_prepend(str(folder))
+    yield folder
     LOCALIZERS.pop("start_pose", None)
     FIXED_POLICIES.pop("straight_ahead", None)
     sys.modules.pop(PLUGIN, None)
@@ -40,7 +54,7 @@ def _bench(tmp_path: Path, *extra: str, name: str = "out") -> dict[str, Any]:
     return json.loads((out / "results.json").read_text())  # type: ignore[no-any-return]
 
 
-def test_quick_run_with_a_plugin_end_to_end(tmp_path: Path, plugin: None, capsys: pytest.CaptureFixture[str]) -> None:
+def test_quick_run_with_a_plugin_end_to_end(tmp_path: Path, plugin: Path, capsys: pytest.CaptureFixture[str]) -> None:
     doc = _bench(tmp_path, *SMALL, "--localizers", "dead_reckoning", "start_pose", "resection",
                  "--policies", "random_walk", "straight_ahead", "--plugins", PLUGIN, "--workers", "1")  # fmt: skip
     printed = capsys.readouterr().out
@@ -68,7 +82,7 @@ def test_quick_run_with_a_plugin_end_to_end(tmp_path: Path, plugin: None, capsys
     assert sorted(p.name for p in (out / "plots").iterdir()) == ["crowdloc_CrowdedRoom-v0.png", "crowdloc_RoboCupStatic-v0.png"]
 
 
-def test_same_numbers_on_one_worker_and_two(tmp_path: Path, plugin: None) -> None:
+def test_same_numbers_on_one_worker_and_two(tmp_path: Path, plugin: Path) -> None:
     args = ("--quick", "--worlds", "crowdloc/RoboCupStatic-v0", "--seeds", "2", "--no-progress", "--plugins", PLUGIN,
             "--localizers", "dead_reckoning", "start_pose", "--policies", "random_walk")  # fmt: skip
     one = _bench(tmp_path, *args, "--workers", "1", name="one")
@@ -172,7 +186,7 @@ def test_the_test_seeds_are_no_other_commands_seeds() -> None:
 
 
 def test_the_digest_follows_the_localizers_parameters_and_not_the_plugins(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, plugin: None
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, plugin: Path
 ) -> None:
     """A built-in localizer's parameter file decides its numbers, so it decides the digest; a plug-in
     registered in this process (the fixture's) does not change it."""
@@ -190,7 +204,7 @@ def test_the_digest_follows_the_localizers_parameters_and_not_the_plugins(
 
 
 def test_an_installed_packages_entry_point_enters_like_a_plugin(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, plugin: None
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, plugin: Path
 ) -> None:
     """A package that declares ``[project.entry-points."crowdloc.localizers"]`` is loaded on start and
     its localizer named like a built-in, without --plugins."""
@@ -208,7 +222,7 @@ def test_an_installed_packages_entry_point_enters_like_a_plugin(
         run.load_plugins(())
 
 
-def test_a_stopped_run_resumes_to_the_numbers_of_an_uninterrupted_one(tmp_path: Path, plugin: None,
+def test_a_stopped_run_resumes_to_the_numbers_of_an_uninterrupted_one(tmp_path: Path, plugin: Path,
                                                                        capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
     args = ("--quick", "--worlds", "crowdloc/RoboCupStatic-v0", "--no-progress", "--plugins", PLUGIN,
             "--localizers", "dead_reckoning", "start_pose", "--policies", "random_walk", "--workers", "1")  # fmt: skip
@@ -239,3 +253,57 @@ def test_resume_refuses_another_run_naming_what_differs(tmp_path: Path, capsys: 
     with pytest.raises(SystemExit):
         main(["benchmark", *args, "--resume", "--overwrite", "--out", str(tmp_path / "out")])
     assert "give one" in capsys.readouterr().err
+
+
+def test_an_installed_package_outside_the_repository_enters_the_tables(plugin: Path, tmp_path: Path) -> None:
+    """The docs' example as a package a user installed (a dist-info with the entry point, as pip
+    leaves it), in a folder outside the repository: a fresh ``crowdloc benchmark`` run from there
+    loads it without --plugins, and its entries appear in the tables beside the built-ins."""
+    info = plugin / "my_crowdloc_entry-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my-crowdloc-entry\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(
+        f"[crowdloc.localizers]\nstart_pose = {PLUGIN}\n\n[crowdloc.policies]\nstraight_ahead = {PLUGIN}\n"
+    )
+    out = tmp_path / "bench"
+    env = {**os.environ, "PYTHONPATH": str(plugin)}
+    done = subprocess.run(
+        [sys.executable, "-m", "agents.cli", "benchmark", "--quick", "--worlds", "crowdloc/CrowdedRoom-v0", "--seeds", "1",
+         "--localizers", "dead_reckoning", "start_pose", "--policies", "straight_ahead", "--workers", "2",
+         "--no-progress", "--out", str(out)],
+        cwd=plugin, env=env, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert not str(plugin.resolve()).startswith(str(REPO))
+    doc = json.loads((out / "results.json").read_text())
+    assert {(r["localizer"], r["policy"]) for r in doc["rows"]} == {("dead_reckoning", "straight_ahead"),
+                                                                   ("start_pose", "straight_ahead")}  # fmt: skip
+    board = (out / "leaderboard.md").read_text()
+    assert "| start_pose | straight_ahead | 30 |" in board and "| dead_reckoning | straight_ahead | 0 |" in board
+    # start_pose never moves: its error grows with the distance the robot drove, dead reckoning's stays small
+    rows = {r["localizer"]: r for r in doc["rows"] if r["crowd_size"] == 0}
+    assert rows["start_pose"]["error_mean_m"] > rows["dead_reckoning"]["error_mean_m"]
+
+
+def test_a_trained_policy_enters_where_it_observes_what_the_world_gives(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    world = "crowdloc/RoboCupStatic-v0"
+    env = gym.make(world, localizer="dead_reckoning")
+    model = PPO("MultiInputPolicy", env, n_steps=32, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.learn(32)
+    path = tmp_path / "mine.zip"
+    model.save(path)
+    env.close()
+    doc = _bench(tmp_path, "--quick", "--worlds", world, "--seeds", "1", "--no-progress", "--workers", "1",
+                 "--localizers", "dead_reckoning", "kalman", "--policies", f"ppo:{path}")  # fmt: skip
+    assert {(r["localizer"], r["policy"]) for r in doc["rows"]} == {("dead_reckoning", f"ppo:{path}"), ("kalman", f"ppo:{path}")}
+    # the shipped soccer policies observe a sonar ring and the belief spread, which the protocol's field lacks
+    shipped = REPO / "models" / "ppo_candidate_sets.zip"
+    with pytest.raises(SystemExit):
+        main(["benchmark", "--quick", "--worlds", world, "--policies", f"ppo:{shipped}", "--out", str(tmp_path / "no")])
+    err = capsys.readouterr().err
+    assert "sonar: policy (12,), env absent" in err and "the benchmark plays every entry in the protocol's conditions" in err
+    assert not (tmp_path / "no").exists()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import socket
@@ -51,7 +52,7 @@ def _free_port() -> int:
 
 
 @pytest.mark.slow
-def test_ray_cluster_runs_the_tasks_and_a_multi_seed_training(tmp_path: Path) -> None:
+def test_ray_cluster_runs_the_tasks_a_multi_seed_training_and_the_benchmark(tmp_path: Path) -> None:
     import ray  # noqa: F401  (the [distributed] extra, installed by make)
 
     ray_cli = shutil.which("ray", path=str(Path(sys.executable).parent))
@@ -85,6 +86,16 @@ def test_ray_cluster_runs_the_tasks_and_a_multi_seed_training(tmp_path: Path) ->
             "ppo.batch_size": 32, "ppo.n_epochs": 1, "ppo.net_arch": [16]})  # fmt: skip
         models = train_seeds(config, tmp_path, [0, 1], ray_address=f"127.0.0.1:{port}", progress=False)
         assert [m.parent.name for m in models] == ["seed_0", "seed_1"] and all(m.is_file() for m in models)
+        # crowdloc benchmark --ray-address: the same numbers as local processes
+        from agents.cli import main
+
+        bench = ["benchmark", "--quick", "--worlds", "crowdloc/RoboCupStatic-v0", "--seeds", "1", "--no-progress",
+                 "--localizers", "dead_reckoning", "kalman", "--policies", "random_walk"]  # fmt: skip
+        assert main([*bench, "--ray-address", f"127.0.0.1:{port}", "--out", str(tmp_path / "ray")]) == 0
+        assert main([*bench, "--workers", "2", "--out", str(tmp_path / "local")]) == 0
+        rows = [[{k: v for k, v in r.items() if k != "update_ms"} for r in json.loads((tmp_path / d / "results.json").read_text())["rows"]]
+                for d in ("ray", "local")]  # fmt: skip
+        assert rows[0] == rows[1] and len(rows[0]) == 8
     finally:
         import ray
 
