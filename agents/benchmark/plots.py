@@ -84,14 +84,15 @@ def plot_overview(path: Path, plan: BenchmarkPlan, rows: Sequence[Row], sens: Se
     span = float(np.nanmax(np.abs(logs))) if np.isfinite(logs).any() else 1.0
     span = max(span, 0.1)
     panels = [
-        (axes[0], logs, ratio_text, "RdBu_r", TwoSlopeNorm(0.0, -span, span), "crowd sensitivity (largest crowd / crowd 0)"),
-        (axes[1], error, error_text, "viridis", LogNorm() if (error > 0).any() else None, "mean error at the largest crowd (rank at the default)"),
+        (axes[0], logs, ratio_text, "RdBu_r", TwoSlopeNorm(0.0, -span, span), "crowd sensitivity\n(error at the largest crowd / at crowd 0)"),
+        (axes[1], error, error_text, "viridis", LogNorm() if (error > 0).any() else None, "mean error at the largest crowd\n(#: rank at the default crowd)"),
     ]  # fmt: skip
     for ax, values, text, cmap, norm, title in panels:
         image = ax.imshow(np.ma.masked_invalid(values), cmap=cmap, norm=norm, aspect="auto")
         for i in range(len(localizers)):
             for j in range(len(worlds)):
-                r, g, b, _ = image.cmap(image.norm(values[i, j])) if np.isfinite(values[i, j]) else (1, 1, 1, 1)
+                finite = np.isfinite(values[i, j])
+                r, g, b = np.ravel(image.to_rgba(np.array([[values[i, j]]])))[:3] if finite else (1.0, 1.0, 1.0)
                 dark = 0.299 * r + 0.587 * g + 0.114 * b < 0.5
                 ax.text(j, i, text[i][j], ha="center", va="center", fontsize=7, color="white" if dark else "black")
         ax.set_xticks(range(len(worlds)), [_short(w) for w in worlds], rotation=20, fontsize=8)

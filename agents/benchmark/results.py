@@ -28,6 +28,8 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
+import platform
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -149,15 +151,33 @@ def header(plan: BenchmarkPlan) -> dict[str, Any]:
         "episode_steps": {w.env_id: w.spec.episode_steps for w in plan.worlds},
         "plugins": list(plan.plugins),
         "left_out": list(plan.left_out),
+        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
     }
+
+
+def resolution(rows: Sequence[Row]) -> tuple[float, float, float]:
+    """The half-width of the mean error's 95 % interval as a share of the mean, over the rows with
+    one: median, 10th and 90th percentile (NaN without any)."""
+    shares = [(r.stats["error_mean_m"].high - r.stats["error_mean_m"].low) / 2 / r.stats["error_mean_m"].mean
+              for r in rows if r.stats["error_mean_m"].n >= 2 and r.stats["error_mean_m"].mean > 0]  # fmt: skip
+    if not shares:
+        return math.nan, math.nan, math.nan
+    median, p10, p90 = np.percentile(shares, [50, 10, 90])
+    return float(median), float(p10), float(p90)
 
 
 def leaderboard(plan: BenchmarkPlan, rows: Sequence[Row], sens: Sequence[Sensitivity], head: dict[str, Any]) -> str:
     """``leaderboard.md``: the overview (rank and crowd sensitivity per world), then one table per world."""
     quick = " — QUICK RUN: a set-up check, not comparable with a full run" if plan.quick else ""
+    median, p10, p90 = resolution(rows)
     lines = [f"# crowdloc benchmark: {head['protocol']}{quick}", "",
              f"Protocol `{head['protocol']}`, digest `{head['protocol_digest'][:16]}`, crowdloc {head['crowdloc_version']}; "
-             f"{len(plan.seeds)} test seeds per cell ({plan.seeds[0]}..{plan.seeds[-1]}); quick: {str(plan.quick).lower()}.", ""]  # fmt: skip
+             f"{len(plan.seeds)} test seeds per cell ({plan.seeds[0]}..{plan.seeds[-1]}); quick: {str(plan.quick).lower()}. "
+             f"Update costs measured on {head['machine']}.", ""]  # fmt: skip
+    if math.isfinite(median):
+        lines += [f"Resolution: with {len(plan.seeds)} seeds the 95 % interval of a row's mean error spans ±{100 * median:.0f} % "
+                  f"of it (median over the rows; {100 * p10:.0f}-{100 * p90:.0f} % between the 10th and 90th percentile). "
+                  "Two entries whose intervals overlap are not told apart by this run.", ""]  # fmt: skip
     worlds = [w.env_id for w in plan.worlds]
     localizers = list(dict.fromkeys(s.localizer for s in sens))
     lines += ["## Crowd sensitivity: error at the largest crowd / error at crowd 0 [95 % CI] (rank at the default crowd)", "",

@@ -79,7 +79,9 @@ def test_quick_run_with_a_plugin_end_to_end(tmp_path: Path, plugin: Path, capsys
     assert "QUICK RUN" in board and doc["protocol_digest"][:16] in board and "| start_pose | straight_ahead |" in board
     assert len((out / "results.csv").read_text().splitlines()) == len(rows) + 1
     assert {s["localizer"] for s in doc["crowd_sensitivity"]} == {"dead_reckoning", "start_pose", "resection"}
-    assert sorted(p.name for p in (out / "plots").iterdir()) == ["crowdloc_CrowdedRoom-v0.png", "crowdloc_RoboCupStatic-v0.png"]
+    assert sorted(p.name for p in (out / "plots").iterdir()) == ["crowdloc_CrowdedRoom-v0.png", "crowdloc_RoboCupStatic-v0.png",
+                                                                 "overview.png"]  # fmt: skip
+    assert "Update costs measured on" in board and "Resolution:" not in board  # one seed: no interval to state
 
 
 def test_same_numbers_on_one_worker_and_two(tmp_path: Path, plugin: Path) -> None:
@@ -88,6 +90,8 @@ def test_same_numbers_on_one_worker_and_two(tmp_path: Path, plugin: Path) -> Non
     one = _bench(tmp_path, *args, "--workers", "1", name="one")
     two = _bench(tmp_path, *args, "--workers", "2", name="two")
     assert _numbers(one["rows"]) == _numbers(two["rows"]) and one["crowd_sensitivity"] == two["crowd_sensitivity"]
+    board = (tmp_path / "one" / "leaderboard.md").read_text()
+    assert "Resolution: with 2 seeds the 95 % interval of a row's mean error spans" in board
     assert all(r["update_ms"] > 0 for r in one["rows"] + two["rows"])  # a timing: measured, never compared
 
 
