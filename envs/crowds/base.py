@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envs.bodies import CarConfig, PersonConfig
+from envs.crowds.steering import draw_seers, see_robot
 from envs.plugins import Entry, Registry
 from envs.state import Rows, WorldState
 from localizers.schema import check
@@ -96,6 +97,31 @@ class CrowdConfig:
         ``speed_mps``; a crowd type whose bodies move by other fields overrides this.
         """
         return (("members", self.speed_mps, self.radius_m),)
+
+
+@dataclass(frozen=True)
+class PeopleConfig(CrowdConfig):
+    """Base of the crowds of people (queues, walkers, corridor, campus): ``sees_robot``.
+
+    ``sees_robot`` is the share of the crowd's people who see our robot, drawn per member and
+    episode (:func:`envs.crowds.steering.draw_seers`). One who sees it reacts as a pedestrian
+    does (:func:`envs.crowds.steering.see_robot`, CrowdNav's "visible robot"): a social force
+    from the robot's disc, and stepping aside, slowing or waiting when contact is near. The
+    others treat it as the crowd always has (0: the invisible robot, CrowdNav's other setting,
+    for studies of inattentive crowds). Issue 30 wants 1 (everyone sees it); the shipped worlds
+    keep 0, today's crowds, until their reproductions are re-run.
+    """
+
+    sees_robot: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        value = self.sees_robot
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        check(
+            number and 0.0 <= value <= 1.0,
+            f"{self.type_name or 'crowd'}.sees_robot must be a share in [0, 1] (0: nobody sees the robot, 1: everyone), got {value!r}",
+        )
 
 
 @dataclass(frozen=True)
@@ -185,6 +211,8 @@ class Crowd:
         self.held = np.zeros(count, dtype=np.bool_)
         self.max_speed = np.full(count, c.speed_mps)
         self.member_mass_kg = np.full(count, c.mass_kg)
+        self.sees = np.zeros(count, dtype=np.bool_)  # who sees our robot (draw_seers)
+        self.any_sees = False
 
     def bodies(self) -> list[BodySpec]:
         """The crowd's bodies, members first (override to add a ball or other bodies)."""
@@ -225,6 +253,33 @@ class Crowd:
     def commands(self, state: WorldState, others: Rows, rng: np.random.Generator) -> Commands:
         """What the crowd wants this step; ``others``: the rows of every member of every crowd."""
         return Commands(np.zeros((self.count, 2)))
+
+    def draw_seers(self, rng: np.random.Generator) -> None:
+        """Draw who sees the robot this episode (``sees``, ``(members,)``) from the config's
+        ``sees_robot`` share (a crowd of people calls it at its reset; nobody otherwise)."""
+        share = float(getattr(self.config, "sees_robot", 0.0))
+        self.sees = draw_seers(rng, self.count, share)
+        self.any_sees = bool(self.sees.any())
+
+    def react_to_robot(
+        self, state: WorldState, want: NDArray[np.float64], people: slice, top_speed: NDArray[np.float64], force_s: float
+    ) -> None:
+        """Members ``people`` (a slice of the members) who see the robot react to it: their rows of
+        ``want`` ``(members, 2)`` change in place (:func:`envs.crowds.steering.see_robot`;
+        ``top_speed``: theirs, ``force_s``: how long the robot's force acts on ``want``)."""
+        if not self.any_sees:
+            return
+        want[people] = see_robot(
+            state.positions[self.member_rows][people],
+            want[people],
+            self.radii_m[people],
+            self.sees[people] & ~self.held[people],
+            top_speed,
+            state.positions[0],
+            state.velocities[0],
+            state.robot_radius_m,
+            force_s,
+        )
 
     def draw(self, canvas: Any, state: WorldState) -> None:
         """Draw the crowd's bodies: members as filled, outlined discs, cars as their footprint boxes."""

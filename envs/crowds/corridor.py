@@ -29,9 +29,9 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from envs.crowds.base import Commands, Crowd, CrowdConfig, Taken, register_crowd
+from envs.crowds.base import Commands, Crowd, PeopleConfig, Taken, register_crowd
 from envs.crowds.queues import PEOPLE_FILL
-from envs.crowds.steering import seek
+from envs.crowds.steering import SEEK_RELAXATION_S, seek
 from envs.crowds.walkers import SPEED_CAP, social_force_velocities
 from envs.state import Rows, WorldState
 from localizers.raycast import cast_rays
@@ -51,7 +51,7 @@ _NO_RADII = np.zeros(0)
 
 
 @dataclass(frozen=True)
-class CorridorConfig(CrowdConfig):
+class CorridorConfig(PeopleConfig):
     """Walkers both ways along a corridor and groups standing by its walls.
 
     ``count`` is the number of walkers only: the crowd density, which ``crowd_size`` sets and
@@ -328,6 +328,7 @@ class CorridorCrowd(Crowd):
         self.walk_speed_mps = rng.uniform(*c.walk_speed_mps, size=w)
         self.lane_x_m = c.centre_x_m + self.direction * rng.uniform(*c.lane_offset_m, size=w)
         self.next_fidget_s = rng.uniform(*c.fidget_period_s, size=self.standing)
+        self.draw_seers(rng)
         return np.concatenate([walkers, self.spot]).reshape(-1, 2)
 
     def _wall_depth(self, y: NDArray[np.float64], side: float) -> NDArray[np.float64]:
@@ -412,6 +413,7 @@ class CorridorCrowd(Crowd):
                 self.dt_s,
                 self._robot_gain(state, others),
             )
+            self.react_to_robot(state, out, slice(0, w), SPEED_CAP * self.walk_speed_mps, self.dt_s)
             teleports = self._re_entries(state, others, pos[:w], vel[:w], out, rng)
         if self.standing:
             due = state.time_s >= self.next_fidget_s
@@ -422,6 +424,7 @@ class CorridorCrowd(Crowd):
                 self.fidget[due] = reach[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
                 self.next_fidget_s[due] += rng.uniform(*c.fidget_period_s, size=n)
             out[w:] = seek(pos[w:], self.spot + self.fidget, self.max_speed[w:], self.held[w:], self.radii_m[w:])
+            self.react_to_robot(state, out, slice(w, self.count), self.max_speed[w:], SEEK_RELAXATION_S)
         out[self.held] = 0.0
         return Commands(out, None, tuple(teleports))
 

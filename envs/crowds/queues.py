@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from envs.crowds.base import Commands, Crowd, CrowdConfig, Taken, register_crowd
-from envs.crowds.steering import TRANSIT_M, give_way, seek
+from envs.crowds.base import Commands, Crowd, PeopleConfig, Taken, register_crowd
+from envs.crowds.steering import SEEK_RELAXATION_S, TRANSIT_M, give_way, seek
 from envs.state import Rows, WorldState
 from localizers.schema import check
 
@@ -27,7 +27,7 @@ PEOPLE_FILL = (200, 120, 60)
 
 
 @dataclass(frozen=True)
-class QueuesConfig(CrowdConfig):
+class QueuesConfig(PeopleConfig):
     """Two queues of ``count`` people (split evenly) along the left and right walls."""
 
     shape: str = "person"  # legs, a torso and a head (envs.bodies); the footprint disc collides
@@ -83,6 +83,7 @@ class QueueCrowd(Crowd):
         self.next_shift_s = float(rng.uniform(0.0, self.q.step_period_s))
         members = self._slot_xy()
         taken += [(float(x), float(y), self.config.radius_m) for x, y in members]
+        self.draw_seers(rng)
         return members
 
     def _slot_xy(self) -> NDArray[np.float64]:
@@ -123,4 +124,5 @@ class QueueCrowd(Crowd):
                     self.q.give_way_margin_m,
                     self.q.give_way_horizon_s,
                 )
+        self.react_to_robot(state, want, slice(0, self.count), self.max_speed, SEEK_RELAXATION_S)
         return Commands(want)

@@ -118,17 +118,144 @@ def give_way(
         my = py - wy * t
         if mx * mx + my * my >= clearance * clearance:
             continue
-        # turn w to the tangent of the clearance circle, on the side it passes now
-        side = 1.0 if px * wy - py * wx >= 0.0 else -1.0  # w to the left (+) or right (-) of the robot
-        tangent = math.asin(clearance / dist)
-        base = math.atan2(py, px) + side * tangent
-        w = math.sqrt(w2)
-        vx = w * math.cos(base) + robot_v[0]
-        vy = w * math.sin(base) + robot_v[1]
-        v = math.sqrt(vx * vx + vy * vy)
-        if v > speed:  # never faster than it wanted to walk
-            vx *= speed / v
-            vy *= speed / v
+        out[i, 0], out[i, 1] = _pass_tangent(px, py, wx, wy, w2, dist, clearance, speed, robot_v[0], robot_v[1])
+    return out
+
+
+@numba.njit(cache=True)
+def _pass_tangent(
+    px: float, py: float, wx: float, wy: float, w2: float, dist: float, clearance: float, speed: float, rvx: float, rvy: float
+) -> tuple[float, float]:
+    """The ground velocity that turns the relative velocity ``(wx, wy)`` (``w2``: its square) of a
+    member ``(px, py)`` short of the robot (``dist`` away, moving at ``(rvx, rvy)``) to the tangent
+    of the clearance circle, on the side it passes now, at the same relative speed and never
+    faster than ``speed`` over the ground (:func:`give_way`, :func:`see_robot`)."""
+    side = 1.0 if px * wy - py * wx >= 0.0 else -1.0  # w to the left (+) or right (-) of the robot
+    tangent = math.asin(clearance / dist)
+    base = math.atan2(py, px) + side * tangent
+    w = math.sqrt(w2)
+    vx = w * math.cos(base) + rvx
+    vy = w * math.sin(base) + rvy
+    v = math.sqrt(vx * vx + vy * vy)
+    if v > speed:  # never faster than it wanted to walk
+        vx *= speed / v
+        vy *= speed / v
+    return vx, vy
+
+
+# People who see the robot (:func:`see_robot`; the people crowds' ``sees_robot`` share,
+# :class:`envs.crowds.base.PeopleConfig`). The social force has Helbing and Molnar's form with
+# the body surfaces' distance and a weight for what lies behind (Helbing, Farkas and Vicsek 2000,
+# with the anisotropy of Helbing and Johansson's "circular specification"); its parameters are
+# those fitted to video tracking of pedestrians:
+SEE_FORCE_MPS2 = 0.42  # A: Johansson, Helbing and Shukla 2007 (Adv. Complex Syst. 10, 271), circular specification
+SEE_RANGE_M = 1.65  # B: the same fit
+SEE_BEHIND = 0.12  # lambda: the same fit (a robot behind weighs 0.12 of one ahead)
+SEE_HORIZON_S = 3.0  # people react to a contact this soon: Karamouzas, Skinner and Guy 2014 (PRL 113, 238701), tau0 ~ 3 s
+SEE_GAP_M = 0.45  # ... passing with this much between the bodies: Hall 1966 (The Hidden Dimension), intimate distance 18 in
+SEEK_RELAXATION_S = 0.5  # tau of the social-force model (Helbing and Molnar 1995): see_robot's force_s for seeking crowds
+
+
+def draw_seers(rng: np.random.Generator, count: int, share: float) -> NDArray[np.bool_]:
+    """``(count,)`` which members see the robot this episode: each with probability ``share``.
+
+    Drawn from a child of ``rng`` (:meth:`numpy.random.Generator.spawn`), which leaves ``rng``'s
+    own draws as they were, and only for a share strictly between 0 and 1: 0 (nobody, the
+    invisible robot) and 1 (everyone) draw nothing. A member who sees at one share also sees at
+    any larger share with the same seed (one uniform number per member, compared with the share).
+    """
+    if share <= 0.0:
+        return np.zeros(count, dtype=np.bool_)
+    if share >= 1.0:
+        return np.ones(count, dtype=np.bool_)
+    return rng.spawn(1)[0].random(count) < share
+
+
+@numba.njit(cache=True)
+def _contact_time(px: float, py: float, wx: float, wy: float, clearance: float) -> float:
+    """Seconds until a member ``(px, py)`` short of the robot, moving at ``(wx, wy)`` relative to
+    it, comes within ``clearance`` of its centre (inf: never)."""
+    w2 = wx * wx + wy * wy
+    closing = px * wx + py * wy
+    if w2 < 1e-12 or closing <= 0.0:
+        return math.inf
+    disc = closing * closing - w2 * (px * px + py * py - clearance * clearance)
+    if disc <= 0.0:
+        return math.inf
+    return max((closing - math.sqrt(disc)) / w2, 0.0)
+
+
+@numba.njit(cache=True)
+def see_robot(
+    pos: NDArray[np.float64],
+    want: NDArray[np.float64],
+    radii: NDArray[np.float64],
+    sees: NDArray[np.bool_],
+    top_speed: NDArray[np.float64],
+    robot_xy: NDArray[np.float64],
+    robot_v: NDArray[np.float64],
+    robot_radius: float,
+    force_s: float,
+) -> NDArray[np.float64]:
+    """Velocities ``(N, 2)``: ``want`` for members who do not see the robot, and for those who do
+    (``sees``) how a pedestrian reacts to a robot it sees (CrowdNav's "visible robot").
+
+    1. A social force from the robot's disc (Helbing and Molnar's form),
+       ``F = A exp(-g / B) (lambda + (1 - lambda)(1 + cos phi) / 2) n``, ``g`` the gap between
+       the bodies, ``n`` the unit vector from the robot to the member, ``phi`` the angle between
+       where the member walks and the robot (``SEE_FORCE_MPS2``, ``SEE_RANGE_M``,
+       ``SEE_BEHIND``). It changes the velocity by ``force_s F``: the step ``dt`` for a crowd
+       whose ``want`` already integrates a social force (the force acts every step), the
+       relaxation time ``SEEK_RELAXATION_S`` for one that seeks a target afresh every step (the
+       velocity the relaxation settles at under ``F``). Speeds stay within ``top_speed``.
+    2. When contact would come within ``SEE_HORIZON_S`` (closer than the clearance, the bodies'
+       radii and ``SEE_GAP_M``), the member steps aside: its velocity relative to the robot
+       turns to the tangent of the clearance circle (as :func:`give_way`); if it would still touch
+       the robot that soon (a robot coming at it faster than it walks), it slows in proportion to
+       the time left to contact, down to waiting. One already inside the clearance stops closing in.
+    """
+    n = pos.shape[0]
+    out = want.copy()
+    lam = SEE_BEHIND
+    for i in range(n):
+        if not sees[i]:
+            continue
+        px = robot_xy[0] - pos[i, 0]
+        py = robot_xy[1] - pos[i, 1]
+        dist = math.sqrt(px * px + py * py)
+        if dist < 1e-9:
+            continue
+        vx = want[i, 0]
+        vy = want[i, 1]
+        speed = math.sqrt(vx * vx + vy * vy)
+        cos_phi = (px * vx + py * vy) / (dist * speed) if speed > 1e-9 else 1.0
+        gap = max(dist - radii[i] - robot_radius, 0.0)
+        push = force_s * SEE_FORCE_MPS2 * math.exp(-gap / SEE_RANGE_M) * (lam + (1.0 - lam) * 0.5 * (1.0 + cos_phi))
+        vx -= push * px / dist
+        vy -= push * py / dist
+        speed = math.sqrt(vx * vx + vy * vy)
+        if speed > top_speed[i]:
+            vx *= top_speed[i] / speed
+            vy *= top_speed[i] / speed
+            speed = top_speed[i]
+        clearance = radii[i] + robot_radius + SEE_GAP_M
+        wx = vx - robot_v[0]
+        wy = vy - robot_v[1]
+        if dist <= clearance:
+            closing = (px * wx + py * wy) / (dist * dist)
+            if closing > 0.0:  # inside the clearance: no nearer (it backs off from a robot driving at it)
+                vx -= closing * px
+                vy -= closing * py
+                v = math.sqrt(vx * vx + vy * vy)
+                if v > top_speed[i]:
+                    vx *= top_speed[i] / v
+                    vy *= top_speed[i] / v
+        elif _contact_time(px, py, wx, wy, clearance) < SEE_HORIZON_S:
+            vx, vy = _pass_tangent(px, py, wx, wy, wx * wx + wy * wy, dist, clearance, speed, robot_v[0], robot_v[1])
+            left = _contact_time(px, py, vx - robot_v[0], vy - robot_v[1], radii[i] + robot_radius)
+            if left < SEE_HORIZON_S:  # stepping aside does not avoid touching it: slow down, or wait
+                vx *= left / SEE_HORIZON_S
+                vy *= left / SEE_HORIZON_S
         out[i, 0] = vx
         out[i, 1] = vy
     return out

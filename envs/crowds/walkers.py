@@ -14,7 +14,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from envs.crowds.base import Commands, Crowd, CrowdConfig, Taken, register_crowd
+from envs.crowds.base import Commands, Crowd, PeopleConfig, Taken, register_crowd
 from envs.crowds.queues import PEOPLE_FILL
 from envs.state import Rows, WorldState
 from localizers.schema import check
@@ -28,7 +28,7 @@ SPEED_CAP = 1.3
 
 
 @dataclass(frozen=True)
-class WalkersConfig(CrowdConfig):
+class WalkersConfig(PeopleConfig):
     """Free walkers: ``count`` people with social-force avoidance."""
 
     shape: str = "person"  # legs, a torso and a head (envs.bodies); the footprint disc collides
@@ -151,6 +151,7 @@ class WalkerCrowd(Crowd):
         super().reset(rng, taken)
         members = self.free_positions(rng, self.count, self.config.radius_m, taken)
         self.goals = self._free_goals(rng, self.count)
+        self.draw_seers(rng)
         return members
 
     def commands(self, state: WorldState, others: Rows, rng: np.random.Generator) -> Commands:
@@ -174,5 +175,6 @@ class WalkerCrowd(Crowd):
             self.dt_s,
             np.ones(others_xy.shape[0]),  # everyone repels alike
         )
+        self.react_to_robot(state, v, slice(0, self.count), SPEED_CAP * self.desired_speed, self.dt_s)
         v[self.held] = 0.0
         return Commands(v)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.crowds.base import CrowdConfig
+from envs.crowds.base import PeopleConfig
 from envs.crowds.walkers import SPEED_CAP
 from localizers.schema import check, check_ranges
 
@@ -60,7 +60,7 @@ class LaneConfig:
 
 
 @dataclass(frozen=True)
-class CampusConfig(CrowdConfig):
+class CampusConfig(PeopleConfig):
     """Pedestrians and cars of a campus (:mod:`envs.crowds.campus`).
 
     Attributes:
@@ -87,6 +87,8 @@ class CampusConfig(CrowdConfig):
             strongly as a person.
         give_way, give_way_margin_m, give_way_horizon_s: walkers curve around the robot
             (:func:`~envs.crowds.steering.give_way`).
+        sees_robot: the share of the pedestrians (walkers and standing people) who see the robot
+            and react to it (:class:`~envs.crowds.base.PeopleConfig`; 0 here, issue 30 wants 1).
         yield_s: walkers do not step where a moving car will be within this time (1.5 s).
         group_sizes: standing groups' sizes, in turn (2-4: conversation groups).
         group_spacing_m: neighbours' distance in a group (0.6 m: Hall's personal distance).

@@ -31,7 +31,8 @@ from envs.crowds.campus.traffic import (
 from envs.crowds.campus.walking import walk_velocities
 from envs.crowds.corridor import STANDING_FILL, group_ring
 from envs.crowds.queues import PEOPLE_FILL
-from envs.crowds.steering import give_way, seek
+from envs.crowds.steering import SEEK_RELAXATION_S, give_way, seek
+from envs.crowds.walkers import SPEED_CAP
 from envs.state import Rows, WorldState
 from localizers.schema import ConfigError
 
@@ -228,6 +229,7 @@ class CampusCrowd(Crowd):
         out[: self.walkers] = self._place_walkers(rng, taken)
         self.next_fidget_s = rng.uniform(*self.c.fidget_period_s, size=self.standing)
         self._start_headings = headings
+        self.draw_seers(rng)  # the cars' entries are never read: cars stop for the robot (drive_velocities)
         return out
 
     def _free(self, xy: NDArray[np.float64], radius: float, taken: Taken) -> bool:
@@ -415,6 +417,7 @@ class CampusCrowd(Crowd):
                     pos[:w], out[:w], self.radii_m[:w], ~self.held[:w], state.positions[0], state.velocities[0],
                     state.robot_radius_m, c.give_way_margin_m, c.give_way_horizon_s,
                 )  # fmt: skip
+            self.react_to_robot(state, out, slice(0, w), SPEED_CAP * self.desired_mps, self.dt_s)
         if self.standing:
             due = state.time_s >= self.next_fidget_s
             if due.any():
@@ -424,6 +427,7 @@ class CampusCrowd(Crowd):
                 self.fidget[due] = reach[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
                 self.next_fidget_s[due] += rng.uniform(*c.fidget_period_s, size=n)
             out[w:fc] = seek(pos[w:fc], self.spot + self.fidget, self.max_speed[w:fc], self.held[w:fc], self.radii_m[w:fc])
+            self.react_to_robot(state, out, slice(w, fc), self.max_speed[w:fc], SEEK_RELAXATION_S)
         if self.cars:
             lanes = self.lanes
             out[fc:fp], at_end = drive_velocities(
