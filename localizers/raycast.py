@@ -152,7 +152,9 @@ def _cast(
         if every_beam:
             for i in range(n):
                 j = i * step
-                t = _ray_segment(origins[j, 0], origins[j, 1], dirx[i], diry[i], seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
+                t = _ray_segment(
+                    origins[j, 0], origins[j, 1], dirx[i], diry[i], seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1]
+                )
                 if t < out[i]:
                     out[i] = t
             continue
@@ -163,7 +165,9 @@ def _cast(
         for k in range(3):
             for i in range(spans[k, 0], spans[k, 1]):
                 j = i * step
-                t = _ray_segment(origins[j, 0], origins[j, 1], dirx[i], diry[i], seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
+                t = _ray_segment(
+                    origins[j, 0], origins[j, 1], dirx[i], diry[i], seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1]
+                )
                 if t < out[i]:
                     out[i] = t
     for c in range(centres.shape[0]):

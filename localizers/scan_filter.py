@@ -473,7 +473,9 @@ class FarPointMCL:
         if self.params.deskew:
             ranges, angles, max_range = validated_scan(measurement, self.name)
             lags = None if measurement.beam_lags_s is None else np.asarray(measurement.beam_lags_s)
-            self.filter.add_readings(*deskewed(ranges, angles, max_range, lags, self.mcl.increment, self.mcl.dt_s, self.name), max_range)
+            self.filter.add_readings(
+                *deskewed(ranges, angles, max_range, lags, self.mcl.increment, self.mcl.dt_s, self.name), max_range
+            )
         else:
             self.filter.add_scan(measurement)  # validates
         self._last = measurement

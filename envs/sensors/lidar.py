@@ -89,8 +89,9 @@ class Lidar(RangeSensor):
         lo, hi = config.relative_angles_rad
         beams = np.linspace(lo, hi, config.beams)
         super().__init__(name, config, state, beams, beams, ray_lags_s=beam_lags_s(beams, config.sweep_s), dt_s=world.dt_s)
+        self._sweep_s = float(config.sweep_s)
 
     def metadata(self) -> dict[str, Any]:
         """The range sensor's, with ``sweep_s`` and each beam's ``beam_lags_s`` (what a driver stamping
         each beam tells a localizer: ``deskew``)."""
-        return {**super().metadata(), "sweep_s": float(self.config.sweep_s), "beam_lags_s": self.ray_lags_s.copy()}
+        return {**super().metadata(), "sweep_s": self._sweep_s, "beam_lags_s": self.ray_lags_s.copy()}

@@ -62,7 +62,9 @@ def test_deskew_puts_a_swept_scan_back_on_the_walls(end: tuple[float, float, flo
 
 
 def test_deskew_keeps_a_blank_beam_blank_and_turns_it() -> None:
-    r, a = deskewed_scan(np.array([MAX_RANGE, 2.0]), np.array([0.0, 1.0]), MAX_RANGE, np.array([0.0, 0.0, 0.1]), np.array([0.5, 0.0]))
+    r, a = deskewed_scan(
+        np.array([MAX_RANGE, 2.0]), np.array([0.0, 1.0]), MAX_RANGE, np.array([0.0, 0.0, 0.1]), np.array([0.5, 0.0])
+    )
     assert r[0] == MAX_RANGE and a[0] == pytest.approx(-0.05)
     assert r[1] == pytest.approx(2.0) and a[1] == pytest.approx(1.0)
 
@@ -134,4 +136,6 @@ def test_deskew_options_are_checked() -> None:
         assert load_params(name).deskew is False  # off in the papers' reproductions
         with pytest.raises(ConfigError, match="deskew"):
             load_params(name, {"deskew": "yes"})
-    make_localizer("far_point_mcl", gym.make("crowdloc/CrowdedRoom-v0").unwrapped.landmark_map, dt_s=DT_S, params={"deskew": True})
+    make_localizer(
+        "far_point_mcl", gym.make("crowdloc/CrowdedRoom-v0").unwrapped.landmark_map, dt_s=DT_S, params={"deskew": True}
+    )
