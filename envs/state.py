@@ -44,6 +44,10 @@ class WorldState(NamedTuple):
         figures: every body's parts by height (:mod:`envs.bodies`); :meth:`section` cuts them.
         landmark_xy: ``(L, 2)``, ``landmark_radius_m`` and ``landmark_max_range_m``: ``(L,)``;
             ``landmark_names``: ``L`` names.
+        robot_start: ``(3,)`` our robot's position and heading (unwrapped) at the start of the
+            step that led here, where a sensor that takes time finds the poses within the step
+            (:func:`localizers.geometry.poses_along_step`); the current ones after a reset or a
+            teleport (no motion).
     """
 
     time_s: float
@@ -63,6 +67,7 @@ class WorldState(NamedTuple):
     landmark_radius_m: NDArray[np.float64]
     landmark_max_range_m: NDArray[np.float64]
     landmark_names: tuple[str, ...]
+    robot_start: NDArray[np.float64]
 
     @property
     def body_count(self) -> int:

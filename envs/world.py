@@ -145,6 +145,7 @@ class World:
         self._command_buffer.set_float_buf(self._command.reshape(-1))
         self._state = np.zeros((self.body_count, 5))
         self._build_space()
+        self._robot_start = self._state[0, 0:3]
 
     # ------------------------------------------------------------------ construction
     def _wall_segments(self) -> None:
@@ -277,6 +278,7 @@ class World:
         self.robot_body.angular_velocity = 0.0
         self.space.reindex_shapes_for_body(self.robot_body)
         self.read_state()
+        self._robot_start = self._state[0, 0:3]  # a jump, not a motion: the step starts here
 
     def place_body(
         self, row: int, xy: tuple[float, float], velocity: tuple[float, float] = (0.0, 0.0), angle: float | None = None
@@ -363,6 +365,7 @@ class World:
                 landmark_radius_m=self.landmark_radius_m,
                 landmark_max_range_m=self.landmark_max_range_m,
                 landmark_names=self.landmark_names,
+                robot_start=self._robot_start,
             )
         return self._snapshot
 
@@ -418,6 +421,7 @@ class World:
             cmd[turned, 2] = 0.0
         pbatch.set_space_bodies(self.space, _FIELDS_COMMAND, self._command_buffer)
         self.contacts = []  # a new list: one handed out for the last step is never changed
+        self._robot_start = self._state[0, 0:3]  # (a view: read_state makes a fresh array, this one is never written)
         self.space.step(dt)
         self.time_s += dt
         self.step_count += 1

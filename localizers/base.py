@@ -183,11 +183,15 @@ class ScanMeasurement:
         ranges_m: ``(B,)`` ranges; ``max_range_m`` where nothing was hit.
         angles_rad: ``(B,)`` beam angles in the robot frame, ascending.
         max_range_m: the sensor's maximum range.
+        beam_lags_s: ``(B,)`` how long before the scan's end each beam was taken (a swept scanner:
+            a driver stamping each beam, as ROS's ``LaserScan.time_increment`` does); None: all at
+            the end. Only a localizer's ``deskew`` reads it.
     """
 
     ranges_m: NDArray[np.float64]
     angles_rad: NDArray[np.float64]
     max_range_m: float
+    beam_lags_s: NDArray[np.float64] | None = None
 
 
 #: what types a stereo camera's vertical edges have (paper D): colour channel (R, G, B) x detection

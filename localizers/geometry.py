@@ -135,3 +135,46 @@ def ring_directions(count: int) -> NDArray[np.float64]:
     """``(count,)`` directions spread evenly around a full turn, from 0 counter-clockwise: the
     layout of a sensor ring (the sonar's cone centres, relative to the heading)."""
     return np.arange(count, dtype=np.float64) * (TWO_PI / count)
+
+
+def poses_along_step(start: ArrayLike, end: ArrayLike, lag_fractions: ArrayLike) -> NDArray[np.float64]:
+    """``(K, 3)`` the poses a robot held ``lag_fractions`` ``(K,)`` of a step before it reached
+    ``end`` from ``start`` (0: at ``end``, 1: at ``start``), moving as the simulation moves a body
+    within one step: its position along the straight line, its heading along the shorter arc,
+    both at a constant rate. The one model of motion within a step: the swept LIDAR takes each
+    beam from it (:mod:`envs.sensors.ranging`) and the localizers' ``deskew`` undoes it
+    (:func:`deskewed_scan`)."""
+    s = np.asarray(start, dtype=np.float64)
+    e = np.asarray(end, dtype=np.float64)
+    f = np.asarray(lag_fractions, dtype=np.float64)
+    out = np.empty((f.shape[0], 3), dtype=np.float64)
+    out[:, 0] = e[0] - f * (e[0] - s[0])
+    out[:, 1] = e[1] - f * (e[1] - s[1])
+    out[:, 2] = e[2] - f * wrap_angle(e[2] - s[2])
+    return out
+
+
+def deskewed_scan(
+    ranges: ArrayLike, angles: ArrayLike, max_range: float, delta: ArrayLike, lag_fractions: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A swept scan as if every beam had been taken at the end of the step: ``(ranges, angles)``.
+
+    Beam ``k`` (``ranges[k]`` along ``angles[k]``, robot frame) was taken ``lag_fractions[k]`` of
+    the step before its end, from the pose :func:`poses_along_step` gives for the step's motion
+    ``delta`` (``(dx, dy, dtheta)`` in the frame of the step's start: the odometry increment; a
+    constant velocity across the step is assumed). Each hit is moved to the frame of the step's
+    end pose and given as the range and direction from there (clipped to ``max_range``); a beam
+    that hit nothing keeps ``max_range`` and is turned by the heading it lagged. The angles no
+    longer ascend in general (the likelihood models do not need them to).
+    """
+    r = np.asarray(ranges, dtype=np.float64)
+    a = np.asarray(angles, dtype=np.float64)
+    d = np.asarray(delta, dtype=np.float64)
+    beam = between(d, poses_along_step(np.zeros(3), d, lag_fractions))  # each beam's pose in the end frame
+    direction = a + beam[:, 2]
+    px = beam[:, 0] + r * np.cos(direction)
+    py = beam[:, 1] + r * np.sin(direction)
+    hit = r < max_range
+    out_r = np.where(hit, np.minimum(np.hypot(px, py), max_range), max_range)
+    out_a = np.where(hit, np.arctan2(py, px), direction)
+    return out_r, out_a

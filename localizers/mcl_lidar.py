@@ -54,6 +54,7 @@ from numpy.typing import ArrayLike, NDArray
 from localizers.base import (
     ConsistencyPromise,
     LandmarkMap,
+    MeasurementError,
     OdometryDelta,
     Overlay,
     PoseEstimate,
@@ -65,7 +66,7 @@ from localizers.base import (
     within_spread,
 )
 from localizers.beam_model import BeamModel, LikelihoodFieldModel, beam_likelihood, p_hit, p_max, p_rand, p_short
-from localizers.geometry import compose, wrap_angle
+from localizers.geometry import compose, deskewed_scan, wrap_angle
 from localizers.mcl_lidar_params import (
     LARGE_MAP_PARAMS,
     MAX_TABLE_DIRECTIONS,
@@ -107,6 +108,7 @@ __all__ = [
     "build_range_table",
     "cache_dir",
     "chi_square_sample_count",
+    "deskewed",
     "informative",
     "kld_resample",
     "large_map_mcl",
@@ -132,6 +134,31 @@ def informative(ranges: Array, max_range: float, params: LidarMCLParams) -> bool
 
 # --------------------------------------------------------------------------------------
 # The filter
+
+
+def deskewed(
+    ranges: Array, angles: Array, max_range: float, lags_s: ArrayLike | None, increment: Array, dt_s: float, source: str
+) -> tuple[Array, Array]:
+    """The ``deskew`` option of the LIDAR localizers: ``(ranges, angles)`` of a swept scan whose beams
+    were taken ``lags_s`` before its end, moved to the end pose by the step's odometry ``increment``
+    over ``dt_s`` (:func:`localizers.geometry.deskewed_scan`); unchanged without lags, with all lags 0
+    or without motion.
+
+    Raises:
+        MeasurementError: lags of another length than the beams, or not finite and >= 0.
+    """
+    if lags_s is None:
+        return ranges, angles
+    lags = np.asarray(lags_s, dtype=np.float64)
+    if lags.shape != ranges.shape:
+        raise MeasurementError(f"{source}: beam_lags_s must have one lag per beam {ranges.shape}, got shape {lags.shape}")
+    bad = ~(np.isfinite(lags) & (lags >= 0.0))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise MeasurementError(f"{source}: beam lag {float(lags[i])!r} s at index {i} is not a finite value >= 0")
+    if not (lags.any() and increment.any()):
+        return ranges, angles
+    return deskewed_scan(ranges, angles, max_range, increment, lags / dt_s)
 
 
 def chi_square_sample_count(k: ArrayLike, epsilon: float, delta: float) -> Array:
@@ -209,6 +236,7 @@ class LidarMCL:
         self._weights = np.zeros(0)
         self._loglik = np.zeros(0)
         self._pending = np.zeros(3)
+        self._increment = np.zeros(3)  # the last step's odometry (deskew)
         self._travel_m = 0.0
         self._turn_rad = 0.0
         self._updates = 0
@@ -252,6 +280,7 @@ class LidarMCL:
             self._valid = True
         self._set_uniform_weights(n)
         self._pending = np.zeros(3)
+        self._increment = np.zeros(3)
         self._travel_m = self._turn_rad = 0.0
         self._updates = 0
         self._averages.reset()
@@ -261,6 +290,7 @@ class LidarMCL:
         """Compose the increment into the motion not yet applied to the particles."""
         self._generator()
         d = checked_odometry(self.name, odometry, self._step_limit_m)
+        self._increment = d
         self._pending = compose(self._pending, d)
         self._travel_m += math.hypot(d[0], d[1])
         self._turn_rad += abs(d[2])
@@ -273,6 +303,9 @@ class LidarMCL:
         if not self.update_due:
             return
         stride = p.beam_stride
+        if p.deskew:
+            lags = None if measurement.beam_lags_s is None else np.asarray(measurement.beam_lags_s)
+            ranges, angles = deskewed(ranges, angles, max_range, lags, self._increment, self._dt, self.name)
         ranges = np.ascontiguousarray(ranges[::stride])
         angles = np.ascontiguousarray(angles[::stride])
         used = ranges.size if p.model == "beam" else int(np.count_nonzero(ranges < max_range))
@@ -374,6 +407,16 @@ class LidarMCL:
     def updates(self) -> int:
         """Number of scans weighed since the last reset."""
         return self._updates
+
+    @property
+    def increment(self) -> Array:
+        """``(3,)`` the last odometry increment :meth:`predict` got (zeros since the reset): the step's motion ``deskew`` undoes."""
+        return self._increment.copy()
+
+    @property
+    def dt_s(self) -> float:
+        """The env's step, s."""
+        return self._dt
 
     # ------------------------------------------------------------------ internals
     def _generator(self) -> np.random.Generator:

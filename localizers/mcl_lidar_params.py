@@ -131,6 +131,12 @@ class LidarMCLParams:
             field 1.8e-12), with or without ``fastmath`` on the parallel variant (each particle
             is summed by one thread, in beam order, so it is not a thread-order reduction).
             Calls of one compiled kernel are deterministic; the pinned numbers use the serial one.
+        deskew: undo the motion of the robot during a swept scan before weighing it (issue 30; off in
+            the papers' reproductions, whose scans are taken as they come): each beam is moved to the
+            pose at the scan's end by the step's odometry increment, a constant velocity across the step
+            assumed (:func:`localizers.geometry.deskewed_scan`), using the beam times the scan carries
+            (:attr:`localizers.base.ScanMeasurement.beam_lags_s`, from a LIDAR's ``sweep_s``); a scan
+            without them is used as it is.
     """
 
     n_particles: int = 1000
@@ -171,6 +177,7 @@ class LidarMCLParams:
     max_spread_m: float = DEFAULT_MAX_SPREAD_M
     min_range_m: float = 0.1
     min_informative_fraction: float = 0.1
+    deskew: bool = False
 
     def __post_init__(self) -> None:
         name = "LidarMCLParams"

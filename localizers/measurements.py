@@ -146,12 +146,15 @@ def bearing_measurement(landmarks_obs: NDArray[np.float32], metadata: Mapping[st
 
 
 def scan_measurement(ranges: NDArray[np.float32], metadata: Mapping[str, Any]) -> ScanMeasurement:
-    """A LIDAR's ``(B,)`` ranges with the beam angles and maximum range of its metadata (checked: ``B`` beams)."""
+    """A LIDAR's ``(B,)`` ranges with the beam angles, maximum range and (where the metadata has
+    them: a swept LIDAR) beam lags of its metadata (checked: ``B`` beams)."""
     beams = np.asarray(metadata["beam_angles_rad"]).shape
+    lags = metadata.get("beam_lags_s")
     return ScanMeasurement(
         np.asarray(checked_shape(ranges, metadata, beams, "ranges, one per beam"), dtype=np.float64),
         np.asarray(metadata["beam_angles_rad"], dtype=np.float64),
         float(metadata["max_range_m"]),
+        None if lags is None else np.asarray(lags, dtype=np.float64),
     )
 
 

@@ -51,7 +51,7 @@ from localizers.base import (
 )
 from localizers.bounds import odometry_process_noise
 from localizers.geometry import between, compose, wrap_angle
-from localizers.mcl_lidar import LidarMCL, informative
+from localizers.mcl_lidar import LidarMCL, deskewed, informative
 from localizers.mcl_lidar_params import LidarMCLParams, large_map_mcl
 from localizers.schema import check, check_at_most
 
@@ -226,7 +226,10 @@ class ScanFilter:
 
     def add_scan(self, scan: ScanMeasurement) -> None:
         """Store the scan's hit points (ranges below the maximum) and drop what left the window."""
-        ranges, angles, max_range = validated_scan(scan, "scan filter")
+        self.add_readings(*validated_scan(scan, "scan filter"))
+
+    def add_readings(self, ranges: Array, angles: Array, max_range: float) -> None:
+        """:meth:`add_scan` of checked readings (robot frame; the angles in any order: a deskewed scan's)."""
         hit = ranges < max_range
         r, a = ranges[hit], angles[hit]
         x, y, theta = self._pose
@@ -370,6 +373,11 @@ class FarPointMCLParams:
         mcl: the LIDAR MCL that consumes the processed scans; its estimate is this
             localizer's, its ``max_spread_m`` the limit past which no pose is claimed.
         filter: accumulation and far-point extraction.
+        deskew: undo the robot's motion during each swept scan before accumulating it (issue 30;
+            off in the paper's reproduction): ``mcl_lidar``'s option
+            (:attr:`localizers.mcl_lidar_params.LidarMCLParams.deskew`) applied to the raw scans,
+            whose hit points the window keeps. ``mcl.deskew`` is refused: the far-point scans the
+            MCL weighs are made at the current pose and have no beam times.
         window_error: add the odometry noise of the accumulation window to the reported
             covariance (ours; the paper reports none). The window's points were placed by
             odometry alone, so a fix on them inherits its error, shared by all their beams, which
@@ -383,7 +391,15 @@ class FarPointMCLParams:
 
     mcl: LidarMCLParams = field(default_factory=LidarMCLParams)
     filter: ScanFilterParams = field(default_factory=ScanFilterParams)
+    deskew: bool = False
     window_error: bool = True
+
+    def __post_init__(self) -> None:
+        check(
+            not self.mcl.deskew,
+            "FarPointMCLParams.mcl.deskew must be false: far_point_mcl deskews the raw scans it accumulates (set its "
+            "top-level deskew: true); the far-point scans its MCL weighs are made at the current pose, with no beam times",
+        )
 
 
 def large_map_params(env: Any, sensor: str, params: Mapping[str, Any] | None) -> Mapping[str, Any] | None:
@@ -454,7 +470,14 @@ class FarPointMCL:
         now does not fix the pose on points already weighed.
         """
         require_reset(type(self).__name__, self._ready)
-        self.filter.add_scan(measurement)  # validates
+        if self.params.deskew:
+            ranges, angles, max_range = validated_scan(measurement, self.name)
+            lags = None if measurement.beam_lags_s is None else np.asarray(measurement.beam_lags_s)
+            self.filter.add_readings(
+                *deskewed(ranges, angles, max_range, lags, self.mcl.increment, self.mcl.dt_s, self.name), max_range
+            )
+        else:
+            self.filter.add_scan(measurement)  # validates
         self._last = measurement
         if self.mcl.update_due:
             max_range = float(measurement.max_range_m)

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from localizers.raycast import cast_rays, sight_lines_clear
+from localizers.raycast import cast_rays, cast_rays_from, sight_lines_clear
 
 NO_POINTS = np.zeros((0, 2))
 NO_RADII = np.zeros(0)
@@ -250,6 +250,48 @@ def test_cast_rays_matches_brute_force_reference(scene: tuple) -> None:
     assert got.shape == angles.shape
     assert np.all((got >= 0) & (got <= max_range))
     np.testing.assert_allclose(got[~ambiguous], want[~ambiguous], rtol=0, atol=1e-7)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    scene=scenes(),
+    shift=st.tuples(st.floats(-0.1, 0.1), st.floats(-0.1, 0.1)),
+    turn=st.floats(-1.0, 7.0),
+    shuffled=st.booleans(),
+)
+def test_cast_rays_from_matches_the_reference_from_each_origin(scene: tuple, shift: tuple, turn: float, shuffled: bool) -> None:
+    """A swept scan: ray i from its own origin (up to 14 cm apart), its direction turned by up to
+    7 rad over the scan (past a full turn: the culling's 3 pi limit), or the rays out of order
+    (every beam tested)."""
+    origin, angles, max_range, seg_a, seg_b, centres, radii = scene
+    n = angles.shape[0]
+    along = np.linspace(0.0, 1.0, n)
+    origins = origin + along[:, None] * np.array(shift)
+    angles = angles + turn * along
+    if shuffled:
+        angles = np.random.default_rng(n).permutation(angles)
+    got = cast_rays_from(origins, np.ascontiguousarray(angles), max_range, seg_a, seg_b, centres, radii)
+    want = np.empty(n)
+    ambiguous = np.empty(n, dtype=bool)
+    for i in range(n):
+        r, a = reference_ranges(origins[i], angles[i : i + 1], max_range, seg_a, seg_b, centres, radii)
+        want[i], ambiguous[i] = r[0], a[0]
+    assert got.shape == (n,)
+    np.testing.assert_allclose(got[~ambiguous], want[~ambiguous], rtol=0, atol=1e-7)
+
+
+@pytest.mark.parametrize("beams", [1, 97, 1081])
+def test_cast_rays_from_one_origin_equals_cast_rays_bit_for_bit(beams: int) -> None:
+    """Every ray from one point: the same culling, the same ranges (a swept LIDAR on a robot standing still)."""
+    rng = np.random.default_rng(beams)
+    seg_a = rng.uniform(-5, 5, (12, 2))
+    seg_b = seg_a + rng.uniform(-3, 3, (12, 2))
+    centres, radii = rng.uniform(-5, 5, (20, 2)), rng.uniform(0.05, 0.5, 20)
+    origin = np.array([0.3, -0.2])
+    angles = scan_angles(-0.75 * math.pi, 1.5 * math.pi, beams)
+    one = cast_rays(origin, angles, MAX_RANGE, seg_a, seg_b, centres, radii)
+    each = cast_rays_from(np.tile(origin, (beams, 1)), angles, MAX_RANGE, seg_a, seg_b, centres, radii)
+    assert np.array_equal(one, each)
 
 
 # ---------------------------------------------------------------------------- sight lines
