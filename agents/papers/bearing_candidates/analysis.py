@@ -3,6 +3,12 @@
 :func:`analyze` turns the job results into one :class:`Analysis`; :func:`results_json` is
 what ``results.json`` holds. Errors are taken "from the first fix of method (5) on", as the
 paper does (:func:`references` says whose first fix starts each method's statistics).
+
+Exp 1's errors exist on two measures (:data:`MEASURES`): ``"path"``, the distance from each
+estimate to the line drawn on the floor (``jobs.EXP1_DRAWN_PATH``), which is what the paper
+measured, and ``"true"``, the error against the simulator's true pose (Table 1's columns).
+The paper's Exp 1 claims (:data:`EXP1_CLAIMS`) are judged on the paper's measure, the true
+error beside it (:class:`Exp1Claim`).
 """
 
 from __future__ import annotations
@@ -10,13 +16,17 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from agents.evaluate import consistency, metrics
+from agents.evaluate.stats import bootstrap_ci
 from agents.papers.bearing_candidates.jobs import (
+    BOOTSTRAP_RESAMPLES,
+    BOOTSTRAP_SEED,
+    EXP1_DRAWN_PATH,
     EXP1_METHODS,
     EXP1_OURS,
     EXP1_TABLE_METHODS,
@@ -141,10 +151,11 @@ def study_rows(results: Sequence[JobResult], methods: Sequence[Method], referenc
 
 
 def per_seed(
-    results: Sequence[JobResult], methods: Sequence[Method], reference: Mapping[str, str]
+    results: Sequence[JobResult], methods: Sequence[Method], reference: Mapping[str, str], *, drawn_path: bool = False
 ) -> dict[str, list[dict[str, Any]]]:
     """Per method, one record per seed: mean position / heading error from the reference first fix,
-    first-fix distance and availability (for results.json)."""
+    first-fix distance and availability (for results.json); with ``drawn_path`` (Exp 1) also the
+    mean and sd of the distance to the drawn path over the same steps (``path_mm``)."""
     out: dict[str, list[dict[str, Any]]] = {}
     for m in methods:
         rows = []
@@ -163,6 +174,8 @@ def per_seed(
                 "inside_95": fit.inside_95,
                 "covariance_missing": consistency.missing_share(fit),
             })  # fmt: skip
+            if drawn_path:
+                rows[-1]["path_mm"] = metrics.mean_sd(measured_errors_mm(r, m.key, "path"), t0)
         out[m.key] = rows
     return out
 
@@ -300,6 +313,151 @@ def unseen_shift_m(results: Sequence[JobResult]) -> float:
     return metrics.over_seeds(shifts).mean
 
 
+# ------------------------------------------------------------------------------------ Exp 1 on two measures
+
+Measure = Literal["path", "true"]
+Outcome = Literal["holds", "does not hold", "not separated"]
+MEASURES: tuple[Measure, ...] = ("path", "true")  # the paper's measure first
+#: the paper's Exp 1 claims (Table 1: (5) 100 mm against 383 and 381): (id, the method, the baseline it beats)
+EXP1_CLAIMS: tuple[tuple[str, str, str], ...] = (
+    ("E1a", "candidate_sets", "kalman"),
+    ("E1b", "candidate_sets", "mcl_bearing_paper"),
+)
+
+
+def measured_errors_mm(r: JobResult, key: str, measure: Measure) -> Array:
+    """``(T,)`` method ``key``'s error on ``measure`` along an Exp 1 run [mm], NaN where it had no pose."""
+    run = r.runs[key]
+    if measure == "path":
+        return metrics.path_distances(run.estimates, EXP1_DRAWN_PATH, closed=True) * 1000.0
+    return run.position_error_m * 1000.0
+
+
+def _bootstrap(values: ArrayLike, *stream: int) -> tuple[float, float]:
+    """The 95 % percentile-bootstrap interval of the mean of the finite ``values``, from generator
+    ``default_rng([BOOTSTRAP_SEED, *stream])``."""
+    return bootstrap_ci(values, BOOTSTRAP_RESAMPLES, rng=np.random.default_rng([BOOTSTRAP_SEED, *stream]))
+
+
+@dataclass(frozen=True)
+class Measured:
+    """One method's errors on one measure over the seeds: the statistics of Table 1's position column.
+
+    Attributes:
+        mm: seed mean of the per-seed mean, seed mean of the per-seed sd [mm] (the paper's "mean ± sd").
+        seed_median_mm, seed_sd_mm: median and sd over seeds of the per-seed mean.
+        ci_mm: 95 % percentile-bootstrap interval of the seed mean of the per-seed mean.
+        seeds: seeds with a value.
+    """
+
+    mm: tuple[float, float]
+    seed_median_mm: float
+    seed_sd_mm: float
+    ci_mm: tuple[float, float]
+    seeds: int
+
+
+def measured(errors_mm: Sequence[Array], starts: Sequence[int | None], *stream: int) -> Measured:
+    """:class:`Measured` of per-seed error series, each counted from its ``start`` (None: no steps)."""
+    per = [metrics.mean_sd(e, t0) for e, t0 in zip(errors_mm, starts, strict=True)]
+    means, sds = metrics.over_seeds([m for m, _ in per]), metrics.over_seeds([s for _, s in per])
+    return Measured((means.mean, sds.mean), _nanmedian([m for m, _ in per]), means.sd, _bootstrap([m for m, _ in per], *stream),
+                    means.n)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PathRow:
+    """One Exp 1 method on both measures, over the same steps (those Table 1 counts).
+
+    Attributes:
+        path: the distance to the drawn path (the paper's measure).
+        true: the error against the true pose (Table 1's position column, with its interval).
+    """
+
+    key: str
+    label: str
+    path: Measured
+    true: Measured
+
+
+def path_rows(results: Sequence[JobResult], methods: Sequence[Method], reference: Mapping[str, str]) -> list[PathRow]:
+    """Per method, :class:`PathRow` from the first fix of ``reference[key]`` on (as :func:`study_rows`)."""
+    rows = []
+    for m in methods:
+        starts = [metrics.first_fix(r.runs[reference[m.key]].valid) for r in results]
+        k = EXP1_METHODS.index(m)
+        both = {ms: measured([measured_errors_mm(r, m.key, ms) for r in results], starts, 1, k, j)
+                for j, ms in enumerate(MEASURES)}  # fmt: skip
+        rows.append(PathRow(m.key, m.label, both["path"], both["true"]))
+    return rows
+
+
+def robot_off_path(results: Sequence[JobResult]) -> Measured:
+    """How far the robot itself was from the drawn path (its true position's distance to it), over
+    the steps from method (5)'s first fix on: the open-loop robot drifts off the line, which the
+    paper's hand-pushed robot did not; this is what the paper's measure gives a perfect estimate."""
+    errors = [metrics.path_distances(r.truth, EXP1_DRAWN_PATH, closed=True) * 1000.0 for r in results]
+    return measured(errors, [metrics.first_fix(r.runs[REFERENCE].valid) for r in results], 3)
+
+
+@dataclass(frozen=True)
+class Difference:
+    """A method's per-seed mean error minus a baseline's on one measure, over the seeds.
+
+    Attributes:
+        mean_mm: the mean over the seeds where both have one.
+        ci_mm: its 95 % percentile-bootstrap interval (paired: seeds are resampled together).
+        outcome: "holds" when the interval lies below 0 (the method is better), "does not hold"
+            when above, "not separated" when it contains 0.
+    """
+
+    mean_mm: float
+    ci_mm: tuple[float, float]
+    outcome: Outcome
+
+
+def difference(ours: Sequence[float], baseline: Sequence[float], *stream: int) -> Difference:
+    """:class:`Difference` of paired per-seed values (``ours - baseline``)."""
+    d = np.asarray(ours, dtype=np.float64) - np.asarray(baseline, dtype=np.float64)
+    d = d[np.isfinite(d)]
+    lo, hi = _bootstrap(d, *stream)
+    outcome: Outcome = "holds" if hi < 0.0 else "does not hold" if lo > 0.0 else "not separated"
+    return Difference(float(d.mean()) if d.size else float("nan"), (lo, hi), outcome)
+
+
+@dataclass(frozen=True)
+class Exp1Claim:
+    """One of the paper's Exp 1 claims, "``method`` is more accurate than ``baseline``", on both measures.
+
+    Attributes:
+        claim_id: from :data:`EXP1_CLAIMS`.
+        path: the verdict on the paper's measure (the distance to the drawn path).
+        true: the verdict on the error against the true pose.
+    """
+
+    claim_id: str
+    method: str
+    baseline: str
+    path: Difference
+    true: Difference
+
+
+def exp1_claims(results: Sequence[JobResult]) -> list[Exp1Claim]:
+    """Each of :data:`EXP1_CLAIMS` on both measures, from the per-seed means of Table 1's steps."""
+    ref = references(EXP1_TABLE_METHODS)
+    out = []
+    for c, (claim_id, method, baseline) in enumerate(EXP1_CLAIMS):
+
+        def means(key: str, ms: Measure) -> list[float]:
+            return [
+                metrics.mean_sd(measured_errors_mm(r, key, ms), metrics.first_fix(r.runs[ref[key]].valid))[0] for r in results
+            ]
+
+        diffs = {ms: difference(means(method, ms), means(baseline, ms), 2, c, j) for j, ms in enumerate(MEASURES)}
+        out.append(Exp1Claim(claim_id, method, baseline, diffs["path"], diffs["true"]))
+    return out
+
+
 # ------------------------------------------------------------------------------------ studies
 
 
@@ -313,6 +471,9 @@ class Exp1Stats:
     path_m: float  # length of seed 0's true path
     all_in_view: float  # share of the steps with every landmark in view (seed mean)
     ours_rows: list[Row]  # the "(ours)" variants (jobs.EXP1_OURS), not in the paper
+    path_rows: list[PathRow]  # Table 1's rows, then the "(ours)" ones, on the paper's measure and the true error
+    robot_off_path: Measured  # :func:`robot_off_path`
+    claims: list[Exp1Claim]  # :func:`exp1_claims`
 
 
 @dataclass(frozen=True)
@@ -367,11 +528,14 @@ def exp1_stats(results: Sequence[JobResult]) -> Exp1Stats:
     """Table 1's rows and the path facts."""
     return Exp1Stats(
         rows=study_rows(results, EXP1_TABLE_METHODS, references(EXP1_TABLE_METHODS)),
-        per_seed=per_seed(results, EXP1_METHODS, references(EXP1_METHODS)),
+        per_seed=per_seed(results, EXP1_METHODS, references(EXP1_METHODS), drawn_path=True),
         seeds=len(results),
         path_m=float(metrics.travelled(results[0].truth)[-1]),
         all_in_view=float(np.mean([np.mean(r.visible_count >= r.landmarks_xy.shape[0]) for r in results])),
         ours_rows=study_rows(results, EXP1_OURS, references(EXP1_OURS)),
+        path_rows=path_rows(results, EXP1_METHODS, references(EXP1_METHODS)),
+        robot_off_path=robot_off_path(results),
+        claims=exp1_claims(results),
     )
 
 
@@ -431,6 +595,9 @@ def results_json(analysis: Analysis, plan: Plan, wall_s: float, workers: int) ->
         out["exp1"] = [asdict(r) for r in analysis.exp1.rows]
         out["exp1_per_seed"] = analysis.exp1.per_seed
         out["exp1_ours"] = [asdict(r) for r in analysis.exp1.ours_rows]
+        out["exp1_path"] = [asdict(r) for r in analysis.exp1.path_rows]
+        out["exp1_robot_off_path"] = asdict(analysis.exp1.robot_off_path)
+        out["exp1_claims"] = [asdict(c) for c in analysis.exp1.claims]
     if analysis.exp2:
         out["exp2"] = [asdict(r) for r in analysis.exp2.rows]
         out["exp3"] = [asdict(r) for r in analysis.exp2.exp3_rows]

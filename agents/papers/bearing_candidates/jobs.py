@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from agents.common.sweep import run_tasks
 from agents.evaluate import consistency, metrics
+from agents.policies.paths import EXP1_VERTICES
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -37,6 +38,9 @@ EXP2_ENV = "crowdloc/RoboCupCrowded-v0"
 EXP1_SPEED_MPS = 0.5  # straight legs (the paper pushed the robot by hand; a walking pace)
 EXP1_TURN_RPS = 1.0  # turns in place
 EXP1_MAX_STEPS = 10_000  # an upper bound: the open-loop driver ends the episode when the loop is closed
+#: the line drawn on the floor that the paper pushed its robot along and measured Exp 1's error against
+#: (the distance from each estimate to it): the closed polygon a-b-...-h-a the open-loop driver follows
+EXP1_DRAWN_PATH: tuple[tuple[float, float], ...] = tuple(EXP1_VERTICES.values())
 EXP1_PAIR = (1, 2)  # landmark ids method (5) is fed in Exp 1: the two goal posts (the paper's L6 and L7)
 EXP2_CROWD = 1  # the goalkeeper only
 EXP2_DROPOUT = 0.5  # "a random subset of the visible landmarks is used at each frame" (ours: each kept w.p. 0.5)
@@ -59,6 +63,8 @@ PATROL = ((1.2, 1.2), (3.8, 1.2), (3.8, 3.5), (1.2, 3.5))  # the push study's re
 PATROL_SPEED_MPS = 0.8
 PUSH_START_POSE = (*PATROL[0], 0.0)
 FAIL_M = 1.0  # an error at least this large is a failure
+BOOTSTRAP_RESAMPLES = 2000  # ours: percentile-bootstrap 95 % intervals over the seeds (agents.evaluate.stats.bootstrap_ci)
+BOOTSTRAP_SEED = 30  # their generators: default_rng([BOOTSTRAP_SEED, ...]), the same intervals on every run
 CASSINI_BEARINGS = 3  # a Cassini resection needs this many bearings
 
 DEFAULT_SEEDS, DEFAULT_SWEEP_SEEDS, DEFAULT_PUSH_SEEDS = 20, 5, 10

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 
@@ -128,10 +129,31 @@ def test_quick_run_writes_report_tables_and_figures(tmp_path: Path, capsys: pyte
     assert 'The "(ours)" row is not in the paper' in report
     assert sum(re.search(r"forgetting \S+ s \(ours\) +\|", line) is not None for line in printed.splitlines()) == 1 + 3
     _check_consistency(results, report)
+    _check_the_paper_measure(results, report, printed)
     # ours are numbers, not n/a, for the method every statistic starts from
     row = next(line for line in report.splitlines() if line.startswith("| (5) candidate sets K=10 |"))
     ours = row.split("|")[3]
     assert np.isfinite(float(ours.split("±")[0]))
+
+
+def _check_the_paper_measure(results: dict, report: str, printed: str) -> None:
+    """Exp 1 also on the paper's measure (issue 30): every Table 1 row and "(ours)" row, the true error beside it
+    equal to Table 1's, the claims judged on it, in the report and on stdout."""
+    from agents.papers.bearing_candidates.report import PATH_MEASURE, TRUE_MEASURE
+
+    table1 = {r["key"]: r for r in results["exp1"] + results["exp1_ours"]}
+    assert [r["key"] for r in results["exp1_path"]] == [m.key for m in jobs.EXP1_METHODS]
+    for got in results["exp1_path"]:
+        assert got["true"]["mm"] == pytest.approx(table1[got["key"]]["pos_mm"], rel=1e-12)  # the same steps as Table 1
+        assert 0.0 <= got["path"]["mm"][0] <= got["true"]["mm"][0]  # the distance to the line never exceeds the error
+        line = next(line for line in report.splitlines() if line.startswith(f"| {got['label']} |") and line.count("[") == 2)
+        assert line.split("|")[3].strip().startswith(f"{got['path']['mm'][0]:.0f} ± ")
+    assert f"| {PATH_MEASURE} [mm] |" in report and f"| {TRUE_MEASURE} [mm] |" in report
+    assert [c["claim_id"] for c in results["exp1_claims"]] == ["E1a", "E1b"]
+    for c in results["exp1_claims"]:
+        row = next(line for line in report.splitlines() if line.startswith(f"| {c['claim_id']} |")).split("|")
+        assert (row[3].strip(), row[5].strip()) == (f"**{c['path']['outcome']}**", f"**{c['true']['outcome']}**")
+    assert "to drawn path mm" in printed
 
 
 def _check_consistency(results: dict, report: str) -> None:
@@ -166,3 +188,96 @@ def _check_consistency(results: dict, report: str) -> None:
     assert report.count("Cells: NEES median, inside 95 %") == 2  # the two sweeps
     assert "| NEES median before | inside 95 % before | NEES median at the peak | inside 95 % at the peak |" in report
     assert report.count("Consistent: median about 2.37, inside about 95 %") == 6
+
+
+# ------------------------------------------------------------------------------------ Exp 1 on the paper's measure
+
+
+def test_distance_to_a_polyline_analytically() -> None:
+    from localizers.geometry import polyline_distance
+
+    square = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
+    # on a segment: 0; beyond an end: the distance to that end point (the projection is clipped)
+    assert polyline_distance([1.0, 0.0], square, closed=True) == 0.0
+    assert polyline_distance([[3.0, -1.0], [-0.6, -0.8]], square, closed=True) == pytest.approx([math.sqrt(2.0), 1.0])
+    assert polyline_distance([5.0, 0.0], [(0.0, 0.0), (2.0, 0.0)], closed=False) == pytest.approx(3.0)
+    # inside the closed polygon: the nearest side (0.3 from the bottom, 0.5 from the left)
+    assert polyline_distance([[1.0, 0.3], [0.5, 1.2]], square, closed=True) == pytest.approx([0.3, 0.5])
+    # open, the closing side d-a is not there: (0, 1) is 1 from the rest
+    assert polyline_distance([0.0, 1.0], square, closed=False) == pytest.approx(1.0)
+    assert polyline_distance([0.0, 1.0], square, closed=True) == 0.0
+    assert np.isnan(polyline_distance([np.nan, 1.0], square, closed=True))
+    assert polyline_distance([1.0, 1.0], [(0.0, 0.0)], closed=False) == pytest.approx(math.sqrt(2.0))  # one vertex
+    with pytest.raises(ValueError, match="vertices_xy"):
+        polyline_distance([0.0, 0.0], [0.0, 1.0, 2.0], closed=True)
+    # the metric: an (T, 3) estimate series, NaN rows stay NaN, the heading plays no part
+    from agents.evaluate import metrics
+
+    est = np.array([[1.0, 0.3, 2.0], [np.nan, np.nan, np.nan], [2.5, 1.0, -1.0]])
+    got = metrics.path_distances(est, square, closed=True)
+    assert got[0] == pytest.approx(0.3) and np.isnan(got[1]) and got[2] == pytest.approx(0.5)
+
+
+def _hand_made_exp1(seeds: int = 3) -> list:
+    """Exp 1 runs along the leg a-b: (5) sits on the line 0.3 m ahead of the robot, the Kalman filter
+    0.1 m beside it, the paper's MCL 0.2 m beside it (each offset 1 % longer per seed, so that the seeds differ)."""
+    from types import SimpleNamespace
+
+    a, b = jobs.EXP1_DRAWN_PATH[0], jobs.EXP1_DRAWN_PATH[1]
+    assert a[1] == b[1] and b[0] - a[0] > 0.8  # a-b runs along +x
+    x = np.linspace(a[0] + 0.1, a[0] + 0.5, 50)
+    truth = np.column_stack([x, np.full_like(x, a[1]), np.zeros_like(x)])
+    offsets = {"candidate_sets": (0.3, 0.0), "kalman": (0.0, 0.1), "mcl_bearing_paper": (0.0, 0.2)}
+    results = []
+    for s in range(seeds):
+        runs = {}
+        for key, (dx, dy) in offsets.items():
+            est = truth + np.array([dx, dy, 0.0]) * (1.0 + 0.01 * s)
+            runs[key] = SimpleNamespace(estimates=est, valid=np.ones(x.size, dtype=bool),
+                                        position_error_m=np.hypot(est[:, 0] - truth[:, 0], est[:, 1] - truth[:, 1]))  # fmt: skip
+        results.append(SimpleNamespace(runs=runs, truth=truth, job=SimpleNamespace(seed=s)))
+    return results
+
+
+def test_on_the_line_but_far_along_it_the_paper_measure_and_the_true_error_differ() -> None:
+    from agents.papers.bearing_candidates import analysis
+
+    results = _hand_made_exp1()
+    methods = [m for m in jobs.EXP1_TABLE_METHODS if m.key in ("kalman", "mcl_bearing_paper", "candidate_sets")]
+    rows = {r.key: r for r in analysis.path_rows(results, methods, analysis.references(methods))}
+    assert rows["candidate_sets"].path.mm == pytest.approx((0.0, 0.0), abs=1e-9)  # on the line ...
+    assert rows["candidate_sets"].true.mm[0] == pytest.approx(303.0)  # ... 0.3 m (+ 1 % on average) along it
+    assert rows["kalman"].path.mm[0] == pytest.approx(101.0) and rows["kalman"].true.mm[0] == pytest.approx(101.0)
+    lo, hi = rows["kalman"].path.ci_mm
+    assert 99.9 < lo < 101.0 < hi < 102.1 and rows["kalman"].path.seeds == 3  # within the seeds' 100, 101, 102
+    assert analysis.robot_off_path(results).mm[0] == pytest.approx(0.0, abs=1e-9)
+    # the paper's claims judged on its measure: (5) beats the Kalman filter there, not on the true error
+    claims = {c.baseline: c for c in analysis.exp1_claims(results)}
+    kf, mcl = claims["kalman"], claims["mcl_bearing_paper"]
+    assert (kf.path.outcome, kf.true.outcome) == ("holds", "does not hold")
+    assert kf.path.mean_mm == pytest.approx(-101.0) and kf.true.mean_mm == pytest.approx(202.0)
+    assert (mcl.path.outcome, mcl.true.outcome) == ("holds", "does not hold")
+    assert analysis.difference([1.0, 2.0], [1.5, 1.5]).outcome == "not separated"
+
+
+def test_the_report_shows_both_measures_and_judges_the_claims_on_the_paper_measure() -> None:
+    from agents.papers.bearing_candidates import analysis, report
+
+    results = _hand_made_exp1()
+    methods = [m for m in jobs.EXP1_TABLE_METHODS if m.key in ("kalman", "mcl_bearing_paper", "candidate_sets")]
+    exp1 = analysis.Exp1Stats(rows=[], per_seed={}, seeds=3, path_m=0.4, all_in_view=1.0, ours_rows=[],
+                              path_rows=analysis.path_rows(results, methods, analysis.references(methods)),
+                              robot_off_path=analysis.robot_off_path(results), claims=analysis.exp1_claims(results))  # fmt: skip
+    lines = report.measures_section(exp1)
+    head = next(line for line in lines if line.startswith("| method |"))
+    assert "| paper's measure: distance to the drawn path [mm] |" in head and "| error against the true pose [mm] |" in head
+    cs = next(line for line in lines if line.startswith("| (5) candidate sets, L6+L7, Exp-1 thresholds |")).split("|")
+    assert [c.strip() for c in cs[2:4]] == ["100 ± 87", "0 ± 0"] and cs[6].strip().startswith("303 ± ")
+    claim_head = next(line for line in lines if line.startswith("| # |")).split("|")
+    assert "verdict (paper's measure: distance to the drawn path)" in claim_head[3]
+    e1a = next(line for line in lines if line.startswith("| E1a |")).split("|")
+    assert [c.strip() for c in e1a[3:5]] == ["**holds**", "-101 [-102, -100]"]
+    assert e1a[5].strip() == "**does not hold**" and e1a[6].strip().startswith("+202 [")
+    text = "\n".join(lines)
+    assert "Ranked on the paper's measure (mm): (5) candidate sets, L6+L7, Exp-1 thresholds 0 < (3) Kalman 101" in text
+    assert "so here the two measures differ by the error along the line only" in text
