@@ -159,6 +159,14 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         metavar="KEY=VALUE",
         help="a condition on top, e.g. --env-set camera.fov_rad=1.5708 or --env-set prior=none (repeatable)",
     )
+    ev.add_argument(
+        "--localizer-set",
+        action="append",
+        default=[],
+        metavar="LOCALIZER.KEY=VALUE",
+        help="a parameter of one evaluated localizer over its configs/localizers/ file, e.g. "
+        "--localizer-set mcl_lidar.deskew=true (repeatable)",
+    )
     kid = ev.add_argument_group("kidnapping", "carry the robot away mid-episode and score each localizer's recovery")
     kid.add_argument("--kidnap-at-s", type=float, metavar="S", help="teleport the robot at S s after the reset (default: never)")
     kid.add_argument("--kidnap-m", type=float, metavar="M", help="at least this far from where it stood (default 2.0)")

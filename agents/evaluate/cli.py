@@ -46,8 +46,10 @@ def spec_from_args(args: Any) -> EvalSpec:
                       "localizers": (trained.localizer,)}  # fmt: skip
     conditions["env_kwargs"] = merge_nested(conditions.get("env_kwargs", {}), nest(parse_overrides(args.env_set)))
     chosen = {k: v for k, v in given.items() if v is not None}
+    localizer_params = nest(parse_overrides(getattr(args, "localizer_set", []), "--localizer-set"))
     return EvalSpec(**{k: v for k, v in {**conditions, **chosen}.items() if v is not None}, seeds=args.seeds,
-                    first_seed=args.first_seed, episode_steps=args.episode_steps, kidnap=kidnap_from_args(args))  # fmt: skip
+                    first_seed=args.first_seed, episode_steps=args.episode_steps, kidnap=kidnap_from_args(args),
+                    localizer_params=localizer_params)  # fmt: skip
 
 
 #: the kidnap's flags besides --kidnap-at-s, and the Kidnap fields they set

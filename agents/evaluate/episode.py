@@ -106,6 +106,7 @@ def _make_env(spec: EvalSpec, cell: Cell, render_mode: str | None = None) -> gym
         spec.env_id,
         crowd_size=cell.crowd_size,
         localizer=cell.localizer,
+        localizer_params=spec.localizer_params.get(cell.localizer),
         max_episode_steps=spec.episode_steps,
         render_mode=render_mode,
         **dict(spec.env_kwargs),

@@ -150,7 +150,8 @@ def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
             f"{s.env_id}, {s.episode_steps} steps per episode, {s.seeds} held-out seeds "
             f"({EVAL_SEED_BASE} + {s.first_seed}..{s.first_seed + s.seeds - 1}) per cell, {len(result.episodes)} episodes in {result.wall_s:.0f} s.",
             "",
-            f"Conditions: {conditions_text(s.env_kwargs)} (all of them, with the command line and versions, in `run.json`).",
+            f"Conditions: {conditions_text(s.env_kwargs)} (all of them, with the command line and versions, in `run.json`)."
+            + (f" Localizer parameters: {conditions_text(s.localizer_params)}." if s.localizer_params else ""),
             "",
             summary_markdown(result),
             "",

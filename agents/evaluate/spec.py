@@ -70,6 +70,9 @@ class EvalSpec:
         bootstrap_seed: seeds the bootstrap's generator.
         kidnap: carry the robot away mid-episode and score the recovery
             (:mod:`agents.evaluate.kidnap`); None: no kidnapping.
+        localizer_params: per localizer of the grid, overrides of its parameters (its
+            ``configs/localizers/NAME.yaml``), e.g. ``{"mcl_lidar": {"deskew": True}}``
+            (``crowdloc eval --localizer-set mcl_lidar.deskew=true``).
 
     Raises:
         ConfigError: naming the bad value (unknown policy or localizer, missing PPO file, a
@@ -89,11 +92,13 @@ class EvalSpec:
     bootstrap_resamples: int = 2000
     bootstrap_seed: int = 0
     kidnap: Kidnap | None = None
+    localizer_params: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in ("policies", "localizers", "crowd_sizes"):  # lists from Python callers become tuples
             object.__setattr__(self, name, tuple(getattr(self, name)))
         self._check_grid()
+        self._check_localizer_params()
         world = self.world()
         given = self.env_kwargs.get("world")
         where = f"world {world.name!r} ({self.env_id}" + (f" with world={str(given)!r})" if given else ")")
@@ -115,6 +120,17 @@ class EvalSpec:
         for size in self.crowd_sizes:
             check(isinstance(size, (int, np.integer)) and 0 <= size <= limit,
                   f"crowd size {size!r} out of range 0..{limit} for {where}")  # fmt: skip
+
+    def _check_localizer_params(self) -> None:
+        """Each override names a localizer of the grid and fields its parameters have."""
+        from localizers.registry import load_params
+
+        check(isinstance(self.localizer_params, Mapping),
+              f"localizer_params must map localizer names to overrides, got {self.localizer_params!r}")  # fmt: skip
+        for name, overrides in self.localizer_params.items():
+            check(name in self.localizers, f"localizer_params names {name!r}, which is not a localizer of the grid "
+                                           f"({', '.join(self.localizers)})")  # fmt: skip
+            load_params(name, overrides)  # raises, naming the field and the file
 
     def _check_grid(self) -> None:
         """The counts, the axes of the grid, the env id and the conditions' own values."""

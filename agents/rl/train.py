@@ -110,13 +110,14 @@ def load_train_config(path_or_name: str | Path, overrides: Mapping[str, Any] | N
     return config
 
 
-def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
-    """``["ppo.learning_rate=1e-3", "n_envs=2"]`` -> a dict of YAML-parsed values."""
+def parse_overrides(items: Sequence[str], flag: str = "override") -> dict[str, Any]:
+    """``["ppo.learning_rate=1e-3", "n_envs=2"]`` -> a dict of YAML-parsed values (``flag``: what
+    an error calls an item, e.g. the command-line flag that gave it)."""
     out = {}
     for item in items:
         key, sep, text = item.partition("=")
         if not sep or not key:
-            raise ConfigError(f"override {item!r} is not KEY=VALUE")
+            raise ConfigError(f"{flag} {item!r} is not KEY=VALUE")
         out[key.strip()] = parse_yaml(text)
     return out
 

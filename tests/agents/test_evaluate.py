@@ -508,3 +508,25 @@ def test_a_killed_eval_resumes_to_the_outputs_of_an_uninterrupted_run(
     with pytest.raises(SystemExit):
         main([*TINY_EVAL, "--out", str(tmp_path / "empty"), "--resume"])
     assert "--resume: no episodes.jsonl in" in capsys.readouterr().err
+
+
+def test_localizer_set_reaches_one_localizer_and_names_bad_values(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--localizer-set NAME.KEY=VALUE overrides one localizer's parameter (here the candidate sets'
+    claim limit, which decides when a pose is given), and a bad name or field is refused, named."""
+    base = ["eval", "--policies", "spin", "--localizers", "candidate_sets", "dead_reckoning", "--crowd-sizes", "0",
+            "--seeds", "1", "--episode-steps", "60", "--workers", "1", "--no-progress", "--no-gif"]  # fmt: skip
+    assert main([*base, "--out", str(tmp_path / "plain")]) == 0
+    assert main([*base, "--localizer-set", "candidate_sets.max_spread_m=0.05", "--out", str(tmp_path / "strict")]) == 0
+
+    def availability(folder: str) -> dict[str, float]:
+        rows = list(csv.DictReader((tmp_path / folder / "episodes.csv").read_text().splitlines()))
+        return {r["localizer"]: float(r["availability"]) for r in rows}
+
+    plain, strict = availability("plain"), availability("strict")
+    assert "Localizer parameters: candidate_sets.max_spread_m=0.05." in (tmp_path / "strict" / "summary.md").read_text()
+    assert strict["candidate_sets"] < plain["candidate_sets"] and strict["dead_reckoning"] == plain["dead_reckoning"]
+    for flag, named in (("kalman.max_spread_m=1", "'kalman', which is not a localizer of the grid"),
+                        ("candidate_sets.no_such_field=1", "no_such_field"), ("candidate_sets", "--localizer-set 'candidate_sets' is not KEY=VALUE")):  # fmt: skip
+        with pytest.raises(SystemExit):
+            main([*base, "--localizer-set", flag, "--out", str(tmp_path / "bad")])
+        assert named in capsys.readouterr().err
