@@ -5,7 +5,8 @@
 - :mod:`.run`: the plan (worlds x localizers x policies x crowd sizes x seeds, with the lines of
   what was left out), the plug-ins (``--plugins``) and each episode's score;
 - :mod:`.results`: the rows, the crowd sensitivity, ``results.json``, ``results.csv``, ``leaderboard.md``;
-- :mod:`.plots`: error and failure share against crowd size, per world;
+- :mod:`.plots`: error and failure share against crowd size, per world, and the overview figure;
+- :mod:`.journal`: ``episodes.jsonl``, each scored episode as it finishes (``--resume``);
 - :mod:`.cli`: :func:`run_cli`.
 
 Its episodes are ``crowdloc eval``'s (:mod:`agents.evaluate`), on the protocol's seeds.
