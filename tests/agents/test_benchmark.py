@@ -311,3 +311,16 @@ def test_a_trained_policy_enters_where_it_observes_what_the_world_gives(tmp_path
     err = capsys.readouterr().err
     assert "sonar: policy (12,), env absent" in err and "the benchmark plays every entry in the protocol's conditions" in err
     assert not (tmp_path / "no").exists()
+
+
+def test_the_shipped_league_table_is_the_protocols_as_the_repository_stands() -> None:
+    """docs/results.json (the league table the README shows) carries the digest of v1 as its files
+    are now: a change to a world's or localizer's YAML, the protocol or the version since the run
+    means running it again (`crowdloc benchmark --workers 2`, docs/benchmark.md), or a v2."""
+    shipped = json.loads((REPO / "docs" / "results.json").read_text())
+    protocol = load_protocol()
+    assert shipped["protocol"] == protocol.name and shipped["quick"] is False
+    assert shipped["protocol_digest"] == protocol_digest(protocol), "re-run the shipped league table (docs/benchmark.md)"
+    assert shipped["seeds"] == list(protocol.seeds.seeds) and len(shipped["rows"]) == 190
+    board = (REPO / "docs" / "leaderboard.md").read_text()
+    assert shipped["protocol_digest"][:16] in board
