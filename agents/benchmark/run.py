@@ -241,7 +241,7 @@ def plan_benchmark(
                 left_out.append(why)
         drivers = []
         for name in policies or world.policies:
-            if name.startswith(PPO_PREFIX) or name in runnable_policies(config):  # EvalSpec checks a PPO's observations
+            if name.startswith(PPO_PREFIX) or name in runnable_policies(config):  # _check_ppo checks its observations
                 drivers.append(name)
             else:
                 left_out.append(
