@@ -22,6 +22,11 @@ ceiling's height above the camera.
 - ``pixel_aspect`` (``fy / fx``; 1: square pixels);
 - an illumination gain that varies along the corridor with the light panels' pitch and slowly
   over time; vignetting (``1 - vignetting r^2`` toward the corners);
+- the light's colour (off by default): with ``white_balance_k`` set, the light's correlated
+  colour temperature (``cct_k``: under the light panels and midway between them, following the
+  panels' pitch like the brightness) against the camera's fixed white balance gives every
+  channel its own gain (:func:`white_balance_gains`), green keeping the brightness gain; a light
+  warmer than the white balance turns the image red, a cooler one blue;
 - motion blur: the image, rendered at the middle of the last ``exposure_s`` of the step, is
   smeared along the motion over that time, so a moving robot blurs the targets and a stopped
   one does not. Both the translation (the same smear over the image) and the turn (a smear
@@ -78,7 +83,16 @@ IDEAL = {
     "gain_along_amplitude": 0.0,
     "gain_time_amplitude": 0.0,
     "exposure_s": 0.0,
+    "white_balance_k": 0.0,
+    "cct_k": (0.0, 0.0),
 }
+
+#: the colour temperatures the Planckian-locus fit of :func:`cct_white_rgb` covers with every
+#: linear sRGB channel of the white positive (Krystek's fit holds over 1000-15000 K; below about
+#: 1700 K the locus leaves the sRGB gamut)
+CCT_RANGE_K = (2000.0, 15000.0)
+#: sRGB's linear RGB from CIE XYZ (IEC 61966-2-1:1999, the D65 white point)
+_XYZ_TO_SRGB = np.array([[3.2406, -1.5372, -0.4986], [-0.9689, 1.8758, 0.0415], [0.0557, -0.2040, 1.0570]])
 
 
 @dataclass(frozen=True)
@@ -104,6 +118,13 @@ class CeilingCameraConfig(SensorConfig):
     gain_time_period_s: float = 7.0
     vignetting: float = 0.25  # relative darkening at the image corners
     exposure_s: float = 1.0 / 60.0  # 0: no motion blur
+    # The light's colour (issue 30; off by default, the shipped worlds keep a colourless light). To turn it on,
+    # set the camera's fixed white balance, e.g. white_balance_k: 6500 (sRGB's D65 white, a camera's daylight
+    # preset), and the light's CCT: cct_k: [4230, 5500] (under the panels cool-white fluorescent tubes, CIE
+    # illuminant F2, CCT 4230 K; midway between them more daylight through the doors, CIE D55, 5503 K;
+    # CIE 15:2004, Colorimetry, tables T.6 and T.8).
+    white_balance_k: float = 0.0  # the camera's white balance, K (0: no colour change, every channel the same gain)
+    cct_k: tuple[float, float] = (0.0, 0.0)  # the light's CCT under the panels and midway between them, K
     texel_m: float = 0.0025  # the rendered ceiling's resolution (a pixel sees 3.4 mm of it)
     head_height_m: float = 1.70  # the people's heads, as discs at this height (0: no heads)
     head_radius_m: float = 0.12  # a head with its hair; people pressing on the robot show at the image corners
@@ -123,6 +144,26 @@ class CeilingCameraConfig(SensorConfig):
         check(0 < self.texel_m <= 0.01, f"ceiling_camera.texel_m must be in (0, 0.01], got {self.texel_m}")
         check(self.gain_time_period_s > 0, f"ceiling_camera.gain_time_period_s must be > 0, got {self.gain_time_period_s}")
         check(self.period_steps >= 1, f"ceiling_camera.period_steps must be >= 1, got {self.period_steps}")
+        lo, hi = CCT_RANGE_K
+        check(len(self.cct_k) == 2, f"ceiling_camera.cct_k must be [under the panels, between them] in K, got {self.cct_k!r}")
+        if self.white_balance_k == 0:
+            check(
+                tuple(self.cct_k) == (0.0, 0.0),
+                f"ceiling_camera.cct_k {list(self.cct_k)} needs white_balance_k (0: the light's colour is off); "
+                f"give white_balance_k in {lo:g}..{hi:g} K",
+            )
+        else:
+            check(
+                lo <= self.white_balance_k <= hi,
+                f"ceiling_camera.white_balance_k must be 0 (off) or in {lo:g}..{hi:g} K, got {self.white_balance_k!r}",
+            )
+            for value in self.cct_k:
+                check(lo <= value <= hi, f"ceiling_camera.cct_k must lie in {lo:g}..{hi:g} K, got {list(self.cct_k)}")
+
+    @property
+    def colour(self) -> bool:
+        """Whether the light's colour is modelled (``white_balance_k`` set)."""
+        return self.white_balance_k > 0
 
     def check_world(self, world: WorldConfig, name: str) -> None:
         ceiling = world.features.get(self.feature)
@@ -149,6 +190,36 @@ class CeilingCameraConfig(SensorConfig):
             f"arena renders a ceiling of {cols} x {rows} texels, {4 * cols * rows / 2**30:.3g} GiB (RGB and labels), more than "
             f"{MAX_TEXTURE_BYTES / 2**30:g} GiB; give a larger texel_m",
         )
+
+
+def cct_white_rgb(cct_k: float) -> NDArray[np.float64]:
+    """The linear sRGB of a Planckian (black-body) white of colour temperature ``cct_k``, green 1.
+
+    Krystek's rational fit of the Planckian locus in CIE 1960 (u, v) (M. Krystek, "An algorithm to
+    calculate correlated colour temperature", Color Research & Application 10(1), 1985, 38-40;
+    within 1e-4 of the locus over 1000-15000 K), then CIE (x, y), XYZ at Y = 1 and sRGB's matrix
+    (IEC 61966-2-1). A light's colour is taken as that of the black body at its CCT (fluorescent
+    and daylight lie close to the locus: F2 and D55 within 0.003 and 0.004 in (u, v)).
+    """
+    t = float(cct_k)
+    u = (0.860117757 + 1.54118254e-4 * t + 1.28641212e-7 * t * t) / (1 + 8.42420235e-4 * t + 7.08145163e-7 * t * t)
+    v = (0.317398726 + 4.22806245e-5 * t + 4.20481691e-8 * t * t) / (1 - 2.89741816e-5 * t + 1.61456053e-7 * t * t)
+    d = 2 * u - 8 * v + 4
+    x, y = 3 * u / d, 2 * v / d
+    rgb = _XYZ_TO_SRGB @ np.array([x / y, 1.0, (1 - x - y) / y])
+    return np.asarray(rgb / rgb[1], dtype=np.float64)
+
+
+def white_balance_gains(light_k: float, white_balance_k: float) -> NDArray[np.float64]:
+    """Each channel's gain ``(r, 1, b)`` of an image of a light of CCT ``light_k`` taken by a camera
+    white-balanced for ``white_balance_k``: the light's white over the balance's white, channel by
+    channel (a camera's white balance is one gain per channel, set so that a grey surface under
+    its own white shows grey), normalised to green (which keeps the brightness gain).
+
+    The gains scale the pixel values as the brightness gain does: the rendered ceiling's values are
+    taken as linear in the light, as by a camera without gamma encoding.
+    """
+    return cct_white_rgb(light_k) / cct_white_rgb(white_balance_k)
 
 
 class CameraModel:
@@ -269,7 +340,7 @@ def blur_expose(
     tile_u: NDArray[np.int64],
     motion: NDArray[np.float64],
     vignette: NDArray[np.float32],
-    gain: float,
+    gain: NDArray[np.float64],
     noise: NDArray[np.float32],
     out: NDArray[np.uint8],
 ) -> None:
@@ -278,15 +349,18 @@ def blur_expose(
     ``image`` is the sharp frame with a replicated border of ``pad`` pixels. The frame is cut
     into tiles, rows ``tile_v[i]:tile_v[i + 1]`` by columns ``tile_u[j]:tile_u[j + 1]``; tile
     ``(i, j)`` is blurred by the line kernel of ``motion[i, j]`` (:func:`splat_line`; ``pad``
-    must exceed its reach), then ``out = saturate(round(blurred * (vignette * gain) + noise))``
-    (``vignette`` and ``noise``: flat in ``out``'s order). The kernel's weights are in 256ths
+    must exceed its reach), then ``out = saturate(round(blurred * (vignette * gain[c]) + noise))``
+    (``vignette`` and ``noise``: flat in ``out``'s order; ``gain``: ``(3,)``, channel ``c``'s). The kernel's weights are in 256ths
     (the blurred value is exact to under a grey level; a sharp one is exact).
     """
     width = out.shape[1]
     tiles = tile_u.shape[0] - 1
     flat_in, flat_out = image.reshape(-1), out.reshape(-1)
     row_in = (width + 2 * pad) * 3
-    g, half = np.float32(gain / 256.0), np.float32(0.5)
+    half = np.float32(0.5)
+    g = np.empty(3 * width, dtype=np.float32)  # each channel's gain along a row, in the kernel's 256ths
+    for e in range(3 * width):
+        g[e] = np.float32(gain[e % 3] / 256.0)
     kernel = np.zeros((2 * pad + 1, 2 * pad + 1), dtype=np.float64)
     offsets = np.empty((tiles, kernel.size), dtype=np.int64)
     weights = np.empty((tiles, kernel.size), dtype=np.uint16)
@@ -317,8 +391,9 @@ def blur_expose(
                         acc[e] += w * np.uint16(src[e])
                 at = (v * width + u0) * 3
                 vig, noi, dst = vignette[at : at + count], noise[at : at + count], flat_out[at : at + count]
+                gains = g[3 * u0 : 3 * u0 + count]
                 for e in range(count):
-                    value = np.float32(acc[e]) * (vig[e] * g) + noi[e] + half
+                    value = np.float32(acc[e]) * (vig[e] * gains[e]) + noi[e] + half
                     dst[e] = 0 if value <= 0.0 else (255 if value >= 255.0 else np.uint8(value))
             j = end
 
@@ -413,6 +488,7 @@ class CeilingCamera(SensorBase):
         self._steps = 0
         self._fresh = True
         self._phase = 0.0
+        self._white_balance_rgb = cct_white_rgb(config.white_balance_k) if config.colour else None
 
     def space(self) -> spaces.Box:
         c = self.config
@@ -445,18 +521,37 @@ class CeilingCamera(SensorBase):
         """Refill the pixel-noise pool from ``rng`` (done at the first frame after every reset)."""
         self._noise = (rng.standard_normal(self._noise.shape[0]) * self.config.noise_std).astype(np.float32)
 
+    def _under_panels(self, pose: NDArray[np.float64]) -> float:
+        """Where the view's centre lies between the light panels: 1 under a panel, -1 midway between two."""
+        ce = self.ceiling
+        return math.cos(2 * math.pi * (float(pose[1]) - ce.light_first_y_m) / ce.light_pitch_m)
+
     def gain(self, pose: NDArray[np.float64], time_s: float, phase: float = 0.0) -> float:
         """The illumination gain at the camera's view centre: brighter under the light panels."""
-        c, ce = self.config, self.ceiling
-        along = c.gain_along_amplitude * math.cos(2 * math.pi * (float(pose[1]) - ce.light_first_y_m) / ce.light_pitch_m)
+        c = self.config
+        along = c.gain_along_amplitude * self._under_panels(pose)
         over_time = c.gain_time_amplitude * math.sin(2 * math.pi * time_s / c.gain_time_period_s + phase)
         return (1.0 + along) * (1.0 + over_time)
+
+    def light_cct_k(self, pose: NDArray[np.float64]) -> float:
+        """The light's colour temperature at the view's centre: ``cct_k[0]`` under a panel,
+        ``cct_k[1]`` midway between two, following the panels' pitch as the brightness does."""
+        under, between = self.config.cct_k
+        return between + (under - between) * (1.0 + self._under_panels(pose)) / 2.0
+
+    def channel_gains(self, pose: NDArray[np.float64], time_s: float, phase: float = 0.0) -> NDArray[np.float64]:
+        """The ``(3,)`` gain of each RGB channel: the brightness :meth:`gain` on every channel, times
+        the light's colour against the white balance (:func:`white_balance_gains`) when modelled."""
+        gain = self.gain(pose, time_s, phase)
+        if self._white_balance_rgb is None:
+            return np.full(3, gain)
+        return gain * cct_white_rgb(self.light_cct_k(pose)) / self._white_balance_rgb
 
     def render(
         self,
         pose: NDArray[np.float64],
         heads_xy: NDArray[np.float64] | None = None,
-        gain: float = 1.0,
+        gain: float | NDArray[np.float64] = 1.0,
         noise_offset: int | None = None,
         labels: bool = False,
         previous: NDArray[np.float64] | None = None,
@@ -469,7 +564,8 @@ class CeilingCamera(SensorBase):
 
         Args:
             heads_xy: ``(k, 2)`` head centres of the people near the robot (none by default).
-            gain: the illumination gain (vignetting is added); ``noise_offset``: where the
+            gain: the illumination gain (vignetting is added), one for every channel or ``(3,)``, one
+                per RGB channel (:meth:`channel_gains`); ``noise_offset``: where the
                 noise pool is read (None: no noise).
             labels: also return the ``(H, W)`` label of every pixel (of the sharp image).
             previous: the pose one step earlier: the image is then blurred by the motion over
@@ -508,7 +604,8 @@ class CeilingCamera(SensorBase):
         else:
             start = int(noise_offset) % _NOISE_POOL
             noise = self._noise[start : start + out.size]
-        blur_expose(image, pad, self._tile_v, self._tile_u, motion, self._vignette, gain, noise, out)
+        gains = np.full(3, float(gain)) if np.ndim(gain) == 0 else np.asarray(gain, dtype=np.float64).reshape(3)
+        blur_expose(image, pad, self._tile_v, self._tile_u, motion, self._vignette, gains, noise, out)
         return out, (label_image if labels else None)
 
     def _draw_heads(
@@ -606,7 +703,7 @@ class CeilingCamera(SensorBase):
             offset = int(rng.integers(_NOISE_POOL)) if c.noise_std > 0 else None
             heads = state.positions[self._rows] if c.head_height_m > 0 else None
             self._image, _ = self.render(
-                pose, heads, self.gain(pose, state.time_s, self._phase), offset, previous=self._previous_pose
+                pose, heads, self.channel_gains(pose, state.time_s, self._phase), offset, previous=self._previous_pose
             )
         self._steps += 1
         self._previous_pose = pose
