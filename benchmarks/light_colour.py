@@ -23,7 +23,7 @@ import numpy as np
 from agents.papers.ceiling_target.fit import _HSV_SCALE, inside
 from agents.papers.ceiling_target.static import Rig
 from envs.features.ceiling import colour_label
-from envs.sensors.ceiling_camera import white_balance_gains
+from envs.sensors.light_colour import white_balance_gains
 from localizers.ceiling_vision import hsv8
 
 COLOUR = {"white_balance_k": 6500.0, "cct_k": (4000.0, 4000.0)}

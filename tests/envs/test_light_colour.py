@@ -12,7 +12,8 @@ import pytest
 import envs  # noqa: F401  (registers the ids)
 from envs.features.ceiling import LABEL_CEILING
 from envs.localization_env import LocalizationEnv
-from envs.sensors.ceiling_camera import _XYZ_TO_SRGB, IDEAL, CeilingCamera, cct_white_rgb
+from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
+from envs.sensors.light_colour import XYZ_TO_SRGB, cct_white_rgb
 from localizers.schema import ConfigError
 
 ID = "crowdloc/CeilingCorridor-v0"
@@ -31,7 +32,7 @@ def camera(**fields: object) -> CeilingCamera:
 def tabulated_white(cct_k: float) -> np.ndarray:
     """Linear sRGB (green 1) of the tabulated locus point: the oracle for Krystek's fit."""
     x, y = LOCUS_XY[cct_k]
-    rgb = _XYZ_TO_SRGB @ np.array([x / y, 1.0, (1 - x - y) / y])
+    rgb = XYZ_TO_SRGB @ np.array([x / y, 1.0, (1 - x - y) / y])
     return rgb / rgb[1]
 
 
