@@ -253,6 +253,27 @@ def detour_lanes(
     return out
 
 
+def refresh_fidgets(
+    fidget: NDArray[np.float64],
+    next_s: NDArray[np.float64],
+    time_s: float,
+    reach_m: float,
+    period_s: tuple[float, float],
+    rng: np.random.Generator,
+) -> None:
+    """Standing people whose time has come (``next_s <= time_s``) shift to a new point, uniform
+    over the disc of radius ``reach_m`` around their spots (``fidget`` ``(standing, 2)``: the
+    offsets), and draw when they shift next, ``period_s`` (low, high) later; in place. The
+    corridor's and the campus's standing people."""
+    due = time_s >= next_s
+    if due.any():
+        n = int(due.sum())
+        angle = rng.uniform(-math.pi, math.pi, size=n)
+        reach = reach_m * np.sqrt(rng.random(n))
+        fidget[due] = reach[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+        next_s[due] += rng.uniform(*period_s, size=n)
+
+
 @register_crowd("corridor", CorridorConfig)
 class CorridorCrowd(Crowd):
     """Walkers (members ``0 .. walkers - 1``) and standing people (the rest, group by group).
@@ -416,13 +437,7 @@ class CorridorCrowd(Crowd):
             self.react_to_robot(state, out, slice(0, w), SPEED_CAP * self.walk_speed_mps, self.dt_s)
             teleports = self._re_entries(state, others, pos[:w], vel[:w], out, rng)
         if self.standing:
-            due = state.time_s >= self.next_fidget_s
-            if due.any():
-                n = int(due.sum())
-                angle = rng.uniform(-math.pi, math.pi, size=n)
-                reach = c.fidget_m * np.sqrt(rng.random(n))
-                self.fidget[due] = reach[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-                self.next_fidget_s[due] += rng.uniform(*c.fidget_period_s, size=n)
+            refresh_fidgets(self.fidget, self.next_fidget_s, state.time_s, c.fidget_m, c.fidget_period_s, rng)
             out[w:] = seek(pos[w:], self.spot + self.fidget, self.max_speed[w:], self.held[w:], self.radii_m[w:])
             self.react_to_robot(state, out, slice(w, self.count), self.max_speed[w:], SEEK_RELAXATION_S)
         out[self.held] = 0.0

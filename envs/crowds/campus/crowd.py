@@ -29,7 +29,7 @@ from envs.crowds.campus.traffic import (
     drive_velocities,
 )
 from envs.crowds.campus.walking import walk_velocities
-from envs.crowds.corridor import STANDING_FILL, group_ring
+from envs.crowds.corridor import STANDING_FILL, group_ring, refresh_fidgets
 from envs.crowds.queues import PEOPLE_FILL
 from envs.crowds.steering import SEEK_RELAXATION_S, give_way, seek
 from envs.crowds.walkers import SPEED_CAP
@@ -419,13 +419,7 @@ class CampusCrowd(Crowd):
                 )  # fmt: skip
             self.react_to_robot(state, out, slice(0, w), SPEED_CAP * self.desired_mps, self.dt_s)
         if self.standing:
-            due = state.time_s >= self.next_fidget_s
-            if due.any():
-                n = int(due.sum())
-                angle = rng.uniform(-math.pi, math.pi, size=n)
-                reach = c.fidget_m * np.sqrt(rng.random(n))
-                self.fidget[due] = reach[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-                self.next_fidget_s[due] += rng.uniform(*c.fidget_period_s, size=n)
+            refresh_fidgets(self.fidget, self.next_fidget_s, state.time_s, c.fidget_m, c.fidget_period_s, rng)
             out[w:fc] = seek(pos[w:fc], self.spot + self.fidget, self.max_speed[w:fc], self.held[w:fc], self.radii_m[w:fc])
             self.react_to_robot(state, out, slice(w, fc), self.max_speed[w:fc], SEEK_RELAXATION_S)
         if self.cars:
