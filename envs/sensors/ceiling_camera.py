@@ -60,7 +60,7 @@ from numpy.typing import NDArray
 
 from envs.features.ceiling import LABEL_CEILING, LABEL_HEAD, LABEL_JOINT, CeilingConfig
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
-from envs.sensors.light_colour import CCT_RANGE_K, cct_white_rgb
+from envs.sensors.light_colour import CCT_RANGE_K, white_balance_gains
 from envs.state import WorldState
 from localizers.ceiling_vision import undistort
 from localizers.schema import ConfigError, check, check_ranges
@@ -452,7 +452,6 @@ class CeilingCamera(SensorBase):
         self._steps = 0
         self._fresh = True
         self._phase = 0.0
-        self._white_balance_rgb = cct_white_rgb(config.white_balance_k) if config.colour else None
 
     def space(self) -> spaces.Box:
         c = self.config
@@ -507,9 +506,9 @@ class CeilingCamera(SensorBase):
         """The ``(3,)`` gain of each RGB channel: the brightness :meth:`gain` on every channel, times
         the light's colour against the white balance (:func:`envs.sensors.light_colour.white_balance_gains`) when modelled."""
         gain = self.gain(pose, time_s, phase)
-        if self._white_balance_rgb is None:
+        if not self.config.colour:
             return np.full(3, gain)
-        return gain * cct_white_rgb(self.light_cct_k(pose)) / self._white_balance_rgb
+        return gain * white_balance_gains(self.light_cct_k(pose), self.config.white_balance_k)
 
     def render(
         self,
