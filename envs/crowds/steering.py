@@ -19,6 +19,15 @@ _AVOID_GAP_M = 0.4  # ... when closer than this, surface to surface
 _KEEP_RIGHT_RAD = math.radians(45.0)  # the avoidance push is turned this far (pass on the right)
 
 
+@numba.njit(cache=True, inline="always")
+def cap_speed(vx: float, vy: float, cap: float) -> tuple[float, float, float]:
+    """``(vx, vy)`` scaled down to speed ``cap`` when faster, and the speed it then has."""
+    speed = math.sqrt(vx * vx + vy * vy)
+    if speed > cap:
+        return vx * (cap / speed), vy * (cap / speed), cap
+    return vx, vy, speed
+
+
 @numba.njit(cache=True)
 def seek(
     pos: NDArray[np.float64],
@@ -62,10 +71,7 @@ def seek(
                 push = max_speed[i] * (reach - r) / reach / r
                 vx += push * (cr * rx - sr * ry)
                 vy += push * (sr * rx + cr * ry)
-            v = math.sqrt(vx * vx + vy * vy)
-            if v > max_speed[i]:
-                vx *= max_speed[i] / v
-                vy *= max_speed[i] / v
+            vx, vy, _ = cap_speed(vx, vy, max_speed[i])
         out[i, 0] = vx
         out[i, 1] = vy
     return out
@@ -136,10 +142,7 @@ def _pass_tangent(
     w = math.sqrt(w2)
     vx = w * math.cos(base) + rvx
     vy = w * math.sin(base) + rvy
-    v = math.sqrt(vx * vx + vy * vy)
-    if v > speed:  # never faster than it wanted to walk
-        vx *= speed / v
-        vy *= speed / v
+    vx, vy, _ = cap_speed(vx, vy, speed)  # never faster than it wanted to walk
     return vx, vy
 
 
@@ -233,11 +236,7 @@ def see_robot(
         push = force_s * SEE_FORCE_MPS2 * math.exp(-gap / SEE_RANGE_M) * (lam + (1.0 - lam) * 0.5 * (1.0 + cos_phi))
         vx -= push * px / dist
         vy -= push * py / dist
-        speed = math.sqrt(vx * vx + vy * vy)
-        if speed > top_speed[i]:
-            vx *= top_speed[i] / speed
-            vy *= top_speed[i] / speed
-            speed = top_speed[i]
+        vx, vy, speed = cap_speed(vx, vy, top_speed[i])
         clearance = radii[i] + robot_radius + SEE_GAP_M
         wx = vx - robot_v[0]
         wy = vy - robot_v[1]
@@ -246,10 +245,7 @@ def see_robot(
             if closing > 0.0:  # inside the clearance: no nearer (it backs off from a robot driving at it)
                 vx -= closing * px
                 vy -= closing * py
-                v = math.sqrt(vx * vx + vy * vy)
-                if v > top_speed[i]:
-                    vx *= top_speed[i] / v
-                    vy *= top_speed[i] / v
+                vx, vy, _ = cap_speed(vx, vy, top_speed[i])
         elif _contact_time(px, py, wx, wy, clearance) < SEE_HORIZON_S:
             vx, vy = _pass_tangent(px, py, wx, wy, wx * wx + wy * wy, dist, clearance, speed, robot_v[0], robot_v[1])
             left = _contact_time(px, py, vx - robot_v[0], vy - robot_v[1], radii[i] + robot_radius)

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from envs.crowds.base import Commands, Crowd, PeopleConfig, Taken, register_crowd
 from envs.crowds.queues import PEOPLE_FILL
+from envs.crowds.steering import cap_speed
 from envs.state import Rows, WorldState
 from localizers.schema import check
 
@@ -120,11 +121,7 @@ def social_force_velocities(
             fy += mag * ry / r
         vx = vel[i, 0] + dt * fx
         vy = vel[i, 1] + dt * fy
-        speed = math.sqrt(vx * vx + vy * vy)
-        cap = SPEED_CAP * desired_speed[i]
-        if speed > cap:
-            vx *= cap / speed
-            vy *= cap / speed
+        vx, vy, _ = cap_speed(vx, vy, SPEED_CAP * desired_speed[i])
         out[i, 0] = vx
         out[i, 1] = vy
     return out

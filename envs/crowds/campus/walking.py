@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from envs.crowds.campus.config import EDGE_GAP_M
 from envs.crowds.campus.polylines import point_at, project
+from envs.crowds.steering import cap_speed
 from envs.crowds.walkers import SPEED_CAP
 
 _YIELD_MIN_SPEED_MPS = 0.3  # pedestrians yield only to cars moving faster than this
@@ -185,11 +186,7 @@ def walk_velocities(
             fy += mag * (dx * sa + dy * ca)
         vx = vel[i, 0] + dt * fx
         vy = vel[i, 1] + dt * fy
-        speed = math.sqrt(vx * vx + vy * vy)
-        cap = SPEED_CAP * desired[i]
-        if speed > cap:
-            vx *= cap / speed
-            vy *= cap / speed
+        vx, vy, _ = cap_speed(vx, vy, SPEED_CAP * desired[i])
         out[i, 0] = vx
         out[i, 1] = vy
     return out
