@@ -32,6 +32,7 @@ import numpy as np
 import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
 from agents.common.util import nest, write_run_record
+from agents.rl.observation import ObservationConfig, RouteConfig, TaskObservation
 from agents.rl.rewards import ActiveLocalizationReward, RewardWeights
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, merge_nested, parse_yaml, replace_checked
 
@@ -76,6 +77,8 @@ class TrainConfig:
     localizer: str = "candidate_sets"
     localizer_params: Mapping[str, Any] = field(default_factory=dict)
     reward: RewardWeights = field(default_factory=RewardWeights)
+    observation: ObservationConfig = field(default_factory=ObservationConfig)  # what the policy sees (agents.rl.observation)
+    route: RouteConfig = field(default_factory=RouteConfig)  # the task's route (progress, waypoint); default the map's
     n_envs: int = 4
     vec_env: str = "subproc"  # "subproc" (one process per env) or "dummy" (in-process)
     seed: int = 0
@@ -174,7 +177,8 @@ class EpisodeSeeds(gym.Wrapper):
 
 def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: Any) -> gym.Env[Any, Any]:
     """The task a training config describes, at one crowd size: its world, localizer and
-    conditions (``env_kwargs``, then ``make_kwargs`` on top), with the active-localization reward.
+    conditions (``env_kwargs``, then ``make_kwargs`` on top), with the active-localization reward
+    and the observation the config gives its policy.
 
     ``make_kwargs`` may override the localizer's parameters (``localizer_params``, merged over the
     config's key by key) but not the localizer itself (a ``ConfigError``: the task is its localizer's).
@@ -198,7 +202,9 @@ def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: An
         localizer_params=merge_nested(config.localizer_params, extra) or None,
         **kwargs,
     )
-    env: gym.Env[Any, Any] = ActiveLocalizationReward(world, config.reward)
+    env: gym.Env[Any, Any] = ActiveLocalizationReward(world, config.reward, config.route)
+    if config.observation.changes_anything:
+        env = TaskObservation(env, config.observation, config.route)
     if max_episode_steps is not None:
         env = gym.wrappers.TimeLimit(env, max_episode_steps)
     return env
@@ -219,7 +225,9 @@ def make_world(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
 
     spec = gym.spec(env_id)
     creator = spec.entry_point if callable(spec.entry_point) else load_env_creator(str(spec.entry_point))
-    env: gym.Env[Any, Any] = creator(**{**spec.kwargs, **kwargs})
+    env = creator(**{**spec.kwargs, **kwargs})
+    if not isinstance(env, gym.Env):
+        raise ConfigError(f"{env_id}'s entry point made a {type(env).__name__}, not an env")
     return env
 
 

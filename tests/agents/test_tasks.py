@@ -14,12 +14,15 @@ import envs
 from agents.rl.train import load_train_config
 from localizers.schema import ConfigError
 
+SOCCER_TASKS = {"crowdloc/ActiveCandidateSets-v0": "ppo_candidate_sets", "crowdloc/ActiveMCLBearing-v0": "ppo_mcl_bearing"}
 
-@pytest.mark.parametrize(("env_id", "config"), sorted(envs.TASK_CONFIGS.items()))
+
+@pytest.mark.parametrize(("env_id", "config"), sorted(SOCCER_TASKS.items()))
 def test_a_task_id_is_its_training_config_with_the_reward(env_id: str, config: str) -> None:
+    """The soccer tasks; the other worlds' tasks: tests/agents/test_world_tasks.py."""
     trained = load_train_config(config)
     env = Monitor(gym.make(env_id))
-    assert env.spec is not None and env.spec.max_episode_steps == trained.ppo.n_steps == envs.TASK_EPISODE_STEPS
+    assert env.spec is not None and env.spec.max_episode_steps == trained.ppo.n_steps == envs.task_episode_steps(config)
     obs, info = env.reset(seed=0)
     assert {"estimate", "estimate_valid", "sonar"} <= set(obs) and "true_pose" not in obs
     assert env.unwrapped.config.sensors["camera"].fov_rad == pytest.approx(trained.env_kwargs["camera"]["fov_rad"])
