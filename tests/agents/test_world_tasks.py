@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -189,4 +190,24 @@ def test_the_lidar_summary_is_the_least_range_per_sector() -> None:
     expected = np.ones(12)
     expected[0], expected[11], expected[5] = 0.2, 0.5, 0.1  # clipped at 3 m, over 3 m
     assert summary == pytest.approx(expected)
+    env.close()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("task", sorted(TASKS))
+def test_ppo_trains_a_task_for_a_few_thousand_steps_and_its_model_drives_the_task_id(task: str, tmp_path: Path) -> None:
+    from stable_baselines3 import PPO
+
+    from agents.rl.train import train
+
+    overrides = {"n_envs": 2, "ppo.n_steps": 500, "ppo.batch_size": 500, "total_timesteps": 2000, "checkpoint_every": 10**9}
+    config = load_train_config(TASKS[task][0], overrides)
+    model = PPO.load(train(config, tmp_path, progress_bar=False), device="cpu")
+    env = gym.make(task, max_episode_steps=50)
+    obs, _ = env.reset(seed=0)
+    done = False
+    while not done:
+        action, _ = model.predict(obs, deterministic=True)
+        obs, _, terminated, truncated, _ = env.step(action)
+        done = terminated or truncated
     env.close()
