@@ -14,8 +14,11 @@ observation as the task's training config says (:class:`ObservationConfig`, the 
 - ``waypoint`` adds ``waypoint`` ``(3,)``: the task's next route point (:class:`RouteConfig`) by
   the estimate, in the estimate's frame: the direction's ``(cos, sin)`` and the distance over
   ``waypoint_clip_m`` (clipped to 1). The next point is the first more than ``reached_m`` ahead,
-  along the route, of the estimate's place on it (:class:`RouteCursor`), the last one at the end. All zeros without a valid estimate: the policy only knows where to go from
-  where it believes it is.
+  along the route, of the estimate's place on it (:class:`RouteCursor`), the last one at the end.
+  All zeros without a valid estimate: the policy only knows where to go from where it believes it is.
+
+Also here: :class:`RouteConfig` and :class:`RouteCursor`, the task's route, which the reward's
+progress term (from the truth) shares with the waypoint (from the estimate).
 
 Nothing here reads the truth (``info``); a test checks that no observed number equals the true pose.
 With every field at its default the wrapper is not applied (the soccer tasks observe what they did).
