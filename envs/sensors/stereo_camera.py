@@ -42,6 +42,10 @@ applied to the rendered images and to the fast mode's edge responses alike (each
 the responses at its own gains); they are constant over an episode, as an auto exposure holds its
 setting while the scene's mean brightness stays within its stable window. Everything is drawn from
 children of the sensor stream at the first frame after a reset, and only when an option is on.
+The fast mode's ``fast_edges: rows`` goes with them: each camera's filter response along each
+detection row is rebuilt from the lines' colour steps (:func:`envs.stereo.geometric.row_response`)
+and searched by the image mode's detector, so steps closer than the filter's width add up or cancel
+as in the images (``lines``, today's: each line is an edge of its own, weakened by its neighbours).
 
 The images are in the observation only with ``images: true`` (keys ``<key>_left``,
 ``<key>_middle``, ``<key>_right``, uint8 ``(H, W, 3)``); the fast mode then renders them
@@ -64,7 +68,7 @@ from numpy.typing import NDArray
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.sensors.light_colour import CCT_RANGE_K, white_balance_gains
 from envs.state import WorldState
-from envs.stereo.geometric import camera_edges, lines
+from envs.stereo.geometric import camera_edges, lines, row_response
 from envs.stereo.render import ColumnRenderer, Moving
 from envs.stereo.scene import Rig, static_scene
 from localizers.geometry import poses_along_step
@@ -77,6 +81,7 @@ from localizers.stereo_vision import (
     EdgeList,
     TrinocularRig,
     check_rows,
+    detect_edges,
     disparity_window,
     draw_detections,
     edge_types,
@@ -93,6 +98,9 @@ SLOT_FIELDS = ("valid", "type", "inverse_range_m", "bearing_rad")
 CAMERAS = ("left", "middle", "right")
 _NOISE_POOL = 1 << 18  # noise offsets drawn per frame (the pool holds this plus one frame)
 
+#: the rows model (``fast_edges: rows``) keeps lines down to this share of the threshold: steps that close add
+#: up in the filter (two of one sign within its half width reach twice either)
+ROWS_REACH = 2.0
 #: overrides that make the cameras ideal (no pixel noise, no exposure changes, no edge noise): for tests and studies
 IDEAL = {"pixel_noise_std": 0.0, "gain_std": 0.0, "edge_noise_px": 0.0}
 
@@ -160,6 +168,13 @@ class StereoCameraConfig(SensorConfig):
     # BSW200MBK's white balance is not published). Gains: envs.sensors.light_colour.white_balance_gains
     white_balance_k: tuple[float, float] = (0.0, 0.0)
     light_k: float = 6504.0
+    # how the fast mode turns the lines into each camera's edges. lines (today's): each line above the threshold is
+    # an edge at its column, of two of a type within the filter's width the stronger kept; rows: the filter's
+    # response along each detection row rebuilt from the lines' colour steps at the pixel boundaries where the
+    # image puts them, and searched for peaks by the image mode's detector (envs.stereo.geometric.row_response), so
+    # that steps closer than the filter's width add up or cancel as in the images: the value to turn on with the
+    # webcams (issue 30; benchmarks/stereo_webcams.py measures the agreement with the image mode)
+    fast_edges: Literal["lines", "rows"] = "lines"
 
     def __post_init__(self) -> None:
         where = "stereo_camera"
@@ -219,6 +234,7 @@ class StereoCameraConfig(SensorConfig):
             0 < lo <= hi < math.inf,
             f"{where}.exposure_range must be (low, high) with 0 < low <= high, finite, got {self.exposure_range}",
         )
+        check(self.fast_edges in ("lines", "rows"), f"{where}.fast_edges must be 'lines' or 'rows', got {self.fast_edges!r}")
         cct_lo, cct_hi = CCT_RANGE_K
         wb_lo, wb_hi = self.white_balance_k
         check(
@@ -469,6 +485,12 @@ class StereoCamera(SensorBase):
             forwards = np.stack([forward] * 3)
         exposures = self._exposures()
         brightest = 1.0 if self.camera_gains is None else float(self.camera_gains.max())  # no line weaker can count
+        # lines narrower in the image than half the filter respond weaker (the lines model); the rows model's
+        # filter finds that itself (a narrow pole's two silhouettes cancel), so it takes every line at full strength
+        narrow_px = float(self.detector.filter_cols // 2)
+        if c.fast_edges == "rows":
+            brightest *= ROWS_REACH  # ... alone: in the rows model neighbouring steps of one sign add up
+            narrow_px = 1e-9
         app = state.figures.appearance()
         sc = self.scene
         seg_a = np.concatenate((sc.seg_a, app.side_a))
@@ -486,7 +508,7 @@ class StereoCamera(SensorBase):
         x, z, level, response = lines(
             cams[1], forward, r.focal_px, r.cx_px, r.cy_px, r.width_px, r.height_m, c.render_range_m,
             self._rows, self._half, self._margin_px, c.threshold / c.gain_range[1] / brightest,
-            float(self.detector.filter_cols // 2),
+            narrow_px,
             seg_a, seg_b, seg_z0, seg_z1, cull, self._n_static, sc.seg_profile, sc.seg_length, sc.seg_rgb, app.side_rgb,
             obj_first, obj_count, obj_z0, obj_z1,
             sc.seg_first_brk, sc.brk_xy, sc.brk_first_run, sc.brun_z0, sc.brun_z1, sc.brun_left, sc.brun_right,
@@ -496,7 +518,7 @@ class StereoCamera(SensorBase):
         within = self.detector.filter_cols // 2 + 1.5  # two steps of one sign this close make one peak of the filter
         # the left camera sits baseline_m left of the middle one: a point X right of the middle camera is X + b right of it
         laterals = (c.baseline_m, 0.0, -c.baseline_m)
-        if self.camera_gains is None and self.frame_lags_s is None:  # today's cameras: one exposure, one time
+        if c.fast_edges == "lines" and self.camera_gains is None and self.frame_lags_s is None:  # one exposure, one time
             strength = np.abs(response) * self._gain  # (N, 3)
             line, channel = np.nonzero(strength >= c.threshold)
             types = edge_types(channel, level[line], response[line, channel] < 0)
@@ -516,23 +538,27 @@ class StereoCamera(SensorBase):
         gains = np.broadcast_to(np.asarray(exposures, dtype=np.float64), (3, 3))
         world = cams[1] + x[:, None] * np.array([forward[1], -forward[0]]) + z[:, None] * forward  # (N, 2) the lines' points
         lists = []
+        half_cols = self.detector.filter_cols // 2
         for j in range(3):
+            if self.frame_lags_s is None:
+                xs, zs, lateral = x, z, laterals[j]
+            else:  # the lines' points in camera j's frame when it took its frame
+                offset = world - cams[j]
+                fwd_j = forwards[j]
+                xs, zs, lateral = offset @ np.array([fwd_j[1], -fwd_j[0]]), offset @ fwd_j, 0.0
+            if c.fast_edges == "rows":  # the filter's response along each row from the steps, searched as in the image
+                u = r.cx_px + r.focal_px * (xs + lateral) / zs
+                rows = row_response(u, level, response, np.ascontiguousarray(gains[j]), r.width_px, LEVELS, half_cols)
+                lists.append(detect_edges(rows, c.threshold, border_px=half_cols))
+                continue
             strength = np.abs(response) * gains[j]  # (N, 3)
             line, channel = np.nonzero(strength >= c.threshold)
             types = edge_types(channel, level[line], response[line, channel] < 0)
             power = strength[line, channel].astype(np.float32)
-            if self.frame_lags_s is None:
-                xs, zs, lateral = x[line], z[line], laterals[j]
-            else:  # the lines' points in camera j's frame when it took its frame
-                offset = world[line] - cams[j]
-                fwd_j = forwards[j]
-                xs, zs, lateral = offset @ np.array([fwd_j[1], -fwd_j[0]]), offset @ fwd_j, 0.0
             noise = rng.standard_normal(line.size) * c.edge_noise_px if c.edge_noise_px > 0 else np.zeros(line.size)
-            lists.append(
-                EdgeList(
-                    *camera_edges(xs, zs, types, power, lateral, r.focal_px, r.cx_px, r.width_px, self._margin_px, noise, within)
-                )
-            )
+            edges = camera_edges(xs[line], zs[line], types, power, lateral, r.focal_px, r.cx_px, r.width_px, self._margin_px,
+                                 noise, within)  # fmt: skip
+            lists.append(EdgeList(*edges))
         return lists[0], lists[1], lists[2]
 
     def observe(

@@ -25,6 +25,8 @@ Approximations (documented, measured against the image mode in the tests): occlu
 background are taken on one line of sight per row rather than over the window; the colours of
 a corner or silhouette are taken at that line's height; lines closer together than half the
 filter's width are not mixed (the weaker of two of a type is dropped, :func:`camera_edges`).
+The rows model (:func:`row_response`, the sensor's ``fast_edges: rows``) removes the last: it rebuilds
+each camera's filter response along each row from all the lines' steps and finds the peaks there.
 """
 
 from __future__ import annotations
@@ -407,3 +409,33 @@ def camera_edges(
         out_s[m] = strength[i]
         m += 1
     return out_u[:m].copy(), out_t[:m].copy(), out_s[:m].copy()
+
+
+@numba.njit(cache=True)
+def row_response(
+    u: Array, level: IntArray, response: Array, gains: Array, width: int, levels: int, half: int
+) -> NDArray[np.float32]:  # fmt: skip
+    """One camera's filter response along each detection row, rebuilt from the lines' colour steps: what
+    :func:`localizers.stereo_edges.vertical_edge_response` gives on an image whose only changes along a row
+    are these steps (the fast mode's ``fast_edges: rows``).
+
+    Line ``n`` at column ``u[n]`` (continuous) is a step of ``gains * response[n]`` (right minus left, per
+    channel, the window's share included) at the pixel boundary ``b = ceil(u - 0.5)``, where a renderer
+    sampling pixel centres puts it. The filter (the mean of the ``half`` columns right of column ``k`` minus
+    that of the ``half`` left of it) answers a unit step at ``b`` with
+    ``(clamp(k + half - b + 1, 0, half) - clamp(k - b, 0, half)) / half``: 1 at ``k = b - 1`` and ``b``,
+    falling to 0 ``half`` columns either side. Steps closer than the filter's width add up or cancel, as in
+    the image. Columns within ``half`` of the border get 0, as in the image.
+
+    Returns:
+        ``(levels, width, 3)`` float32.
+    """
+    out = np.zeros((levels, width, 3))
+    for n in range(u.shape[0]):
+        b = int(math.ceil(u[n] - 0.5))
+        lv = level[n]
+        for k in range(max(half, b - half), min(width - half, b + half)):
+            w = (min(max(k + half - b + 1, 0), half) - min(max(k - b, 0), half)) / half
+            for c in range(3):
+                out[lv, k, c] += w * gains[c] * response[n, c]
+    return out.astype(np.float32)
