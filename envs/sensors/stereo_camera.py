@@ -73,6 +73,7 @@ from envs.stereo.render import ColumnRenderer, Moving
 from envs.stereo.scene import Rig, static_scene
 from localizers.geometry import poses_along_step
 from localizers.schema import ConfigError, check, check_ranges
+from localizers.stereo_edges import find_edges
 from localizers.stereo_vision import (
     CHANNEL_COLOURS,
     EDGE_TYPES,
@@ -81,7 +82,6 @@ from localizers.stereo_vision import (
     EdgeList,
     TrinocularRig,
     check_rows,
-    detect_edges,
     disparity_window,
     draw_detections,
     edge_types,
@@ -98,9 +98,6 @@ SLOT_FIELDS = ("valid", "type", "inverse_range_m", "bearing_rad")
 CAMERAS = ("left", "middle", "right")
 _NOISE_POOL = 1 << 18  # noise offsets drawn per frame (the pool holds this plus one frame)
 
-#: the rows model (``fast_edges: rows``) keeps lines down to this share of the threshold: steps that close add
-#: up in the filter (two of one sign within its half width reach twice either)
-ROWS_REACH = 2.0
 #: overrides that make the cameras ideal (no pixel noise, no exposure changes, no edge noise): for tests and studies
 IDEAL = {"pixel_noise_std": 0.0, "gain_std": 0.0, "edge_noise_px": 0.0}
 
@@ -487,10 +484,7 @@ class StereoCamera(SensorBase):
         brightest = 1.0 if self.camera_gains is None else float(self.camera_gains.max())  # no line weaker can count
         # lines narrower in the image than half the filter respond weaker (the lines model); the rows model's
         # filter finds that itself (a narrow pole's two silhouettes cancel), so it takes every line at full strength
-        narrow_px = float(self.detector.filter_cols // 2)
-        if c.fast_edges == "rows":
-            brightest *= ROWS_REACH  # ... alone: in the rows model neighbouring steps of one sign add up
-            narrow_px = 1e-9
+        weaken = c.fast_edges == "lines"
         app = state.figures.appearance()
         sc = self.scene
         seg_a = np.concatenate((sc.seg_a, app.side_a))
@@ -508,7 +502,7 @@ class StereoCamera(SensorBase):
         x, z, level, response = lines(
             cams[1], forward, r.focal_px, r.cx_px, r.cy_px, r.width_px, r.height_m, c.render_range_m,
             self._rows, self._half, self._margin_px, c.threshold / c.gain_range[1] / brightest,
-            narrow_px,
+            float(self.detector.filter_cols // 2), weaken,
             seg_a, seg_b, seg_z0, seg_z1, cull, self._n_static, sc.seg_profile, sc.seg_length, sc.seg_rgb, app.side_rgb,
             obj_first, obj_count, obj_z0, obj_z1,
             sc.seg_first_brk, sc.brk_xy, sc.brk_first_run, sc.brun_z0, sc.brun_z1, sc.brun_left, sc.brun_right,
@@ -549,7 +543,7 @@ class StereoCamera(SensorBase):
             if c.fast_edges == "rows":  # the filter's response along each row from the steps, searched as in the image
                 u = r.cx_px + r.focal_px * (xs + lateral) / zs
                 rows = row_response(u, level, response, np.ascontiguousarray(gains[j]), r.width_px, LEVELS, half_cols)
-                lists.append(detect_edges(rows, c.threshold, border_px=half_cols))
+                lists.append(find_edges(rows, float(c.threshold), half_cols))
                 continue
             strength = np.abs(response) * gains[j]  # (N, 3)
             line, channel = np.nonzero(strength >= c.threshold)
