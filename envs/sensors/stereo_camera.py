@@ -169,8 +169,9 @@ class StereoCameraConfig(SensorConfig):
     # an edge at its column, of two of a type within the filter's width the stronger kept; rows: the filter's
     # response along each detection row rebuilt from the lines' colour steps at the pixel boundaries where the
     # image puts them, and searched for peaks by the image mode's detector (envs.stereo.geometric.row_response), so
-    # that steps closer than the filter's width add up or cancel as in the images: the value to turn on with the
-    # webcams (issue 30; benchmarks/stereo_webcams.py measures the agreement with the image mode)
+    # that steps closer than the filter's width add up or cancel as in the images, and an edge's column is where the
+    # image's detector puts it (whole pixels for a sharp step; edge_noise_px is not used): the value to turn on with
+    # the webcams (issue 30; benchmarks/stereo_webcams.py measures the agreement with the image mode)
     fast_edges: Literal["lines", "rows"] = "lines"
 
     def __post_init__(self) -> None:
