@@ -27,6 +27,9 @@ ceiling's height above the camera.
   panels' pitch like the brightness) against the camera's fixed white balance gives every
   channel its own gain (:func:`envs.sensors.light_colour.white_balance_gains`), green keeping the brightness gain; a light
   warmer than the white balance turns the image red, a cooler one blue;
+- a specular glare spot on the targets' glossy tape (off by default): ``glare`` gives the lamps hung
+  below the ceiling that the tape mirrors into the camera (:mod:`envs.sensors.glare`: the spot's place
+  by the mirror geometry, a Blinn-Phong lobe, clipped by the sensor's saturation);
 - motion blur: the image, rendered at the middle of the last ``exposure_s`` of the step, is
   smeared along the motion over that time, so a moving robot blurs the targets and a stopped
   one does not. Both the translation (the same smear over the image) and the turn (a smear
@@ -61,6 +64,7 @@ from numpy.typing import NDArray
 from envs.features.ceiling import LABEL_CEILING, LABEL_HEAD, LABEL_JOINT, CeilingConfig
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.sensors.exposure import blur_expose
+from envs.sensors.glare import Glare, GlareConfig
 from envs.sensors.light_colour import CCT_RANGE_K, white_balance_gains
 from envs.state import WorldState
 from localizers.ceiling_vision import undistort
@@ -120,6 +124,7 @@ class CeilingCameraConfig(SensorConfig):
     # CIE 15:2004, Colorimetry, tables T.6 and T.8).
     white_balance_k: float = 0.0  # the camera's white balance, K (0: no colour change, every channel the same gain)
     cct_k: tuple[float, float] = (0.0, 0.0)  # the light's CCT under the panels and midway between them, K
+    glare: GlareConfig = GlareConfig()  # the tape's glare spot (issue 30; off: no lamps; envs/sensors/glare.py)
     texel_m: float = 0.0025  # the rendered ceiling's resolution (a pixel sees 3.4 mm of it)
     head_height_m: float = 1.70  # the people's heads, as discs at this height (0: no heads)
     head_radius_m: float = 0.12  # a head with its hair; people pressing on the robot show at the image corners
@@ -172,6 +177,7 @@ class CeilingCameraConfig(SensorConfig):
             ceiling.height_m > self.mount_height_m + 0.1,
             f"world {world.name!r}: sensor {name!r} is mounted at {self.mount_height_m} m, not below the ceiling at {ceiling.height_m} m",
         )
+        self.glare.check_ceiling(ceiling.height_m, f"world {world.name!r}: sensor {name!r}")
         check(
             self.head_height_m == 0 or self.mount_height_m < self.head_height_m < ceiling.height_m,
             f"world {world.name!r}: sensor {name!r}: head_height_m {self.head_height_m} must lie between the camera "
@@ -339,6 +345,10 @@ class CeilingCamera(SensorBase):
         self._image = np.zeros((config.height_px, config.width_px, 3), dtype=np.uint8)
         self._no_labels = np.zeros((0, 0), dtype=np.uint8)
         self._no_noise = np.zeros(frame, dtype=np.float32)
+        self._no_glare = np.zeros(0, dtype=np.float32)
+        self._glare = None
+        if config.glare.on:
+            self._glare = Glare(config.glare, self._forward, self._left, self.depth, ceiling.height_m, config.offset_m)
         self._no_motion = np.zeros((len(self._tile_v) - 1, len(self._tile_u) - 1, 2))
         self._previous_pose: NDArray[np.float64] | None = None
         self._steps = 0
@@ -415,7 +425,7 @@ class CeilingCamera(SensorBase):
 
         The ceiling texture (finer than a pixel's footprint) is sampled at the point where every
         pixel's ray meets the ceiling, the heads are painted over it, then come the motion blur,
-        the illumination gain with the vignetting, and the noise (one pass: :func:`envs.sensors.exposure.blur_expose`).
+        the glare, the illumination gain with the vignetting, and the noise (one pass: :func:`envs.sensors.exposure.blur_expose`).
 
         Args:
             heads_xy: ``(k, 2)`` head centres of the people near the robot (none by default).
@@ -441,18 +451,21 @@ class CeilingCamera(SensorBase):
             cv2.remap(self._texture, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE), dtype=np.uint8
         )
         label_image = self._no_labels
-        if labels:
+        if labels or self._glare is not None:  # the glare lights the tape's pixels
             label_image = np.asarray(
                 cv2.remap(self._labels, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE), dtype=np.uint8
             )
         if heads_xy is not None and c.head_height_m > 0 and len(heads_xy):
             self._draw_heads(pose, np.asarray(heads_xy, dtype=np.float64).reshape(-1, 2), image, label_image)
+        glare = None if self._glare is None else self._glare.image(pose, label_image)
         pad = 0
         if motion is None or not (np.abs(motion) >= 0.35).any():  # no tile's motion reaches half a pixel
             motion = self._no_motion
         else:
             pad = int(math.ceil(float(np.abs(motion).max()) / 2)) + 2  # beyond every kernel's reach
             image = np.asarray(cv2.copyMakeBorder(image, pad, pad, pad, pad, cv2.BORDER_REPLICATE), dtype=np.uint8)
+            if glare is not None:
+                glare = np.asarray(cv2.copyMakeBorder(glare, pad, pad, pad, pad, cv2.BORDER_REPLICATE), dtype=np.float32)
         out = np.empty((c.height_px, c.width_px, 3), dtype=np.uint8)
         if noise_offset is None:
             noise = self._no_noise
@@ -460,7 +473,18 @@ class CeilingCamera(SensorBase):
             start = int(noise_offset) % _NOISE_POOL
             noise = self._noise[start : start + out.size]
         gains = np.full(3, float(gain)) if np.ndim(gain) == 0 else np.asarray(gain, dtype=np.float64).reshape(3)
-        blur_expose(image, pad, self._tile_v, self._tile_u, motion, self._vignette, gains, noise, out)
+        blur_expose(
+            image,
+            pad,
+            self._tile_v,
+            self._tile_u,
+            motion,
+            self._vignette,
+            gains,
+            noise,
+            self._no_glare if glare is None else glare.reshape(-1),
+            out,
+        )
         return out, (label_image if labels else None)
 
     def _draw_heads(

@@ -21,16 +21,20 @@ def blur_expose(
     vignette: NDArray[np.float32],
     gain: NDArray[np.float64],
     noise: NDArray[np.float32],
+    glare: NDArray[np.float32],
     out: NDArray[np.uint8],
 ) -> None:
-    """The motion blur, illumination gain, vignetting and noise of a frame, in one pass.
+    """The motion blur, illumination gain, vignetting, glare and noise of a frame, in one pass.
 
     ``image`` is the sharp frame with a replicated border of ``pad`` pixels. The frame is cut
     into tiles, rows ``tile_v[i]:tile_v[i + 1]`` by columns ``tile_u[j]:tile_u[j + 1]``; tile
     ``(i, j)`` is blurred by the line kernel of ``motion[i, j]`` (:func:`splat_line`; ``pad``
     must exceed its reach), then ``out = saturate(round(blurred * (vignette * gain[c]) + noise))``
     (``vignette`` and ``noise``: flat in ``out``'s order; ``gain``: ``(3,)``, channel ``c``'s). The kernel's weights are in 256ths
-    (the blurred value is exact to under a grey level; a sharp one is exact).
+    (the blurred value is exact to under a grey level; a sharp one is exact). ``glare`` (empty: none) is
+    light added to the sharp frame, flat in ``image``'s order and on its scale, but unbounded
+    (:func:`envs.sensors.glare.glare_image`): blurred with it and added before the gain, so only the
+    sensor's saturation at 255 clips it.
     """
     width = out.shape[1]
     tiles = tile_u.shape[0] - 1
@@ -45,6 +49,8 @@ def blur_expose(
     weights = np.empty((tiles, kernel.size), dtype=np.uint16)
     taps = np.empty(tiles, dtype=np.int64)
     acc = np.empty(3 * width, dtype=np.uint16)
+    lit = glare.shape[0] > 0
+    acc_glare = np.zeros(3 * width, dtype=np.float32)  # stays 0 without glare
     for i in range(tile_v.shape[0] - 1):
         for j in range(tiles):
             taps[j] = splat_line(motion[i, j, 0], motion[i, j, 1], kernel, row_in, offsets[j], weights[j])
@@ -68,11 +74,18 @@ def blur_expose(
                     w, src = weights[j, k], flat_in[first + offsets[j, k] : first + offsets[j, k] + count]
                     for e in range(count):
                         acc[e] += w * np.uint16(src[e])
+                if lit:
+                    for e in range(count):
+                        acc_glare[e] = 0.0
+                    for k in range(n):
+                        wf, light = np.float32(weights[j, k]), glare[first + offsets[j, k] : first + offsets[j, k] + count]
+                        for e in range(count):
+                            acc_glare[e] += wf * light[e]
                 at = (v * width + u0) * 3
                 vig, noi, dst = vignette[at : at + count], noise[at : at + count], flat_out[at : at + count]
                 gains = g[3 * u0 : 3 * u0 + count]
                 for e in range(count):
-                    value = np.float32(acc[e]) * (vig[e] * gains[e]) + noi[e] + half
+                    value = (np.float32(acc[e]) + acc_glare[e]) * (vig[e] * gains[e]) + noi[e] + half
                     dst[e] = 0 if value <= 0.0 else (255 if value >= 255.0 else np.uint8(value))
             j = end
 
