@@ -26,7 +26,9 @@ ceiling's height above the camera.
   colour temperature (``cct_k``: under the light panels and midway between them, following the
   panels' pitch like the brightness) against the camera's fixed white balance gives every
   channel its own gain (:func:`envs.sensors.light_colour.white_balance_gains`), green keeping the brightness gain; a light
-  warmer than the white balance turns the image red, a cooler one blue;
+  warmer than the white balance turns the image red, a cooler one blue; ``daylight_cct_k`` draws
+  the light midway between the panels (daylight through the doors) per episode from a range, and
+  ``auto_white_balance`` replaces the fixed balance by a grey-world one over each frame (both off);
 - a specular glare spot on the targets' glossy tape (off by default): ``glare`` gives the lamps hung
   below the ceiling that the tape mirrors into the camera (:mod:`envs.sensors.glare`: the spot's place
   by the mirror geometry, a Blinn-Phong lobe, clipped by the sensor's saturation);
@@ -65,7 +67,7 @@ from envs.features.ceiling import LABEL_CEILING, LABEL_HEAD, LABEL_JOINT, Ceilin
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.sensors.exposure import blur_expose
 from envs.sensors.glare import Glare, GlareConfig
-from envs.sensors.light_colour import CCT_RANGE_K, white_balance_gains
+from envs.sensors.light_colour import cct_white_rgb, check_light, grey_world_gains, white_balance_gains
 from envs.state import WorldState
 from localizers.ceiling_vision import undistort
 from localizers.schema import ConfigError, check, check_ranges
@@ -124,6 +126,12 @@ class CeilingCameraConfig(SensorConfig):
     # CIE 15:2004, Colorimetry, tables T.6 and T.8).
     white_balance_k: float = 0.0  # the camera's white balance, K (0: no colour change, every channel the same gain)
     cct_k: tuple[float, float] = (0.0, 0.0)  # the light's CCT under the panels and midway between them, K
+    # Daylight over the day (off): the light midway between the panels drawn per episode from this range, K, in place
+    # of cct_k[1], e.g. daylight_cct_k: [5000, 7500], CIE's representative daylight phases D50 to D75 (CIE 15:2004, 3.1)
+    daylight_cct_k: tuple[float, float] = (0.0, 0.0)
+    # Auto white balance (off), in place of white_balance_k: grey world, every frame's mean made grey (G. Buchsbaum,
+    # "A spatial processor model for object colour perception", J. Franklin Inst. 310(1), 1980, 1-26)
+    auto_white_balance: bool = False
     glare: GlareConfig = GlareConfig()  # the tape's glare spot (issue 30; off: no lamps; envs/sensors/glare.py)
     texel_m: float = 0.0025  # the rendered ceiling's resolution (a pixel sees 3.4 mm of it)
     head_height_m: float = 1.70  # the people's heads, as discs at this height (0: no heads)
@@ -144,26 +152,12 @@ class CeilingCameraConfig(SensorConfig):
         check(0 < self.texel_m <= 0.01, f"ceiling_camera.texel_m must be in (0, 0.01], got {self.texel_m}")
         check(self.gain_time_period_s > 0, f"ceiling_camera.gain_time_period_s must be > 0, got {self.gain_time_period_s}")
         check(self.period_steps >= 1, f"ceiling_camera.period_steps must be >= 1, got {self.period_steps}")
-        lo, hi = CCT_RANGE_K
-        check(len(self.cct_k) == 2, f"ceiling_camera.cct_k must be [under the panels, between them] in K, got {self.cct_k!r}")
-        if self.white_balance_k == 0:
-            check(
-                tuple(self.cct_k) == (0.0, 0.0),
-                f"ceiling_camera.cct_k {list(self.cct_k)} needs white_balance_k (0: the light's colour is off); "
-                f"give white_balance_k in {lo:g}..{hi:g} K",
-            )
-        else:
-            check(
-                lo <= self.white_balance_k <= hi,
-                f"ceiling_camera.white_balance_k must be 0 (off) or in {lo:g}..{hi:g} K, got {self.white_balance_k!r}",
-            )
-            for value in self.cct_k:
-                check(lo <= value <= hi, f"ceiling_camera.cct_k must lie in {lo:g}..{hi:g} K, got {list(self.cct_k)}")
+        check_light(self.white_balance_k, self.cct_k, self.daylight_cct_k, self.auto_white_balance, "ceiling_camera")
 
     @property
     def colour(self) -> bool:
-        """Whether the light's colour is modelled (``white_balance_k`` set)."""
-        return self.white_balance_k > 0
+        """Whether the light's colour is modelled (``cct_k`` set, with a white balance fixed or automatic)."""
+        return self.cct_k[0] > 0
 
     def check_world(self, world: WorldConfig, name: str) -> None:
         ceiling = world.features.get(self.feature)
@@ -354,6 +348,7 @@ class CeilingCamera(SensorBase):
         self._steps = 0
         self._fresh = True
         self._phase = 0.0
+        self.daylight_k = 0.0  # this episode's daylight CCT, K (0: cct_k[1])
 
     def space(self) -> spaces.Box:
         c = self.config
@@ -400,17 +395,22 @@ class CeilingCamera(SensorBase):
 
     def light_cct_k(self, pose: NDArray[np.float64]) -> float:
         """The light's colour temperature at the view's centre: ``cct_k[0]`` under a panel,
-        ``cct_k[1]`` midway between two, following the panels' pitch as the brightness does."""
+        ``cct_k[1]`` (or this episode's daylight, ``daylight_cct_k``) midway between two, following the
+        panels' pitch as the brightness does."""
         under, between = self.config.cct_k
+        between = self.daylight_k or between
         return between + (under - between) * (1.0 + self._under_panels(pose)) / 2.0
 
     def channel_gains(self, pose: NDArray[np.float64], time_s: float, phase: float = 0.0) -> NDArray[np.float64]:
         """The ``(3,)`` gain of each RGB channel: the brightness :meth:`gain` on every channel, times
-        the light's colour against the white balance (:func:`envs.sensors.light_colour.white_balance_gains`) when modelled."""
-        gain = self.gain(pose, time_s, phase)
-        if not self.config.colour:
+        the light's colour against the white balance (:func:`envs.sensors.light_colour.white_balance_gains`) when modelled;
+        with ``auto_white_balance`` the light's raw colour, which :meth:`render` balances by the frame."""
+        c, gain = self.config, self.gain(pose, time_s, phase)
+        if not c.colour:
             return np.full(3, gain)
-        return gain * white_balance_gains(self.light_cct_k(pose), self.config.white_balance_k)
+        if c.auto_white_balance:
+            return gain * cct_white_rgb(self.light_cct_k(pose))
+        return gain * white_balance_gains(self.light_cct_k(pose), c.white_balance_k)
 
     def render(
         self,
@@ -458,6 +458,8 @@ class CeilingCamera(SensorBase):
         if heads_xy is not None and c.head_height_m > 0 and len(heads_xy):
             self._draw_heads(pose, np.asarray(heads_xy, dtype=np.float64).reshape(-1, 2), image, label_image)
         glare = None if self._glare is None else self._glare.image(pose, label_image)
+        if c.auto_white_balance:
+            gain = grey_world_gains(gain, cv2.mean(image)[:3])
         pad = 0
         if motion is None or not (np.abs(motion) >= 0.35).any():  # no tile's motion reaches half a pixel
             motion = self._no_motion
@@ -576,6 +578,8 @@ class CeilingCamera(SensorBase):
         if self._fresh:
             self.seed_noise(rng)
             self._phase = float(rng.uniform(0.0, 2 * math.pi))  # where in its flicker the light starts
+            if c.daylight_cct_k[1] > 0:  # from a child stream: the other draws stay as they are
+                self.daylight_k = float(rng.spawn(1)[0].uniform(*c.daylight_cct_k))
             self._fresh = False
         rendered = self._steps % c.period_steps == 0
         if rendered:
