@@ -457,7 +457,8 @@ class CeilingCamera(SensorBase):
             )
         if heads_xy is not None and c.head_height_m > 0 and len(heads_xy):
             self._draw_heads(pose, np.asarray(heads_xy, dtype=np.float64).reshape(-1, 2), image, label_image)
-        glare = None if self._glare is None else self._glare.image(pose, label_image)
+        lit = None if self._glare is None else self._glare.image(pose, label_image)
+        glare, glare_rows = (self._no_glare, (0, 0)) if lit is None else (lit[0], lit[1:])
         if c.auto_white_balance:
             gain = grey_world_gains(gain, cv2.mean(image)[:3])
         pad = 0
@@ -466,8 +467,9 @@ class CeilingCamera(SensorBase):
         else:
             pad = int(math.ceil(float(np.abs(motion).max()) / 2)) + 2  # beyond every kernel's reach
             image = np.asarray(cv2.copyMakeBorder(image, pad, pad, pad, pad, cv2.BORDER_REPLICATE), dtype=np.uint8)
-            if glare is not None:
+            if lit is not None:  # the blur reaches pad rows beyond the lit ones
                 glare = np.asarray(cv2.copyMakeBorder(glare, pad, pad, pad, pad, cv2.BORDER_REPLICATE), dtype=np.float32)
+                glare_rows = (glare_rows[0] - pad, glare_rows[1] + pad)
         out = np.empty((c.height_px, c.width_px, 3), dtype=np.uint8)
         if noise_offset is None:
             noise = self._no_noise
@@ -484,7 +486,8 @@ class CeilingCamera(SensorBase):
             self._vignette,
             gains,
             noise,
-            self._no_glare if glare is None else glare.reshape(-1),
+            glare.reshape(-1),
+            glare_rows,
             out,
         )
         return out, (label_image if labels else None)

@@ -22,6 +22,7 @@ def blur_expose(
     gain: NDArray[np.float64],
     noise: NDArray[np.float32],
     glare: NDArray[np.float32],
+    glare_rows: tuple[int, int],
     out: NDArray[np.uint8],
 ) -> None:
     """The motion blur, illumination gain, vignetting, glare and noise of a frame, in one pass.
@@ -34,7 +35,8 @@ def blur_expose(
     (the blurred value is exact to under a grey level; a sharp one is exact). ``glare`` (empty: none) is
     light added to the sharp frame, flat in ``image``'s order and on its scale, but unbounded
     (:func:`envs.sensors.glare.glare_image`): blurred with it and added before the gain, so only the
-    sensor's saturation at 255 clips it.
+    sensor's saturation at 255 clips it; only the output rows ``glare_rows`` ``[first, end)`` take it
+    (those within the kernel's reach of a lit row).
     """
     width = out.shape[1]
     tiles = tile_u.shape[0] - 1
@@ -50,7 +52,7 @@ def blur_expose(
     taps = np.empty(tiles, dtype=np.int64)
     acc = np.empty(3 * width, dtype=np.uint16)
     lit = glare.shape[0] > 0
-    acc_glare = np.zeros(3 * width, dtype=np.float32)  # stays 0 without glare
+    acc_glare = np.zeros(3 * width, dtype=np.float32)
     for i in range(tile_v.shape[0] - 1):
         for j in range(tiles):
             taps[j] = splat_line(motion[i, j, 0], motion[i, j, 1], kernel, row_in, offsets[j], weights[j])
@@ -66,6 +68,7 @@ def blur_expose(
                 end += 1
             u0, count = tile_u[j], 3 * (tile_u[end] - tile_u[j])
             for v in range(tile_v[i], tile_v[i + 1]):
+                row_lit = lit and glare_rows[0] <= v < glare_rows[1]
                 first = (v + pad) * row_in + (u0 + pad) * 3
                 # slices: their indices are known to be >= 0, which lets the loops vectorize
                 for e in range(count):
@@ -74,7 +77,7 @@ def blur_expose(
                     w, src = weights[j, k], flat_in[first + offsets[j, k] : first + offsets[j, k] + count]
                     for e in range(count):
                         acc[e] += w * np.uint16(src[e])
-                if lit:
+                if row_lit:
                     for e in range(count):
                         acc_glare[e] = 0.0
                     for k in range(n):
@@ -84,9 +87,14 @@ def blur_expose(
                 at = (v * width + u0) * 3
                 vig, noi, dst = vignette[at : at + count], noise[at : at + count], flat_out[at : at + count]
                 gains = g[3 * u0 : 3 * u0 + count]
-                for e in range(count):
-                    value = (np.float32(acc[e]) + acc_glare[e]) * (vig[e] * gains[e]) + noi[e] + half
-                    dst[e] = 0 if value <= 0.0 else (255 if value >= 255.0 else np.uint8(value))
+                if row_lit:
+                    for e in range(count):
+                        value = (np.float32(acc[e]) + acc_glare[e]) * (vig[e] * gains[e]) + noi[e] + half
+                        dst[e] = 0 if value <= 0.0 else (255 if value >= 255.0 else np.uint8(value))
+                else:
+                    for e in range(count):
+                        value = np.float32(acc[e]) * (vig[e] * gains[e]) + noi[e] + half
+                        dst[e] = 0 if value <= 0.0 else (255 if value >= 255.0 else np.uint8(value))
             j = end
 
 

@@ -129,17 +129,18 @@ class Glare:
         f, le = self._offset_m
         return np.array([pose[0] + cos * f - sin * le, pose[1] + sin * f + cos * le])
 
-    def image(self, pose: NDArray[np.float64], labels: NDArray[np.uint8]) -> NDArray[np.float32] | None:
+    def image(self, pose: NDArray[np.float64], labels: NDArray[np.uint8]) -> tuple[NDArray[np.float32], int, int] | None:
         """The ``(H, W, 3)`` light the glare adds at ``pose`` on the rendered ceiling's scale (unbounded),
-        on the pixels ``labels`` marks as target tape; None when no tape is in view."""
+        on the pixels ``labels`` marks as target tape, and the rows ``[first, end)`` that hold any; None
+        when no tape is in view."""
         if int(labels.max()) < LABEL_COLOUR:
             return None
         c = self.config
         out = np.zeros(labels.shape + (3,), dtype=np.float32)
         cam = self.camera_xy(pose)
-        glare_image(self._forward, self._left, labels, pose, cam[0], cam[1], self._depth_m, self._lamps,
-                    c.lamp_intensity_cd / c.ceiling_lux, c.shininess, c.r0, out)  # fmt: skip
-        return out
+        first, end = glare_image(self._forward, self._left, labels, pose, cam[0], cam[1], self._depth_m, self._lamps,
+                                 c.lamp_intensity_cd / c.ceiling_lux, c.shininess, c.r0, out)  # fmt: skip
+        return out, first, end
 
 
 @numba.njit(cache=True, error_model="numpy", boundscheck=False)
@@ -156,19 +157,22 @@ def glare_image(
     shininess: float,
     r0: float,
     out: NDArray[np.float32],
-) -> None:
+) -> tuple[int, int]:
     """Write into ``out`` ``(H, W, 3)`` the glare of every target-tape pixel (label >= ``LABEL_COLOUR``):
     ``255 F(l.h) (n + 8) / 8 (n.h)^n I cos(theta_i) / (r^2 E_c)`` summed over the lamps (module docstring).
 
     ``lamps`` ``(k, 3)``: each lamp's world ``(x, y)`` and depth below the ceiling; ``intensity_per_lux``:
-    ``I / E_c``; the camera at ``(camera_x, camera_y)``, ``depth`` below the ceiling.
+    ``I / E_c``; the camera at ``(camera_x, camera_y)``, ``depth`` below the ceiling. Returns the rows
+    ``[first, end)`` holding the tape's pixels (``(0, 0)``: none).
     """
     cos, sin = math.cos(pose[2]), math.sin(pose[2])
     norm = (shininess + 8.0) / 8.0
+    first, end = labels.shape[0], 0
     for v in range(labels.shape[0]):
         for u in range(labels.shape[1]):
             if labels[v, u] < LABEL_COLOUR:
                 continue
+            first, end = min(first, v), v + 1
             f, le = forward[v, u], left[v, u]
             x, y = pose[0] + cos * f - sin * le, pose[1] + sin * f + cos * le
             # unit vectors from the tape's point toward the camera and the lamp (z up; both point down)
@@ -191,3 +195,4 @@ def glare_image(
             out[v, u, 0] = value
             out[v, u, 1] = value
             out[v, u, 2] = value
+    return (first, end) if end > 0 else (0, 0)

@@ -38,8 +38,10 @@ def world_to_pixel(cam: CeilingCamera, pose: np.ndarray, xy: np.ndarray) -> np.n
     return np.array([u[0], v[0]])
 
 
-def brightest(glare: np.ndarray) -> np.ndarray:
+def brightest(lit: tuple[np.ndarray, int, int] | None) -> np.ndarray:
     """The glare's peak pixel (u, v), at its centre (+ 0.5)."""
+    assert lit is not None
+    glare = lit[0]
     v, u = np.unravel_index(int(np.argmax(glare[..., 0])), glare.shape[:2])
     return np.array([u + 0.5, v + 0.5])
 
@@ -56,7 +58,6 @@ def test_the_spot_is_where_the_ray_to_the_mirrored_lamp_meets_the_ceiling() -> N
     assert cam._glare is not None
     pose = np.array([0.1, 3.0, 2.0])
     glare = cam._glare.image(pose, np.full((cam.config.height_px, cam.config.width_px), LABEL_COLOUR, dtype=np.uint8))
-    assert glare is not None
     spot = mirror_spot_xy(np.array([*cam._glare.camera_xy(pose), MOUNT_M]), np.array([-0.3, 3.4, 2.1]), CEILING_M)
     assert np.abs(brightest(glare) - world_to_pixel(cam, pose, spot)).max() <= 1.0
 
@@ -86,9 +87,11 @@ def test_the_glare_adds_to_the_tape_and_the_sensor_saturation_clips_its_hue() ->
     plain, labels = camera(**IDEAL).render(UNDER_T1, labels=True)
     assert labels is not None and cam._glare is not None
     lit, _ = cam.render(UNDER_T1)
-    glare = cam._glare.image(UNDER_T1, labels)
-    assert glare is not None
+    lit_image = cam._glare.image(UNDER_T1, labels)
+    assert lit_image is not None
+    glare, first, end = lit_image
     tape = labels >= LABEL_COLOUR
+    assert (first, end) == (np.flatnonzero(tape.any(axis=1))[0], np.flatnonzero(tape.any(axis=1))[-1] + 1)
     assert np.array_equal(lit[~tape], plain[~tape])  # only the tape is glossy
     expected = np.clip(np.floor(plain.astype(np.float64) + glare + 0.5), 0, 255)
     assert np.abs(lit.astype(np.float64) - expected).max() <= 1.0
