@@ -104,12 +104,11 @@ def pose_at(start: tuple[float, float, float], lag_s: float) -> tuple[float, flo
     return tuple(e - f * (e - s) for s, e in zip(start, ROBOT))  # type: ignore[return-value]
 
 
-@pytest.mark.parametrize("motion", sorted(MOTIONS))
-@pytest.mark.parametrize("mode", ["fast", "image"])
+# the image mode's drive is left out: 1 m/s over a frame period moves the corners 0.1-0.4 px, below its
+# whole-pixel steps (the fast mode checks the drive to 1e-6 px)
+@pytest.mark.parametrize(("motion", "mode"), [("rotation", "fast"), ("rotation", "image"), ("translation", "fast")])
 def test_each_camera_sees_the_box_from_where_the_robot_was_when_it_took_its_frame(motion: str, mode: str) -> None:
     start, lags = MOTIONS[motion]
-    if mode == "image" and motion == "translation":
-        pytest.skip("1 m/s over a frame period moves the corners 0.1-0.4 px: below the image mode's pixel steps")
     env = box_env(mode=mode, synchronised=False, frame_lags_s=lags)
     c = sensor(env).config
     synced = observe(box_env(mode=mode), start)
