@@ -253,7 +253,8 @@ def light_study(light: Light, seeds: int, train_images: int = FitPlan.train_imag
     gains 0.6-1.4, from ``train_images`` images: how the paper learned its ranges in its own corridor).
 
     Returns the light's camera overrides, the rows of each threshold set (:func:`illumination`), the fitted
-    thresholds and their held-out record (per colour and space, the share of its own pixels inside its box).
+    thresholds and their held-out record (per colour and space, the share of its own pixels inside its box) and
+    how many images each colour space was tried on.
     """
     fitted, record = fit(FitPlan(train_images=train_images, test_images=LIGHT_FIT_TEST_IMAGES, camera=dict(light.camera)))
     return {
@@ -262,6 +263,7 @@ def light_study(light: Light, seeds: int, train_images: int = FitPlan.train_imag
             "shipped thresholds": illumination(seeds, LIGHT_GAINS, camera=light.camera),
             "fitted under this light": illumination(seeds, LIGHT_GAINS, fitted, camera=light.camera),
         },
+        "images_per_space": seeds * len(LIGHT_GAINS),  # one image per seed and gain, the same for HSV and RGB
         "fit_images": {"train": train_images, "test": LIGHT_FIT_TEST_IMAGES},
         "fitted": {name: dataclasses.asdict(r) for name, r in fitted.items()},
         "fit_kept": {c: {space: v[space]["true_positive"] for space in ("hsv", "rgb")} for c, v in record["held_out"].items()},

@@ -156,3 +156,19 @@ def test_the_rows_under_a_light_are_deterministic() -> None:
     first = static.illumination(2, gains=(0.6, 1.4), camera=light)
     again = static.illumination(2, gains=(0.6, 1.4), camera=light)
     assert first == again and any(r["fix_rate"] > 0 for r in first)
+
+
+@pytest.mark.parametrize(
+    ("hsv", "rgb", "n", "says"),
+    [
+        (0.42, 0.43, 100, "no difference beyond chance"),  # one image apart
+        (0.12, 0.36, 100, "RGB ahead beyond chance"),
+        (0.60, 0.30, 100, "HSV ahead beyond chance"),
+        (0.12, 0.36, 10, "no difference beyond chance"),  # too few images to tell
+        (1.0, 1.0, 100, "no difference beyond chance"),
+    ],
+)
+def test_a_light_study_calls_a_colour_space_ahead_only_beyond_chance(hsv: float, rgb: float, n: int, says: str) -> None:
+    from agents.papers.ceiling_target.report import _ahead
+
+    assert _ahead(hsv, rgb, n).startswith(says)
