@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from agents.papers.ceiling_target.fit import _HSV_SCALE, inside
-from agents.papers.ceiling_target.static import Rig
+from agents.papers.ceiling_target.static import LAMP_BY_TARGET_M, Rig
 from envs.features.ceiling import colour_label
 from envs.sensors.light_colour import cct_white_rgb, white_balance_gains
 from localizers.ceiling_vision import hsv8
@@ -34,7 +34,7 @@ AUTO = {"auto_white_balance": True, "cct_k": (4000.0, 4000.0)}
 #: y = 0; the nearest to T1 0.3 m beyond it), the scene of envs/sensors/glare.py's GlareConfig
 GLARE = {"glare": {"lamps_m": [[0.0, 2.4 * k, 2.0] for k in range(10)]}}
 #: one lamp 0.5 m below the ceiling, 0.2 m across the corridor from T1's centre: its spot lies on T1's line
-SPOT = {"glare": {"lamps_m": [[0.2, 6.9, 2.0]]}}
+SPOT = {"glare": {"lamps_m": [list(LAMP_BY_TARGET_M)]}}
 #: the lights of the finding: camera fields and the channel gains handed to the render (the raw light's colour
 #: under the auto white balance, which the render balances by the frame)
 LIGHTS = {

@@ -77,6 +77,13 @@ def camera_of(env: LocalizationEnv) -> CeilingCamera:
     return camera
 
 
+def light_colour(camera: CeilingCamera, pose: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The ``(3,)`` channel gains per unit brightness of the light at ``pose``: ones under a colourless light;
+    the light's colour against the white balance, or its raw colour under the auto white balance (which the
+    render balances by the frame). An image at brightness ``gain`` is rendered with ``gain * light_colour``."""
+    return camera.channel_gains(pose, 0.0) / camera.gain(pose, 0.0)
+
+
 def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDArray[np.uint8], NDArray[np.uint8]]]:
     """``count`` rendered images and their pixel labels, without motion blur (labels are exact)."""
     env = LocalizationEnv(plan.world, camera={**plan.camera, "exposure_s": 0.0})
@@ -102,8 +109,7 @@ def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDAr
         # gains spread evenly over the range (a low-discrepancy sequence), whatever the count
         lo, hi = plan.gain_range
         gain = lo + (hi - lo) * ((i * 0.6180339887498949 + rng.uniform(0, 0.05)) % 1.0)
-        colour = camera.channel_gains(pose[0], 0.0) / camera.gain(pose[0], 0.0)  # ones under a colourless light
-        image, labels = camera.render(pose, heads, gain * colour, int(rng.integers(1 << 30)), labels=True)
+        image, labels = camera.render(pose, heads, gain * light_colour(camera, pose[0]), int(rng.integers(1 << 30)), labels=True)
         assert labels is not None
         yield image, labels
 
