@@ -103,7 +103,7 @@ def _numbers(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 @pytest.mark.parametrize(
     ("flags", "named"),
     [
-        (["--worlds", "crowdloc/Nowhere-v0"], "'crowdloc/Nowhere-v0' is not a world of crowdloc-benchmark-v1"),
+        (["--worlds", "crowdloc/Nowhere-v0"], "'crowdloc/Nowhere-v0' is not a world of crowdloc-benchmark-v2"),
         (["--localizers", "no_such_localizer"], "unknown localizer 'no_such_localizer'"),
         (["--policies", "moonwalk"], "unknown policy 'moonwalk'"),
         (["--plugins", "no_such_plugin_module"], "--plugins no_such_plugin_module: cannot import it"),
