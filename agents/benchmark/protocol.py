@@ -32,7 +32,7 @@ RESERVED_BELOW = EVAL_SEED_BASE + FIRST_SEED_MAX + 2**29
 #: seeds are 32-bit (numpy's SeedSequence takes more, gymnasium's spaces do not)
 SEED_LIMIT = 2**32
 #: the shipped protocol ``crowdloc benchmark`` runs by default
-DEFAULT_PROTOCOL = "v1"
+DEFAULT_PROTOCOL = "v2"
 
 Start = Literal["known", "unknown", "localizer"]
 
@@ -48,7 +48,7 @@ class WorldProtocol:
         start: ``known`` (every localizer gets the true start pose), ``unknown`` (none does) or
             ``localizer`` (each as its ``LocalizerSpec.needs_prior`` asks).
         failure_m: a step with a position error at least this is a failure.
-        paper_localizers: the world's paper's method and the baseline it was compared with (optional):
+        paper_localizers: the world's paper's method, then the baselines it was compared with (optional):
             the leaderboard's table "The papers' methods as the crowd grows" shows them at crowd 0, the
             world's default and its maximum.
     """

@@ -227,7 +227,7 @@ def papers_tables(plan: BenchmarkPlan, rows: Sequence[Row]) -> list[str]:
     if not worlds:
         return []
     lines = ["", "## The papers' methods as the crowd grows", "",
-             "Each world's paper's method and its baseline under the world's paper policy, at crowd 0, the world's "
+             "Each world's paper's method and its baselines under the world's paper policy, at crowd 0, the world's "
              "default crowd and its largest: mean error m [95 % CI] / p95 error m / failure share [95 % CI]."]  # fmt: skip
     for world in worlds:
         policy, sizes = world.policies[0], world.world.crowd_sizes

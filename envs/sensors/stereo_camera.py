@@ -28,8 +28,9 @@ Two modes produce step 1:
   then matched and triangulated exactly as in the image mode. Training and sweeps use it; a
   test shows both modes find the same edges on a clean scene.
 
-**Free-running webcams** (issue 30, options; the shipped worlds keep today's cameras until the
-reproductions are re-run). The paper's three USB webcams have no hardware sync and their own
+**Free-running webcams** (issue 30; the defaults, the paper's cameras; ``synchronised: true``,
+``exposure_range: [1, 1]``, ``white_balance_k: [0, 0]`` and ``fast_edges: lines`` give the cameras
+before it). The paper's three USB webcams have no hardware sync and their own
 auto exposure and white balance. With ``synchronised: false`` each camera takes its frame
 ``frame_lags_s`` before the step's end (drawn per episode uniformly within one ``frame_period_s``,
 the webcams' 30 fps), from the robot's pose then (:meth:`StereoCamera.camera_poses`, the swept
@@ -45,7 +46,7 @@ children of the sensor stream at the first frame after a reset, and only when an
 The fast mode's ``fast_edges: rows`` goes with them: each camera's filter response along each
 detection row is rebuilt from the lines' colour steps (:func:`envs.stereo.geometric.row_response`)
 and searched by the image mode's detector, so steps closer than the filter's width add up or cancel
-as in the images (``lines``, today's: each line is an edge of its own, weakened by its neighbours).
+as in the images (``lines``, before issue 30: each line is an edge of its own, weakened by its neighbours).
 
 The images are in the observation only with ``images: true`` (keys ``<key>_left``,
 ``<key>_middle``, ``<key>_right``, uint8 ``(H, W, 3)``); the fast mode then renders them
@@ -98,8 +99,10 @@ SLOT_FIELDS = ("valid", "type", "inverse_range_m", "bearing_rad")
 CAMERAS = ("left", "middle", "right")
 _NOISE_POOL = 1 << 18  # noise offsets drawn per frame (the pool holds this plus one frame)
 
-#: overrides that make the cameras ideal (no pixel noise, no exposure changes, no edge noise): for tests and studies
-IDEAL = {"pixel_noise_std": 0.0, "gain_std": 0.0, "edge_noise_px": 0.0}
+#: overrides that make the cameras ideal (no pixel noise, no exposure changes, no edge noise; synchronised, of
+#: equal gains): for tests and studies
+IDEAL = {"pixel_noise_std": 0.0, "gain_std": 0.0, "edge_noise_px": 0.0, "synchronised": True, "exposure_range": (1.0, 1.0),
+         "white_balance_k": (0.0, 0.0)}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -143,36 +146,37 @@ class StereoCameraConfig(SensorConfig):
     gain_range: tuple[float, float] = (0.8, 1.2)
     render_range_m: float = 200.0  # nothing farther is drawn or seen
     show_images: bool = True  # rendered frames show the three images with their edges under the top view
-    # ---- free-running webcams (issue 30; the shipped worlds keep today's cameras until the reproductions are re-run).
-    # The paper's three BUFFALO BSW200MBK USB webcams have no hardware sync: each streams on its own clock.
-    # false: each camera's frame is taken frame_lags_s before the end of the step (drawn per episode, uniform
-    # within one frame period, unless given), from the robot's pose then; true (the default): all at the step's end.
-    synchronised: bool = True
+    # ---- free-running webcams (issue 30: the paper's cameras are the defaults; the values in brackets give the
+    # cameras before it). The paper's three BUFFALO BSW200MBK USB webcams have no hardware sync: each streams on
+    # its own clock. false (the default): each camera's frame is taken frame_lags_s before the end of the step
+    # (drawn per episode, uniform within one frame period, unless given), from the robot's pose then; [true]: all
+    # at the step's end.
+    synchronised: bool = False
     # one frame period of a camera. No BSW200MBK datasheet was found; 1/30 s is the USB Video Class's
     # 640 x 480 rate that such webcams stream by default (their UVC descriptors: default interval 1/30)
     frame_period_s: float = 1.0 / 30.0
     frame_lags_s: tuple[float, float, float] | None = None  # (left, middle, right) fixed lags (tests, studies); None: drawn
-    # each camera's exposure gain, drawn per camera and episode uniformly within this range; (1, 1): equal
-    # exposures (today's). The value to turn it on: (0.51, 1.49), the auto-exposure's stable window of a VGA
+    # each camera's exposure gain, drawn per camera and episode uniformly within this range; [(1, 1)]: equal
+    # exposures. The default (0.51, 1.49) is the auto-exposure's stable window of a VGA
     # webcam sensor: the OmniVision OV7670's AEC leaves the exposure alone while the mean luma lies within
     # AEB..AEW, 0x33..0x95 (51..149 about 100) as the Linux driver (drivers/media/i2c/ov7670.c) sets them, so
     # two free-running cameras on one scene settle anywhere in it (the BSW200MBK's sensor is not published)
-    exposure_range: tuple[float, float] = (1.0, 1.0)
+    exposure_range: tuple[float, float] = (0.51, 1.49)
     # each camera's auto white balance: the colour temperature (K) it balances for, drawn per camera and episode
-    # uniformly within this range, under daylight of light_k; (0, 0): none (today's neutral colours). The value
-    # to turn it on: (5003, 7504), the CIE daylight illuminants D50-D75 (CIE 15:2004) that a camera's auto white
+    # uniformly within this range, under daylight of light_k; [(0, 0)]: none (neutral colours). The default
+    # (5003, 7504) is the CIE daylight illuminants D50-D75 (CIE 15:2004) that a camera's auto white
     # balance estimates from its own view, under light_k 6504 (D65, average daylight) (ours: the spread of the
     # BSW200MBK's white balance is not published). Gains: envs.sensors.light_colour.white_balance_gains
-    white_balance_k: tuple[float, float] = (0.0, 0.0)
+    white_balance_k: tuple[float, float] = (5003.0, 7504.0)
     light_k: float = 6504.0
-    # how the fast mode turns the lines into each camera's edges. lines (today's): each line above the threshold is
+    # how the fast mode turns the lines into each camera's edges. [lines]: each line above the threshold is
     # an edge at its column, of two of a type within the filter's width the stronger kept; rows: the filter's
     # response along each detection row rebuilt from the lines' colour steps at the pixel boundaries where the
     # image puts them, and searched for peaks by the image mode's detector (envs.stereo.geometric.row_response), so
     # that steps closer than the filter's width add up or cancel as in the images, and an edge's column is where the
-    # image's detector puts it (whole pixels for a sharp step; edge_noise_px is not used): the value to turn on with
-    # the webcams (issue 30; benchmarks/stereo_webcams.py measures the agreement with the image mode)
-    fast_edges: Literal["lines", "rows"] = "lines"
+    # image's detector puts it (whole pixels for a sharp step; edge_noise_px is not used): the default, which agrees
+    # with the image mode within 5 % per row and type on the campus (issue 30; benchmarks/stereo_webcams.py measures it)
+    fast_edges: Literal["lines", "rows"] = "rows"
 
     def __post_init__(self) -> None:
         where = "stereo_camera"
@@ -326,7 +330,7 @@ class StereoCamera(SensorBase):
         self._fresh = True
         self._dt_s = float(world.dt_s)
         # the free-running webcams (issue 30), drawn per episode when on: each camera's lag behind the
-        # step's end (s) and its gain per channel (exposure x white balance); None: today's cameras
+        # step's end (s) and its gain per channel (exposure x white balance); None: synchronised cameras of equal gains
         self.frame_lags_s: NDArray[np.float64] | None = None
         self.camera_gains: NDArray[np.float64] | None = None
         self.last_images: tuple[NDArray[np.uint8], ...] | None = None
@@ -432,7 +436,7 @@ class StereoCamera(SensorBase):
 
     def _draw_webcams(self, rng: np.random.Generator) -> None:
         """Each camera's frame lag and gains for this episode, from children of ``rng`` (which leaves its
-        own draws as they were: nothing is drawn while the cameras are today's)."""
+        own draws as they were: nothing is drawn while the cameras are synchronised and of equal gains)."""
         c = self.config
         if not c.camera_effects:
             return

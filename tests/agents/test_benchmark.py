@@ -103,7 +103,7 @@ def _numbers(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 @pytest.mark.parametrize(
     ("flags", "named"),
     [
-        (["--worlds", "crowdloc/Nowhere-v0"], "'crowdloc/Nowhere-v0' is not a world of crowdloc-benchmark-v1"),
+        (["--worlds", "crowdloc/Nowhere-v0"], "'crowdloc/Nowhere-v0' is not a world of crowdloc-benchmark-v2"),
         (["--localizers", "no_such_localizer"], "unknown localizer 'no_such_localizer'"),
         (["--policies", "moonwalk"], "unknown policy 'moonwalk'"),
         (["--plugins", "no_such_plugin_module"], "--plugins no_such_plugin_module: cannot import it"),
@@ -368,3 +368,14 @@ def test_the_shipped_league_table_is_the_protocols_as_the_repository_stands() ->
     assert shipped["seeds"] == list(protocol.seeds.seeds) and len(shipped["rows"]) == 190
     board = (REPO / "docs" / "leaderboard.md").read_text()
     assert shipped["protocol_digest"][:16] in board
+
+
+def test_the_papers_table_in_the_docs_is_the_shipped_leaderboards() -> None:
+    """docs/papers.md's crowd-density table per world is the shipped leaderboard's, copied whole."""
+    board = (REPO / "docs" / "leaderboard.md").read_text()
+    table = board.split("## The papers' methods as the crowd grows", 1)[1].split("\n## crowdloc/", 1)[0].strip("\n")
+    papers = (REPO / "docs" / "papers.md").read_text()
+    copied = papers.split("<!-- papers' table: copied from docs/leaderboard.md -->\n", 1)[1].split(
+        "\n<!-- end of papers' table -->", 1
+    )[0]
+    assert "### crowdloc/StereoCampus-v0" in table and copied == table
