@@ -211,7 +211,7 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def _add_benchmark(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     bench = sub.add_parser(
         "benchmark",
-        help="the benchmark protocol (configs/benchmark/v1.yaml): every localizer whose sensor a world has x its policies x "
+        help="the benchmark protocol (the newest of configs/benchmark/): every localizer whose sensor a world has x its policies x "
         "crowd sizes x test seeds; results.json, results.csv, leaderboard.md",
         description="Run the versioned benchmark protocol: in each of its worlds every localizer whose sensor the world has "
         "(dead_reckoning everywhere), driven by the world's fixed policies, at each of its crowd sizes, on its test seeds "
@@ -219,7 +219,8 @@ def _add_benchmark(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
         "results.csv (one row per world x localizer x policy x crowd size, with the protocol's name and digest), "
         "leaderboard.md (each localizer's crowd sensitivity, then one table per world) and plots/ under --out.",
     )
-    bench.add_argument("--protocol", default="v1", help="a shipped protocol name or a protocol YAML path (default v1)")
+    bench.add_argument("--protocol", default=None,
+                       help="a shipped protocol name or a protocol YAML path (default: the newest shipped one)")  # fmt: skip
     bench.add_argument("--worlds", nargs="+", metavar="ENV_ID", help="env ids of the protocol (default: all of them)")
     bench.add_argument("--localizers", nargs="+", metavar="NAME",
                        help="registered localizers (default: every one; each runs where the world has its sensor)")  # fmt: skip

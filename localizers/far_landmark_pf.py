@@ -384,8 +384,10 @@ class FarLandmarkPF:
     #: knowing only the camera's noise while the scenes' poses, the LIDAR reference's estimates, are off by
     #: 0.1-0.2 m) (tests/localizers/test_consistency_promises.py); measured again with the lost detection and
     #: the search (issue 27): the same 0.738 and 2.48 on the same 1104 steps with a pose (its 14 searches
-    #: all confirm the estimate)
-    consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/StereoCampus-v0", "route_follower", 1200, 0.7)
+    #: all confirm the estimate); and again when the campus's cameras became the paper's free-running webcams
+    #: (issue 30): 0.668 and 2.87 on 1156 steps (0.644 with the cameras synchronised, the per-camera gains and the
+    #: rows model kept), so the promise went from 0.7 to 0.6
+    consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/StereoCampus-v0", "route_follower", 1200, 0.6)
 
     def __init__(self, landmarks: LandmarkMap, params: FarLandmarkParams, *, dt_s: float, scenes: SceneMap | None = None) -> None:
         self._dt = checked_dt(type(self).__name__, dt_s)

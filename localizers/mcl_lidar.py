@@ -217,8 +217,11 @@ class LidarMCL:
 
     name: ClassVar[str] = "mcl_lidar"
     #: measured on this run: share 0.562, NEES median 5.6: the beam model counts every beam as independent, so
-    #: the cloud is narrower than the error (module docstring) (tests/localizers/test_consistency_promises.py)
-    consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/CrowdedRoom-v0", "random_walk", 500, 0.5)
+    #: the cloud is narrower than the error (module docstring) (tests/localizers/test_consistency_promises.py).
+    #: Issue 30's room (people who see the robot, the 25 ms sweep): 0.390, NEES median 11.6. The crowd's other
+    #: paths do it, not the sweep: 0.622 with nobody seeing the robot, 0.292 with the sweep off, 0.378 with
+    #: deskew; so the promise went from 0.5 to 0.35
+    consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/CrowdedRoom-v0", "random_walk", 500, 0.35)
 
     def __init__(self, landmarks: LandmarkMap, params: LidarMCLParams, *, dt_s: float) -> None:
         self._dt = checked_dt(type(self).__name__, dt_s)

@@ -441,12 +441,18 @@ def detect_edges(response: ArrayLike, threshold: float, *, border_px: int = 0) -
         raise ValueError(f"detect_edges: threshold must be finite and > 0, got {shown(threshold)!r}")
     if not is_int(border_px) or border_px < 0:
         raise ValueError(f"detect_edges: border_px must be an integer >= 0, got {shown(border_px)!r}")
-    levels, width, _ = r.shape
+    return find_edges(r, float(threshold), int(border_px))
+
+
+def find_edges(response: NDArray[np.float32], threshold: float, border_px: int) -> EdgeList:
+    """:func:`detect_edges` without its input checks, for a caller that made ``response`` itself
+    (contiguous float32 ``(L, W, 3)``, finite; the stereo camera's fast mode, every frame)."""
+    levels, width, _ = response.shape
     cap = levels * CHANNELS * POLARITIES * (width // 2 + 1)  # peaks are at least 2 samples apart
     u = np.empty(cap, np.float64)
     t = np.empty(cap, np.int64)
     s = np.empty(cap, np.float32)
-    n = _detect_kernel(r, float(threshold), int(border_px), u, t, s)
+    n = _detect_kernel(response, threshold, border_px, u, t, s)
     return EdgeList(u[:n].copy(), t[:n].copy(), s[:n].copy())
 
 

@@ -1,6 +1,6 @@
 """``crowdloc benchmark``: one protocol, one league table of every localizer in every world at every crowd size.
 
-- :mod:`.protocol`: the protocol (``configs/benchmark/v1.yaml``), its strict loader, its test
+- :mod:`.protocol`: the protocol (``configs/benchmark/v2.yaml``; v1 kept), its strict loader, its test
   seeds (disjoint from every other command's) and its digest;
 - :mod:`.run`: the plan (worlds x localizers x policies x crowd sizes x seeds, with the lines of
   what was left out), the plug-ins (``--plugins``) and each episode's score;

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from agents.benchmark.journal import JOURNAL_NAME, ScoreJournal
-from agents.benchmark.protocol import load_protocol
+from agents.benchmark.protocol import DEFAULT_PROTOCOL, load_protocol
 from agents.benchmark.results import BENCHMARK_OUTPUTS, write_results
 from agents.benchmark.run import BenchmarkPlan, EpisodeScore, load_plugins, plan_benchmark, score_task
 from agents.common.sweep import run_tasks
@@ -26,7 +26,7 @@ def run_cli(args: Any) -> BenchmarkPlan:
     """
     plugins = tuple(args.plugins or ())
     load_plugins(plugins)
-    protocol = load_protocol(args.protocol)
+    protocol = load_protocol(args.protocol or DEFAULT_PROTOCOL)
     plan = plan_benchmark(protocol, worlds=args.worlds, localizers=args.localizers, policies=args.policies,
                           seeds=args.seeds, quick=args.quick, plugins=plugins)  # fmt: skip
     resume, overwrite = bool(getattr(args, "resume", False)), bool(args.overwrite)

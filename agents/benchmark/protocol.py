@@ -24,6 +24,7 @@ import crowdloc_configs
 from agents.evaluate.spec import FIRST_SEED_MAX, crowdloc_ids, runnable_policies, world_of
 from agents.policies import FIXED_POLICIES
 from agents.rl.train import EVAL_SEED_BASE
+from localizers.registry import BUILTIN_LOCALIZERS
 from localizers.schema import ConfigError, check, from_mapping, load_yaml
 
 #: the first seed no other command uses: above every training seed and every held-out seed of eval, demo and tune
@@ -31,7 +32,7 @@ RESERVED_BELOW = EVAL_SEED_BASE + FIRST_SEED_MAX + 2**29
 #: seeds are 32-bit (numpy's SeedSequence takes more, gymnasium's spaces do not)
 SEED_LIMIT = 2**32
 #: the shipped protocol ``crowdloc benchmark`` runs by default
-DEFAULT_PROTOCOL = "v1"
+DEFAULT_PROTOCOL = "v2"
 
 Start = Literal["known", "unknown", "localizer"]
 
@@ -47,6 +48,9 @@ class WorldProtocol:
         start: ``known`` (every localizer gets the true start pose), ``unknown`` (none does) or
             ``localizer`` (each as its ``LocalizerSpec.needs_prior`` asks).
         failure_m: a step with a position error at least this is a failure.
+        paper_localizers: the world's paper's method, then the baselines it was compared with (optional):
+            the leaderboard's table "The papers' methods as the crowd grows" shows them at crowd 0, the
+            world's default and its maximum.
     """
 
     crowd_sizes: tuple[int, ...]
@@ -54,6 +58,7 @@ class WorldProtocol:
     episode_steps: int
     start: Start
     failure_m: float
+    paper_localizers: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         check(len(self.crowd_sizes) >= 2, f"crowd_sizes needs at least 0 and the maximum, got {list(self.crowd_sizes)}")
@@ -63,6 +68,8 @@ class WorldProtocol:
         check(len(set(self.policies)) == len(self.policies), f"policies repeat: {list(self.policies)}")
         check(self.episode_steps >= 1, f"episode_steps must be >= 1, got {self.episode_steps}")
         check(0.0 < self.failure_m < float("inf"), f"failure_m must be finite and > 0, got {self.failure_m}")
+        check(len(set(self.paper_localizers)) == len(self.paper_localizers),
+              f"paper_localizers repeat: {list(self.paper_localizers)}")  # fmt: skip
 
     @property
     def prior(self) -> str | None:
@@ -163,6 +170,9 @@ def load_protocol(name_or_path: str | Path = DEFAULT_PROTOCOL) -> Protocol:
             )
             check(policy in runnable_policies(config),
                   f"{where}.policies: {policy!r} cannot drive this world (it can: {', '.join(runnable_policies(config))})")  # fmt: skip
+        for name in world.paper_localizers:
+            check(name in BUILTIN_LOCALIZERS,
+                  f"{where}.paper_localizers: {name!r} is not a built-in localizer; built-in: {', '.join(BUILTIN_LOCALIZERS)}")  # fmt: skip
     return protocol
 
 
@@ -181,7 +191,7 @@ def protocol_digest(protocol: Protocol) -> str:
     import gymnasium as gym
 
     from envs.config import world_path
-    from localizers.registry import BUILTIN_LOCALIZERS, params_path
+    from localizers.registry import params_path
 
     h = hashlib.sha256()
     h.update(Path(protocol.path).read_bytes())

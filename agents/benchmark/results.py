@@ -105,15 +105,20 @@ def _ratio_ci(low_crowd: np.ndarray, high_crowd: np.ndarray, rng: np.random.Gene
     return float(b.mean() / a.mean()), float(lo), float(hi)
 
 
-def sensitivities(plan: BenchmarkPlan, scores: Sequence[EpisodeScore], rows: Sequence[Row]) -> tuple[Sensitivity, ...]:
-    """Per world and localizer, under the world's first policy of the run."""
+def default_crowd(env_id: str) -> int:
+    """The crowd size a world has by default (0 without a crowd)."""
     from agents.evaluate.spec import world_of
 
+    crowd = world_of(env_id, {}).crowd
+    return crowd.count if crowd is not None else 0
+
+
+def sensitivities(plan: BenchmarkPlan, scores: Sequence[EpisodeScore], rows: Sequence[Row]) -> tuple[Sensitivity, ...]:
+    """Per world and localizer, under the world's first policy of the run."""
     out = []
     for w, world in enumerate(plan.worlds):
         policy, top = world.policies[0], world.world.crowd_sizes[-1]
-        crowd = world_of(world.env_id, {}).crowd
-        default = crowd.count if crowd is not None else 0
+        default = default_crowd(world.env_id)
         at_default = {r.localizer: r.stats["error_mean_m"].mean for r in rows
                       if r.world == world.env_id and r.policy == policy and r.crowd_size == default}  # fmt: skip
         order = sorted(at_default, key=lambda n: (not math.isfinite(at_default[n]), at_default[n]))
@@ -192,6 +197,7 @@ def leaderboard(plan: BenchmarkPlan, rows: Sequence[Row], sens: Sequence[Sensiti
                 ci = f" [{_fmt(s.low)}, {_fmt(s.high)}]" if math.isfinite(s.low) and len(plan.seeds) > 1 else ""
                 cells.append(f"{_fmt(s.ratio)}{ci} (#{s.rank})" if s.rank else f"{_fmt(s.ratio)}{ci}")
         lines.append(f"| {loc} | " + " | ".join(cells) + " |")
+    lines += papers_tables(plan, rows)
     for world in plan.worlds:
         lines += ["", f"## {world.env_id}", "",
                   f"Policies {', '.join(world.policies)}; {world.spec.episode_steps} steps per episode; start "
@@ -211,6 +217,38 @@ def leaderboard(plan: BenchmarkPlan, rows: Sequence[Row], sens: Sequence[Sensiti
     if plan.left_out:
         lines += ["", "## Left out", ""] + [f"- {line}" for line in plan.left_out]
     return "\n".join(lines) + "\n"
+
+
+def papers_tables(plan: BenchmarkPlan, rows: Sequence[Row]) -> list[str]:
+    """The leaderboard's lines "The papers' methods as the crowd grows": per world whose protocol names
+    ``paper_localizers``, each of them under the world's paper policy at crowd 0, the world's default
+    and its maximum (mean error [95 % CI], p95, failure share [95 % CI]); none without such a world."""
+    worlds = [w for w in plan.worlds if any(name in w.localizers for name in w.world.paper_localizers)]
+    if not worlds:
+        return []
+    lines = ["", "## The papers' methods as the crowd grows", "",
+             "Each world's paper's method and its baselines under the world's paper policy, at crowd 0, the world's "
+             "default crowd and its largest: mean error m [95 % CI] / p95 error m / failure share [95 % CI]."]  # fmt: skip
+    for world in worlds:
+        policy, sizes = world.policies[0], world.world.crowd_sizes
+        default = default_crowd(world.env_id)
+        shown = list(dict.fromkeys(size for size in (0, default, sizes[-1]) if size in sizes))
+        label = {size: f"crowd {size}" + (" (default)" if size == default else "") for size in shown}
+        lines += ["", f"### {world.env_id} ({policy}, failure: error >= {world.world.failure_m:g} m)", "",
+                  "| localizer | " + " | ".join(label[size] for size in shown) + " |", "|---|" + "---|" * len(shown)]  # fmt: skip
+        for name in world.world.paper_localizers:
+            if name not in world.localizers:
+                continue
+            cells = []
+            for size in shown:
+                r = next(
+                    (r for r in rows if (r.world, r.localizer, r.policy, r.crowd_size) == (world.env_id, name, policy, size)),
+                    None,
+                )
+                cells.append("–" if r is None else
+                             f"{_fmt_stat(r.stats['error_mean_m'])} / {_fmt(r.error_p95_m)} / {_fmt_stat(r.stats['failure_share'])}")  # fmt: skip
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def _row_dict(r: Row) -> dict[str, Any]:

@@ -232,6 +232,10 @@ def plan_benchmark(
         prior = world.prior
         config = world_of(env_id, {})
         sensors = {n: {"type": s.type_name} for n, s in config.sensors.items()}
+        for name in world.paper_localizers:
+            why = _supports(name, sensors, env_id)
+            check(why is None, f"{protocol.path}: worlds.{env_id}.paper_localizers: {name!r} cannot run there "
+                  f"({str(why).removeprefix('left out: ')})")  # fmt: skip
         runs = []
         for name in localizers or tuple(LOCALIZERS):
             why = _supports(name, sensors, env_id)

@@ -108,11 +108,11 @@ class PeopleConfig(CrowdConfig):
     does (:func:`envs.crowds.steering.see_robot`, CrowdNav's "visible robot"): a social force
     from the robot's disc, and stepping aside, slowing or waiting when contact is near. The
     others treat it as the crowd always has (0: the invisible robot, CrowdNav's other setting,
-    for studies of inattentive crowds). Issue 30 wants 1 (everyone sees it); the shipped worlds
-    keep 0, today's crowds, until their reproductions are re-run.
+    for studies of inattentive crowds). The default is 1: everyone sees it (issue 30; the crowds
+    before it were 0).
     """
 
-    sees_robot: float = 0.0
+    sees_robot: float = 1.0
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -26,7 +26,12 @@ ceiling's height above the camera.
   colour temperature (``cct_k``: under the light panels and midway between them, following the
   panels' pitch like the brightness) against the camera's fixed white balance gives every
   channel its own gain (:func:`envs.sensors.light_colour.white_balance_gains`), green keeping the brightness gain; a light
-  warmer than the white balance turns the image red, a cooler one blue;
+  warmer than the white balance turns the image red, a cooler one blue; ``daylight_cct_k`` draws
+  the light midway between the panels (daylight through the doors) per episode from a range, and
+  ``auto_white_balance`` replaces the fixed balance by a grey-world one over each frame (both off);
+- a specular glare spot on the targets' glossy tape (off by default): ``glare`` gives the lamps hung
+  below the ceiling that the tape mirrors into the camera (:mod:`envs.sensors.glare`: the spot's place
+  by the mirror geometry, a Blinn-Phong lobe, clipped by the sensor's saturation);
 - motion blur: the image, rendered at the middle of the last ``exposure_s`` of the step, is
   smeared along the motion over that time, so a moving robot blurs the targets and a stopped
   one does not. Both the translation (the same smear over the image) and the turn (a smear
@@ -60,7 +65,9 @@ from numpy.typing import NDArray
 
 from envs.features.ceiling import LABEL_CEILING, LABEL_HEAD, LABEL_JOINT, CeilingConfig
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
-from envs.sensors.light_colour import CCT_RANGE_K, white_balance_gains
+from envs.sensors.exposure import blur_expose
+from envs.sensors.glare import Glare, GlareConfig
+from envs.sensors.light_colour import cct_white_rgb, check_light, grey_world_gains, white_balance_gains
 from envs.state import WorldState
 from localizers.ceiling_vision import undistort
 from localizers.schema import ConfigError, check, check_ranges
@@ -119,6 +126,13 @@ class CeilingCameraConfig(SensorConfig):
     # CIE 15:2004, Colorimetry, tables T.6 and T.8).
     white_balance_k: float = 0.0  # the camera's white balance, K (0: no colour change, every channel the same gain)
     cct_k: tuple[float, float] = (0.0, 0.0)  # the light's CCT under the panels and midway between them, K
+    # Daylight over the day (off): the light midway between the panels drawn per episode from this range, K, in place
+    # of cct_k[1], e.g. daylight_cct_k: [5000, 7500], CIE's representative daylight phases D50 to D75 (CIE 15:2004, 3.1)
+    daylight_cct_k: tuple[float, float] = (0.0, 0.0)
+    # Auto white balance (off), in place of white_balance_k: grey world, every frame's mean made grey (G. Buchsbaum,
+    # "A spatial processor model for object colour perception", J. Franklin Inst. 310(1), 1980, 1-26)
+    auto_white_balance: bool = False
+    glare: GlareConfig = GlareConfig()  # the tape's glare spot (issue 30; off: no lamps; envs/sensors/glare.py)
     texel_m: float = 0.0025  # the rendered ceiling's resolution (a pixel sees 3.4 mm of it)
     head_height_m: float = 1.70  # the people's heads, as discs at this height (0: no heads)
     head_radius_m: float = 0.12  # a head with its hair; people pressing on the robot show at the image corners
@@ -138,26 +152,12 @@ class CeilingCameraConfig(SensorConfig):
         check(0 < self.texel_m <= 0.01, f"ceiling_camera.texel_m must be in (0, 0.01], got {self.texel_m}")
         check(self.gain_time_period_s > 0, f"ceiling_camera.gain_time_period_s must be > 0, got {self.gain_time_period_s}")
         check(self.period_steps >= 1, f"ceiling_camera.period_steps must be >= 1, got {self.period_steps}")
-        lo, hi = CCT_RANGE_K
-        check(len(self.cct_k) == 2, f"ceiling_camera.cct_k must be [under the panels, between them] in K, got {self.cct_k!r}")
-        if self.white_balance_k == 0:
-            check(
-                tuple(self.cct_k) == (0.0, 0.0),
-                f"ceiling_camera.cct_k {list(self.cct_k)} needs white_balance_k (0: the light's colour is off); "
-                f"give white_balance_k in {lo:g}..{hi:g} K",
-            )
-        else:
-            check(
-                lo <= self.white_balance_k <= hi,
-                f"ceiling_camera.white_balance_k must be 0 (off) or in {lo:g}..{hi:g} K, got {self.white_balance_k!r}",
-            )
-            for value in self.cct_k:
-                check(lo <= value <= hi, f"ceiling_camera.cct_k must lie in {lo:g}..{hi:g} K, got {list(self.cct_k)}")
+        check_light(self.white_balance_k, self.cct_k, self.daylight_cct_k, self.auto_white_balance, "ceiling_camera")
 
     @property
     def colour(self) -> bool:
-        """Whether the light's colour is modelled (``white_balance_k`` set)."""
-        return self.white_balance_k > 0
+        """Whether the light's colour is modelled (``cct_k`` set, with a white balance fixed or automatic)."""
+        return self.cct_k[0] > 0
 
     def check_world(self, world: WorldConfig, name: str) -> None:
         ceiling = world.features.get(self.feature)
@@ -171,6 +171,7 @@ class CeilingCameraConfig(SensorConfig):
             ceiling.height_m > self.mount_height_m + 0.1,
             f"world {world.name!r}: sensor {name!r} is mounted at {self.mount_height_m} m, not below the ceiling at {ceiling.height_m} m",
         )
+        self.glare.check_ceiling(ceiling.height_m, f"world {world.name!r}: sensor {name!r}")
         check(
             self.head_height_m == 0 or self.mount_height_m < self.head_height_m < ceiling.height_m,
             f"world {world.name!r}: sensor {name!r}: head_height_m {self.head_height_m} must lie between the camera "
@@ -296,115 +297,6 @@ def draw_heads(
                         labels[v, u] = LABEL_HEAD
 
 
-@numba.njit(cache=True, error_model="numpy", boundscheck=False)
-def blur_expose(
-    image: NDArray[np.uint8],
-    pad: int,
-    tile_v: NDArray[np.int64],
-    tile_u: NDArray[np.int64],
-    motion: NDArray[np.float64],
-    vignette: NDArray[np.float32],
-    gain: NDArray[np.float64],
-    noise: NDArray[np.float32],
-    out: NDArray[np.uint8],
-) -> None:
-    """The motion blur, illumination gain, vignetting and noise of a frame, in one pass.
-
-    ``image`` is the sharp frame with a replicated border of ``pad`` pixels. The frame is cut
-    into tiles, rows ``tile_v[i]:tile_v[i + 1]`` by columns ``tile_u[j]:tile_u[j + 1]``; tile
-    ``(i, j)`` is blurred by the line kernel of ``motion[i, j]`` (:func:`splat_line`; ``pad``
-    must exceed its reach), then ``out = saturate(round(blurred * (vignette * gain[c]) + noise))``
-    (``vignette`` and ``noise``: flat in ``out``'s order; ``gain``: ``(3,)``, channel ``c``'s). The kernel's weights are in 256ths
-    (the blurred value is exact to under a grey level; a sharp one is exact).
-    """
-    width = out.shape[1]
-    tiles = tile_u.shape[0] - 1
-    flat_in, flat_out = image.reshape(-1), out.reshape(-1)
-    row_in = (width + 2 * pad) * 3
-    half = np.float32(0.5)
-    g = np.empty(3 * width, dtype=np.float32)  # each channel's gain along a row, in the kernel's 256ths
-    for e in range(3 * width):
-        g[e] = np.float32(gain[e % 3] / 256.0)
-    kernel = np.zeros((2 * pad + 1, 2 * pad + 1), dtype=np.float64)
-    offsets = np.empty((tiles, kernel.size), dtype=np.int64)
-    weights = np.empty((tiles, kernel.size), dtype=np.uint16)
-    taps = np.empty(tiles, dtype=np.int64)
-    acc = np.empty(3 * width, dtype=np.uint16)
-    for i in range(tile_v.shape[0] - 1):
-        for j in range(tiles):
-            taps[j] = splat_line(motion[i, j, 0], motion[i, j, 1], kernel, row_in, offsets[j], weights[j])
-        j = 0
-        while j < tiles:  # a run of tiles with one kernel (all of them without a turn) is done at once
-            n, end = taps[j], j + 1
-            while (
-                end < tiles
-                and taps[end] == n
-                and (offsets[end, :n] == offsets[j, :n]).all()
-                and (weights[end, :n] == weights[j, :n]).all()
-            ):
-                end += 1
-            u0, count = tile_u[j], 3 * (tile_u[end] - tile_u[j])
-            for v in range(tile_v[i], tile_v[i + 1]):
-                first = (v + pad) * row_in + (u0 + pad) * 3
-                # slices: their indices are known to be >= 0, which lets the loops vectorize
-                for e in range(count):
-                    acc[e] = 0
-                for k in range(n):
-                    w, src = weights[j, k], flat_in[first + offsets[j, k] : first + offsets[j, k] + count]
-                    for e in range(count):
-                        acc[e] += w * np.uint16(src[e])
-                at = (v * width + u0) * 3
-                vig, noi, dst = vignette[at : at + count], noise[at : at + count], flat_out[at : at + count]
-                gains = g[3 * u0 : 3 * u0 + count]
-                for e in range(count):
-                    value = np.float32(acc[e]) * (vig[e] * gains[e]) + noi[e] + half
-                    dst[e] = 0 if value <= 0.0 else (255 if value >= 255.0 else np.uint8(value))
-            j = end
-
-
-@numba.njit(cache=True, error_model="numpy", boundscheck=False)
-def splat_line(
-    du: float, dv: float, kernel: NDArray[np.float64], row: int, offsets: NDArray[np.int64], weights: NDArray[np.uint16]
-) -> int:
-    """The line kernel of a motion of ``(du, dv)`` pixels over the exposure, as taps.
-
-    Under half a pixel it is the identity. Otherwise samples along the segment, one per tenth
-    of a pixel, are splatted bilinearly into ``kernel`` (square, odd, zero on entry and left
-    so), centred on the segment's midpoint, so the blurred image keeps the sharp one's position
-    at mid-exposure. Its nonzero entries are written as flat offsets (``row`` elements a pixel
-    row, 3 a pixel) and weights in 256ths that sum to 256; returns their count.
-    """
-    length = math.hypot(du, dv)
-    if length < 0.5:
-        offsets[0], weights[0] = 0, 256
-        return 1
-    half = (kernel.shape[0] - 1) // 2
-    steps = max(1, int(math.ceil(10 * length)))
-    for s in range(steps + 1):
-        t = s / steps - 0.5
-        x, y = half + t * du, half + t * dv
-        x0, y0 = int(math.floor(x)), int(math.floor(y))
-        fx, fy = x - x0, y - y0
-        kernel[y0, x0] += (1 - fx) * (1 - fy)
-        kernel[y0, x0 + 1] += fx * (1 - fy)
-        kernel[y0 + 1, x0] += (1 - fx) * fy
-        kernel[y0 + 1, x0 + 1] += fx * fy
-    scale = 256.0 / kernel.sum()
-    taps, total, largest = 0, 0, 0
-    for r in range(kernel.shape[0]):
-        for c in range(kernel.shape[1]):
-            w = int(round(kernel[r, c] * scale))
-            kernel[r, c] = 0.0
-            if w > 0:
-                offsets[taps], weights[taps] = (r - half) * row + (c - half) * 3, w
-                if w > weights[largest]:
-                    largest = taps
-                total += w
-                taps += 1
-    weights[largest] += 256 - total  # the rounding's remainder: the weights sum to 256
-    return taps
-
-
 @register_sensor("ceiling_camera", CeilingCameraConfig)
 class CeilingCamera(SensorBase):
     """Renders the ceiling above the robot as an RGB image (module docstring).
@@ -447,11 +339,16 @@ class CeilingCamera(SensorBase):
         self._image = np.zeros((config.height_px, config.width_px, 3), dtype=np.uint8)
         self._no_labels = np.zeros((0, 0), dtype=np.uint8)
         self._no_noise = np.zeros(frame, dtype=np.float32)
+        self._no_glare = np.zeros(0, dtype=np.float32)
+        self._glare = None
+        if config.glare.on:
+            self._glare = Glare(config.glare, self._forward, self._left, self.depth, ceiling.height_m, config.offset_m)
         self._no_motion = np.zeros((len(self._tile_v) - 1, len(self._tile_u) - 1, 2))
         self._previous_pose: NDArray[np.float64] | None = None
         self._steps = 0
         self._fresh = True
         self._phase = 0.0
+        self.daylight_k = 0.0  # this episode's daylight CCT, K (0: cct_k[1])
 
     def space(self) -> spaces.Box:
         c = self.config
@@ -498,17 +395,22 @@ class CeilingCamera(SensorBase):
 
     def light_cct_k(self, pose: NDArray[np.float64]) -> float:
         """The light's colour temperature at the view's centre: ``cct_k[0]`` under a panel,
-        ``cct_k[1]`` midway between two, following the panels' pitch as the brightness does."""
+        ``cct_k[1]`` (or this episode's daylight, ``daylight_cct_k``) midway between two, following the
+        panels' pitch as the brightness does."""
         under, between = self.config.cct_k
+        between = self.daylight_k or between
         return between + (under - between) * (1.0 + self._under_panels(pose)) / 2.0
 
     def channel_gains(self, pose: NDArray[np.float64], time_s: float, phase: float = 0.0) -> NDArray[np.float64]:
         """The ``(3,)`` gain of each RGB channel: the brightness :meth:`gain` on every channel, times
-        the light's colour against the white balance (:func:`envs.sensors.light_colour.white_balance_gains`) when modelled."""
-        gain = self.gain(pose, time_s, phase)
-        if not self.config.colour:
+        the light's colour against the white balance (:func:`envs.sensors.light_colour.white_balance_gains`) when modelled;
+        with ``auto_white_balance`` the light's raw colour, which :meth:`render` balances by the frame."""
+        c, gain = self.config, self.gain(pose, time_s, phase)
+        if not c.colour:
             return np.full(3, gain)
-        return gain * white_balance_gains(self.light_cct_k(pose), self.config.white_balance_k)
+        if c.auto_white_balance:
+            return gain * cct_white_rgb(self.light_cct_k(pose))
+        return gain * white_balance_gains(self.light_cct_k(pose), c.white_balance_k)
 
     def render(
         self,
@@ -523,7 +425,7 @@ class CeilingCamera(SensorBase):
 
         The ceiling texture (finer than a pixel's footprint) is sampled at the point where every
         pixel's ray meets the ceiling, the heads are painted over it, then come the motion blur,
-        the illumination gain with the vignetting, and the noise (one pass: :func:`blur_expose`).
+        the glare, the illumination gain with the vignetting, and the noise (one pass: :func:`envs.sensors.exposure.blur_expose`).
 
         Args:
             heads_xy: ``(k, 2)`` head centres of the people near the robot (none by default).
@@ -549,18 +451,25 @@ class CeilingCamera(SensorBase):
             cv2.remap(self._texture, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE), dtype=np.uint8
         )
         label_image = self._no_labels
-        if labels:
+        if labels or self._glare is not None:  # the glare lights the tape's pixels
             label_image = np.asarray(
                 cv2.remap(self._labels, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE), dtype=np.uint8
             )
         if heads_xy is not None and c.head_height_m > 0 and len(heads_xy):
             self._draw_heads(pose, np.asarray(heads_xy, dtype=np.float64).reshape(-1, 2), image, label_image)
+        lit = None if self._glare is None else self._glare.image(pose, label_image)
+        glare, glare_rows = (self._no_glare, (0, 0)) if lit is None else (lit[0], lit[1:])
+        if c.auto_white_balance:
+            gain = grey_world_gains(gain, cv2.mean(image)[:3])
         pad = 0
         if motion is None or not (np.abs(motion) >= 0.35).any():  # no tile's motion reaches half a pixel
             motion = self._no_motion
         else:
             pad = int(math.ceil(float(np.abs(motion).max()) / 2)) + 2  # beyond every kernel's reach
             image = np.asarray(cv2.copyMakeBorder(image, pad, pad, pad, pad, cv2.BORDER_REPLICATE), dtype=np.uint8)
+            if lit is not None:  # the blur reaches pad rows beyond the lit ones
+                glare = np.asarray(cv2.copyMakeBorder(glare, pad, pad, pad, pad, cv2.BORDER_REPLICATE), dtype=np.float32)
+                glare_rows = (glare_rows[0] - pad, glare_rows[1] + pad)
         out = np.empty((c.height_px, c.width_px, 3), dtype=np.uint8)
         if noise_offset is None:
             noise = self._no_noise
@@ -568,7 +477,19 @@ class CeilingCamera(SensorBase):
             start = int(noise_offset) % _NOISE_POOL
             noise = self._noise[start : start + out.size]
         gains = np.full(3, float(gain)) if np.ndim(gain) == 0 else np.asarray(gain, dtype=np.float64).reshape(3)
-        blur_expose(image, pad, self._tile_v, self._tile_u, motion, self._vignette, gains, noise, out)
+        blur_expose(
+            image,
+            pad,
+            self._tile_v,
+            self._tile_u,
+            motion,
+            self._vignette,
+            gains,
+            noise,
+            glare.reshape(-1),
+            glare_rows,
+            out,
+        )
         return out, (label_image if labels else None)
 
     def _draw_heads(
@@ -631,7 +552,7 @@ class CeilingCamera(SensorBase):
         self, pose: NDArray[np.float64], previous: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
         """The mid-exposure pose and the image motion ``(tiles_v, tiles_u, 2)`` of each blur tile
-        (:func:`blur_expose`) over the last ``exposure_s`` of the step from ``previous`` (one
+        (:func:`envs.sensors.exposure.blur_expose`) over the last ``exposure_s`` of the step from ``previous`` (one
         step earlier) to ``pose``; None without an exposure time.
 
         Each tile moves as the ceiling point at its centre. The ceiling moves through the image
@@ -660,6 +581,8 @@ class CeilingCamera(SensorBase):
         if self._fresh:
             self.seed_noise(rng)
             self._phase = float(rng.uniform(0.0, 2 * math.pi))  # where in its flicker the light starts
+            if c.daylight_cct_k[1] > 0:  # from a child stream: the other draws stay as they are
+                self.daylight_k = float(rng.spawn(1)[0].uniform(*c.daylight_cct_k))
             self._fresh = False
         rendered = self._steps % c.period_steps == 0
         if rendered:

@@ -1,11 +1,16 @@
 """The colour of light in the ceiling camera's images: a light's colour temperature against the
-camera's white balance, one gain per channel (:class:`envs.sensors.ceiling_camera.CeilingCameraConfig`'s
-``white_balance_k`` and ``cct_k``; issue 30)."""
+camera's white balance, fixed or automatic (grey world), one gain per channel
+(:class:`envs.sensors.ceiling_camera.CeilingCameraConfig`'s ``white_balance_k``, ``cct_k``,
+``daylight_cct_k`` and ``auto_white_balance``; issue 30)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
+
+from localizers.schema import check
 
 #: the colour temperatures the Planckian-locus fit of :func:`cct_white_rgb` covers with every
 #: linear sRGB channel of the white positive (Krystek's fit holds over 1000-15000 K; below about
@@ -43,3 +48,51 @@ def white_balance_gains(light_k: float, white_balance_k: float) -> NDArray[np.fl
     taken as linear in the light, as by a camera without gamma encoding.
     """
     return cct_white_rgb(light_k) / cct_white_rgb(white_balance_k)
+
+
+def grey_world_gains(gains: ArrayLike, means: Sequence[float]) -> NDArray[np.float64]:
+    """The channel gains after a grey-world auto white balance (Buchsbaum 1980): ``gains`` (one, or
+    ``(3,)``: the brightness and the light's raw colour) scaled per channel so that the frame, whose
+    channel means before them are ``means``, has equal means: ``gains[1] means[1] / means[c]`` for channel
+    ``c``, green keeping its gain. The light's colour cancels when it lies evenly over the frame; what
+    is left is the scene's own mean colour, which the balance takes for the light's. A channel with a
+    zero mean leaves the gains as they are."""
+    g = np.broadcast_to(np.asarray(gains, dtype=np.float64), (3,))
+    raw = g * np.asarray(means[:3], dtype=np.float64)
+    if not (raw > 0).all():
+        return np.array(g)
+    return np.asarray(g * raw[1] / raw, dtype=np.float64)
+
+
+def check_light(
+    white_balance_k: float, cct_k: tuple[float, float], daylight_cct_k: tuple[float, float], auto: bool, where: str
+) -> None:
+    """Check the light's colour fields of ``where`` (a camera config), naming the field and value."""
+    lo, hi = CCT_RANGE_K
+    check(len(cct_k) == 2, f"{where}.cct_k must be [under the panels, between them] in K, got {cct_k!r}")
+    check(
+        not (auto and white_balance_k),
+        f"{where}.white_balance_k {white_balance_k:g} and auto_white_balance: give one of the two (0: the fixed one off)",
+    )
+    if white_balance_k == 0 and not auto:
+        check(
+            tuple(cct_k) == (0.0, 0.0),
+            f"{where}.cct_k {list(cct_k)} needs white_balance_k (0: the light's colour is off); "
+            f"give white_balance_k in {lo:g}..{hi:g} K, or auto_white_balance",
+        )
+    check(
+        white_balance_k == 0 or lo <= white_balance_k <= hi,
+        f"{where}.white_balance_k must be 0 (off) or in {lo:g}..{hi:g} K, got {white_balance_k!r}",
+    )
+    if tuple(cct_k) != (0.0, 0.0):
+        for value in cct_k:
+            check(lo <= value <= hi, f"{where}.cct_k must lie in {lo:g}..{hi:g} K, got {list(cct_k)}")
+    check(len(daylight_cct_k) == 2, f"{where}.daylight_cct_k must be [lowest, highest] in K, got {daylight_cct_k!r}")
+    if tuple(daylight_cct_k) != (0.0, 0.0):
+        check(
+            lo <= daylight_cct_k[0] <= daylight_cct_k[1] <= hi,
+            f"{where}.daylight_cct_k must be [lowest, highest] within {lo:g}..{hi:g} K, got {list(daylight_cct_k)}",
+        )
+        check(
+            tuple(cct_k) != (0.0, 0.0), f"{where}.daylight_cct_k {list(daylight_cct_k)} needs cct_k (the light under the panels)"
+        )

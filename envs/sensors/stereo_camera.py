@@ -28,6 +28,26 @@ Two modes produce step 1:
   then matched and triangulated exactly as in the image mode. Training and sweeps use it; a
   test shows both modes find the same edges on a clean scene.
 
+**Free-running webcams** (issue 30; the defaults, the paper's cameras; ``synchronised: true``,
+``exposure_range: [1, 1]``, ``white_balance_k: [0, 0]`` and ``fast_edges: lines`` give the cameras
+before it). The paper's three USB webcams have no hardware sync and their own
+auto exposure and white balance. With ``synchronised: false`` each camera takes its frame
+``frame_lags_s`` before the step's end (drawn per episode uniformly within one ``frame_period_s``,
+the webcams' 30 fps), from the robot's pose then (:meth:`StereoCamera.camera_poses`, the swept
+LIDAR's interpolation within the step); the bodies stay at their end-of-step places, as for the
+LIDAR. So disparity is measured between images taken from different poses while the robot moves
+or turns (a turn at 1 rad/s with a frame period between the outer pair shifts the disparity by
+about 18 px). ``exposure_range`` and ``white_balance_k`` give each camera its own gain per channel
+for the episode (exposure times white balance, :func:`envs.sensors.light_colour.white_balance_gains`),
+applied to the rendered images and to the fast mode's edge responses alike (each camera thresholds
+the responses at its own gains); they are constant over an episode, as an auto exposure holds its
+setting while the scene's mean brightness stays within its stable window. Everything is drawn from
+children of the sensor stream at the first frame after a reset, and only when an option is on.
+The fast mode's ``fast_edges: rows`` goes with them: each camera's filter response along each
+detection row is rebuilt from the lines' colour steps (:func:`envs.stereo.geometric.row_response`)
+and searched by the image mode's detector, so steps closer than the filter's width add up or cancel
+as in the images (``lines``, before issue 30: each line is an edge of its own, weakened by its neighbours).
+
 The images are in the observation only with ``images: true`` (keys ``<key>_left``,
 ``<key>_middle``, ``<key>_right``, uint8 ``(H, W, 3)``); the fast mode then renders them
 too. Detections beyond ``slots`` are dropped, the weakest first; the kept ones fill the slots
@@ -47,11 +67,14 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
+from envs.sensors.light_colour import CCT_RANGE_K, white_balance_gains
 from envs.state import WorldState
-from envs.stereo.geometric import camera_edges, lines
+from envs.stereo.geometric import camera_edges, lines, row_response
 from envs.stereo.render import ColumnRenderer, Moving
 from envs.stereo.scene import Rig, static_scene
+from localizers.geometry import poses_along_step
 from localizers.schema import ConfigError, check, check_ranges
+from localizers.stereo_edges import find_edges
 from localizers.stereo_vision import (
     CHANNEL_COLOURS,
     EDGE_TYPES,
@@ -76,8 +99,10 @@ SLOT_FIELDS = ("valid", "type", "inverse_range_m", "bearing_rad")
 CAMERAS = ("left", "middle", "right")
 _NOISE_POOL = 1 << 18  # noise offsets drawn per frame (the pool holds this plus one frame)
 
-#: overrides that make the cameras ideal (no pixel noise, no exposure changes, no edge noise): for tests and studies
-IDEAL = {"pixel_noise_std": 0.0, "gain_std": 0.0, "edge_noise_px": 0.0}
+#: overrides that make the cameras ideal (no pixel noise, no exposure changes, no edge noise; synchronised, of
+#: equal gains): for tests and studies
+IDEAL = {"pixel_noise_std": 0.0, "gain_std": 0.0, "edge_noise_px": 0.0, "synchronised": True, "exposure_range": (1.0, 1.0),
+         "white_balance_k": (0.0, 0.0)}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -121,6 +146,37 @@ class StereoCameraConfig(SensorConfig):
     gain_range: tuple[float, float] = (0.8, 1.2)
     render_range_m: float = 200.0  # nothing farther is drawn or seen
     show_images: bool = True  # rendered frames show the three images with their edges under the top view
+    # ---- free-running webcams (issue 30: the paper's cameras are the defaults; the values in brackets give the
+    # cameras before it). The paper's three BUFFALO BSW200MBK USB webcams have no hardware sync: each streams on
+    # its own clock. false (the default): each camera's frame is taken frame_lags_s before the end of the step
+    # (drawn per episode, uniform within one frame period, unless given), from the robot's pose then; [true]: all
+    # at the step's end.
+    synchronised: bool = False
+    # one frame period of a camera. No BSW200MBK datasheet was found; 1/30 s is the USB Video Class's
+    # 640 x 480 rate that such webcams stream by default (their UVC descriptors: default interval 1/30)
+    frame_period_s: float = 1.0 / 30.0
+    frame_lags_s: tuple[float, float, float] | None = None  # (left, middle, right) fixed lags (tests, studies); None: drawn
+    # each camera's exposure gain, drawn per camera and episode uniformly within this range; [(1, 1)]: equal
+    # exposures. The default (0.51, 1.49) is the auto-exposure's stable window of a VGA
+    # webcam sensor: the OmniVision OV7670's AEC leaves the exposure alone while the mean luma lies within
+    # AEB..AEW, 0x33..0x95 (51..149 about 100) as the Linux driver (drivers/media/i2c/ov7670.c) sets them, so
+    # two free-running cameras on one scene settle anywhere in it (the BSW200MBK's sensor is not published)
+    exposure_range: tuple[float, float] = (0.51, 1.49)
+    # each camera's auto white balance: the colour temperature (K) it balances for, drawn per camera and episode
+    # uniformly within this range, under daylight of light_k; [(0, 0)]: none (neutral colours). The default
+    # (5003, 7504) is the CIE daylight illuminants D50-D75 (CIE 15:2004) that a camera's auto white
+    # balance estimates from its own view, under light_k 6504 (D65, average daylight) (ours: the spread of the
+    # BSW200MBK's white balance is not published). Gains: envs.sensors.light_colour.white_balance_gains
+    white_balance_k: tuple[float, float] = (5003.0, 7504.0)
+    light_k: float = 6504.0
+    # how the fast mode turns the lines into each camera's edges. [lines]: each line above the threshold is
+    # an edge at its column, of two of a type within the filter's width the stronger kept; rows: the filter's
+    # response along each detection row rebuilt from the lines' colour steps at the pixel boundaries where the
+    # image puts them, and searched for peaks by the image mode's detector (envs.stereo.geometric.row_response), so
+    # that steps closer than the filter's width add up or cancel as in the images, and an edge's column is where the
+    # image's detector puts it (whole pixels for a sharp step; edge_noise_px is not used): the default, which agrees
+    # with the image mode within 5 % per row and type on the campus (issue 30; benchmarks/stereo_webcams.py measures it)
+    fast_edges: Literal["lines", "rows"] = "rows"
 
     def __post_init__(self) -> None:
         where = "stereo_camera"
@@ -158,6 +214,52 @@ class StereoCameraConfig(SensorConfig):
         check(0 <= self.gain_rho < 1, f"{where}.gain_rho must be in [0, 1), got {self.gain_rho}")
         lo, hi = self.gain_range
         check(0 < lo <= 1 <= hi < math.inf, f"{where}.gain_range must hold 1 and be positive, got {self.gain_range}")
+        self._check_webcams(where)
+
+    def _check_webcams(self, where: str) -> None:
+        """The free-running webcams' fields (issue 30)."""
+        period = self.frame_period_s
+        check(math.isfinite(period) and period > 0, f"{where}.frame_period_s must be finite and > 0 s, got {period}")
+        if self.frame_lags_s is not None:
+            check(
+                not self.synchronised,
+                f"{where}.frame_lags_s {self.frame_lags_s} is given but synchronised is true (every frame at the step's end)",
+            )
+            lags = tuple(self.frame_lags_s)
+            check(
+                len(lags) == 3 and all(isinstance(v, int | float) and 0 <= v <= period for v in lags),
+                f"{where}.frame_lags_s must be three lags (left, middle, right) in [0, frame_period_s = {period:g}] s, got "
+                f"{self.frame_lags_s}",
+            )
+        lo, hi = self.exposure_range
+        check(
+            0 < lo <= hi < math.inf,
+            f"{where}.exposure_range must be (low, high) with 0 < low <= high, finite, got {self.exposure_range}",
+        )
+        check(self.fast_edges in ("lines", "rows"), f"{where}.fast_edges must be 'lines' or 'rows', got {self.fast_edges!r}")
+        cct_lo, cct_hi = CCT_RANGE_K
+        wb_lo, wb_hi = self.white_balance_k
+        check(
+            (wb_lo, wb_hi) == (0, 0) or cct_lo <= wb_lo <= wb_hi <= cct_hi,
+            f"{where}.white_balance_k must be (0, 0) (none) or (low, high) within {cct_lo:g}..{cct_hi:g} K, got "
+            f"{self.white_balance_k}",
+        )
+        check(cct_lo <= self.light_k <= cct_hi, f"{where}.light_k must be within {cct_lo:g}..{cct_hi:g} K, got {self.light_k}")
+
+    def check_world(self, world: WorldConfig, name: str) -> None:
+        """Refuse unsynchronised cameras whose frames may be older than one step: the sensor knows the
+        robot's pose at the start and the end of the step only (as the swept LIDAR)."""
+        check(
+            self.synchronised or self.frame_period_s <= world.dt_s,
+            f"sensor {name!r}: stereo_camera.frame_period_s = {self.frame_period_s} s is longer than the world's step "
+            f"dt_s = {world.dt_s} s; an unsynchronised camera's frame is taken from the robot's pose within the step, "
+            "so a frame period must fit in one",
+        )
+
+    @property
+    def camera_effects(self) -> bool:
+        """Whether any free-running webcam effect is on (unsynchronised frames, unequal exposures or white balance)."""
+        return not self.synchronised or tuple(self.exposure_range) != (1.0, 1.0) or tuple(self.white_balance_k) != (0, 0)
 
     def panel_height_px(self, frame_width_px: int) -> int:
         """With ``show_images``, the three images side by side scaled to the frame's width (an even height)."""
@@ -226,6 +328,11 @@ class StereoCamera(SensorBase):
         self._frame = frame
         self._gain = 1.0
         self._fresh = True
+        self._dt_s = float(world.dt_s)
+        # the free-running webcams (issue 30), drawn per episode when on: each camera's lag behind the
+        # step's end (s) and its gain per channel (exposure x white balance); None: synchronised cameras of equal gains
+        self.frame_lags_s: NDArray[np.float64] | None = None
+        self.camera_gains: NDArray[np.float64] | None = None
         self.last_images: tuple[NDArray[np.uint8], ...] | None = None
         self.last_edges: tuple[EdgeList, ...] = ()
         self.last_slots = np.zeros((c.slots, 4), dtype=np.float32)
@@ -245,6 +352,8 @@ class StereoCamera(SensorBase):
     def reset(self) -> None:
         self._fresh = True
         self._gain = 1.0
+        self.frame_lags_s = None
+        self.camera_gains = None
         self.last_images = None
         self._state_of_images = None
 
@@ -276,15 +385,28 @@ class StereoCamera(SensorBase):
                 app.disc_xy, app.disc_r, app.disc_z0, app.disc_z1, app.disc_rgb)  # fmt: skip
 
     def render(
-        self, pose: NDArray[np.float64], state: WorldState, gain: float = 1.0, noise_offsets: tuple[int, ...] | None = None
+        self,
+        pose: NDArray[np.float64],
+        state: WorldState,
+        gain: float | NDArray[np.float64] = 1.0,
+        noise_offsets: tuple[int, ...] | None = None,
     ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.uint8]]:
         """The three cameras' images (left, middle, right) at robot ``pose`` among ``state``'s bodies.
 
         Args:
-            gain: the exposure gain; ``noise_offsets``: where each image reads the noise pool
-                (None: no noise; the pool is filled at the first frame after a reset).
+            pose: ``(3,)`` the robot's pose, or ``(3, 3)`` one per camera (each camera on the rig
+                where the robot was when it took its frame).
+            gain: the exposure gain: one number, or ``(3, 3)`` per camera and channel;
+                ``noise_offsets``: where each image reads the noise pool (None: no noise; the pool
+                is filled at the first frame after a reset).
         """
-        cams, forward = self.rig_geometry.cameras(np.asarray(pose, dtype=np.float64))
+        p = np.asarray(pose, dtype=np.float64)
+        if p.ndim == 2:
+            cams, forwards = self.rig_geometry.cameras_at(p)
+        else:
+            cams, forward = self.rig_geometry.cameras(p)
+            forwards = np.stack([forward] * 3)
+        gains = np.broadcast_to(np.asarray(gain, dtype=np.float64), (3, 3)) if np.ndim(gain) else None
         moving = self._moving(state)
         out = []
         for j in range(3):
@@ -292,12 +414,49 @@ class StereoCamera(SensorBase):
             if noise_offsets is not None and self._noise.size:
                 start = int(noise_offsets[j])
                 noise = self._noise[start : start + self._frame]
-            out.append(self.renderer.render(cams[j], forward, moving, gain, noise))
+            out.append(self.renderer.render(cams[j], forwards[j], moving, gain if gains is None else gains[j], noise))
         return out[0], out[1], out[2]
+
+    def camera_poses(self, state: WorldState) -> NDArray[np.float64]:
+        """``(3,)`` the robot's pose at the step's end, or with unsynchronised cameras ``(3, 3)``
+        the robot's pose when each camera took its frame: ``frame_lags_s`` before the step's end,
+        along the step's motion (:func:`localizers.geometry.poses_along_step`, the model the swept
+        LIDAR uses). The bodies stay where they are at the step's end (a walker at 1.5 m/s moves
+        5 cm in a 30 fps frame period)."""
+        if self.frame_lags_s is None:
+            return state.robot_pose
+        return poses_along_step(state.robot_start, state.robot_pose, self.frame_lags_s / self._dt_s)
+
+    def _exposures(self) -> float | NDArray[np.float64]:
+        """The exposure gain of each camera and channel now: the common auto-exposure drift, times each
+        camera's own gains when they differ (``(3, 3)``), else one number."""
+        if self.camera_gains is None:
+            return self._gain
+        return self._gain * self.camera_gains
+
+    def _draw_webcams(self, rng: np.random.Generator) -> None:
+        """Each camera's frame lag and gains for this episode, from children of ``rng`` (which leaves its
+        own draws as they were: nothing is drawn while the cameras are synchronised and of equal gains)."""
+        c = self.config
+        if not c.camera_effects:
+            return
+        timing, exposure = rng.spawn(2)
+        if not c.synchronised:
+            given = c.frame_lags_s
+            self.frame_lags_s = (
+                np.asarray(given, dtype=np.float64) if given is not None else timing.uniform(0.0, c.frame_period_s, 3)
+            )
+        lo, hi = c.exposure_range
+        gains = exposure.uniform(lo, hi, 3)[:, None] * np.ones((3, 3))
+        if tuple(c.white_balance_k) != (0, 0):
+            balance = exposure.uniform(*c.white_balance_k, 3)
+            gains = gains * np.stack([white_balance_gains(c.light_k, float(k)) for k in balance])
+        self.camera_gains = None if np.all(gains == 1.0) else gains
 
     def _step_exposure(self, rng: np.random.Generator) -> None:
         c = self.config
         if self._fresh:
+            self._draw_webcams(rng)
             if c.pixel_noise_std > 0 and (c.mode == "image" or c.images):
                 self._noise = (rng.standard_normal(_NOISE_POOL + self._frame) * c.pixel_noise_std).astype(np.float32)
             self._gain = 1.0
@@ -308,7 +467,7 @@ class StereoCamera(SensorBase):
 
     def _render_frame(self, state: WorldState, rng: np.random.Generator) -> tuple[NDArray[np.uint8], ...]:
         offsets = tuple(int(v) for v in rng.integers(_NOISE_POOL, size=3)) if self._noise.size else None
-        images = self.render(state.robot_pose, state, self._gain, offsets)
+        images = self.render(self.camera_poses(state), state, self._exposures(), offsets)
         self.last_images = images
         self._state_of_images = state
         return images
@@ -319,7 +478,18 @@ class StereoCamera(SensorBase):
 
     def _fast_edges(self, state: WorldState, rng: np.random.Generator) -> tuple[EdgeList, EdgeList, EdgeList]:
         c, r = self.config, self.rig_geometry
-        cams, forward = r.cameras(state.robot_pose)
+        poses = self.camera_poses(state)
+        if poses.ndim == 2:  # unsynchronised: the lines as the middle camera saw them when it took its frame
+            cams, forwards = r.cameras_at(poses)
+            forward = forwards[1]
+        else:
+            cams, forward = r.cameras(poses)
+            forwards = np.stack([forward] * 3)
+        exposures = self._exposures()
+        brightest = 1.0 if self.camera_gains is None else float(self.camera_gains.max())  # no line weaker can count
+        # lines narrower in the image than half the filter respond weaker (the lines model); the rows model's
+        # filter finds that itself (a narrow pole's two silhouettes cancel), so it takes every line at full strength
+        weaken = c.fast_edges == "lines"
         app = state.figures.appearance()
         sc = self.scene
         seg_a = np.concatenate((sc.seg_a, app.side_a))
@@ -336,27 +506,58 @@ class StereoCamera(SensorBase):
             obj_z1 = np.concatenate((obj_z1, app.side_z1[::4]))
         x, z, level, response = lines(
             cams[1], forward, r.focal_px, r.cx_px, r.cy_px, r.width_px, r.height_m, c.render_range_m,
-            self._rows, self._half, self._margin_px, c.threshold / c.gain_range[1], float(self.detector.filter_cols // 2),
+            self._rows, self._half, self._margin_px, c.threshold / c.gain_range[1] / brightest,
+            float(self.detector.filter_cols // 2), weaken,
             seg_a, seg_b, seg_z0, seg_z1, cull, self._n_static, sc.seg_profile, sc.seg_length, sc.seg_rgb, app.side_rgb,
             obj_first, obj_count, obj_z0, obj_z1,
             sc.seg_first_brk, sc.brk_xy, sc.brk_first_run, sc.brun_z0, sc.brun_z1, sc.brun_left, sc.brun_right,
             app.disc_xy, app.disc_r, app.disc_z0, app.disc_z1, app.disc_rgb,
             sc.prof_first, sc.int_s1, sc.int_first_run, sc.run_z0, sc.run_z1, sc.run_rgb, self.renderer.background,
         )  # fmt: skip
-        strength = np.abs(response) * self._gain  # (N, 3)
-        line, channel = np.nonzero(strength >= c.threshold)
-        types = edge_types(channel, level[line], response[line, channel] < 0)
-        power = strength[line, channel].astype(np.float32)
-        xs, zs = x[line], z[line]
-        noise = rng.standard_normal((3, line.size)) * c.edge_noise_px if c.edge_noise_px > 0 else np.zeros((3, line.size))
         within = self.detector.filter_cols // 2 + 1.5  # two steps of one sign this close make one peak of the filter
         # the left camera sits baseline_m left of the middle one: a point X right of the middle camera is X + b right of it
-        lists = [
-            EdgeList(
-                *camera_edges(xs, zs, types, power, lateral, r.focal_px, r.cx_px, r.width_px, self._margin_px, noise[j], within)
-            )
-            for j, lateral in enumerate((c.baseline_m, 0.0, -c.baseline_m))
-        ]
+        laterals = (c.baseline_m, 0.0, -c.baseline_m)
+        if c.fast_edges == "lines" and self.camera_gains is None and self.frame_lags_s is None:  # one exposure, one time
+            strength = np.abs(response) * self._gain  # (N, 3)
+            line, channel = np.nonzero(strength >= c.threshold)
+            types = edge_types(channel, level[line], response[line, channel] < 0)
+            power = strength[line, channel].astype(np.float32)
+            xs, zs = x[line], z[line]
+            noise = rng.standard_normal((3, line.size)) * c.edge_noise_px if c.edge_noise_px > 0 else np.zeros((3, line.size))
+            lists = [
+                EdgeList(
+                    *camera_edges(
+                        xs, zs, types, power, lateral, r.focal_px, r.cx_px, r.width_px, self._margin_px, noise[j], within
+                    )
+                )
+                for j, lateral in enumerate(laterals)
+            ]
+            return lists[0], lists[1], lists[2]
+        # free-running webcams: each camera thresholds the lines at its own gains and sees them from its own pose
+        gains = np.broadcast_to(np.asarray(exposures, dtype=np.float64), (3, 3))
+        world = cams[1] + x[:, None] * np.array([forward[1], -forward[0]]) + z[:, None] * forward  # (N, 2) the lines' points
+        lists = []
+        half_cols = self.detector.filter_cols // 2
+        for j in range(3):
+            if self.frame_lags_s is None:
+                xs, zs, lateral = x, z, laterals[j]
+            else:  # the lines' points in camera j's frame when it took its frame
+                offset = world - cams[j]
+                fwd_j = forwards[j]
+                xs, zs, lateral = offset @ np.array([fwd_j[1], -fwd_j[0]]), offset @ fwd_j, 0.0
+            if c.fast_edges == "rows":  # the filter's response along each row from the steps, searched as in the image
+                u = r.cx_px + r.focal_px * (xs + lateral) / zs
+                rows = row_response(u, level, response, np.ascontiguousarray(gains[j]), r.width_px, LEVELS, half_cols)
+                lists.append(find_edges(rows, float(c.threshold), half_cols))
+                continue
+            strength = np.abs(response) * gains[j]  # (N, 3)
+            line, channel = np.nonzero(strength >= c.threshold)
+            types = edge_types(channel, level[line], response[line, channel] < 0)
+            power = strength[line, channel].astype(np.float32)
+            noise = rng.standard_normal(line.size) * c.edge_noise_px if c.edge_noise_px > 0 else np.zeros(line.size)
+            edges = camera_edges(xs[line], zs[line], types, power, lateral, r.focal_px, r.cx_px, r.width_px, self._margin_px,
+                                 noise, within)  # fmt: skip
+            lists.append(EdgeList(*edges))
         return lists[0], lists[1], lists[2]
 
     def observe(
@@ -410,7 +611,7 @@ class StereoCamera(SensorBase):
         c = self.config
         images = self.last_images
         if images is None or self._state_of_images is not state:
-            images = self.render(state.robot_pose, state, self._gain)
+            images = self.render(self.camera_poses(state), state, self._exposures())
         width = 3 * c.width_px if width_px is None else int(width_px)
         height = c.height_px if height_px is None else int(height_px)
         edges = self.last_edges or (None, None, None)

@@ -25,6 +25,8 @@ Approximations (documented, measured against the image mode in the tests): occlu
 background are taken on one line of sight per row rather than over the window; the colours of
 a corner or silhouette are taken at that line's height; lines closer together than half the
 filter's width are not mixed (the weaker of two of a type is dropped, :func:`camera_edges`).
+The rows model (:func:`row_response`, the sensor's ``fast_edges: rows``) removes the last: it rebuilds
+each camera's filter response along each row from all the lines' steps and finds the peaks there.
 """
 
 from __future__ import annotations
@@ -88,7 +90,7 @@ def _window(depth: float, row: int, half: int, focal: float, cy: float, cam_h: f
 @numba.njit(cache=True)
 def lines(
     cam: Array, fwd: Array, focal: float, cx: float, cy: float, width: int, cam_h: float, max_range: float,
-    rows: IntArray, half: int, margin_px: float, min_response: float, narrow_px: float,
+    rows: IntArray, half: int, margin_px: float, min_response: float, narrow_px: float, weaken: bool,
     seg_a: Array, seg_b: Array, seg_z0: Array, seg_z1: Array, cull: NDArray[np.bool_], n_static: int,
     seg_profile: IntArray, seg_length: Array, seg_rgb: Array, side_rgb: Array,
     obj_first: IntArray, obj_count: IntArray, obj_z0: Array, obj_z1: Array,
@@ -107,7 +109,10 @@ def lines(
         ``X``, ``Z`` ``(N,)``: each line's point in the middle camera's (right, forward) frame;
         ``level`` ``(N,)``: the detection row; ``response`` ``(N, 3)``: the filter's response per
         channel (right minus left, at unit gain), counting only the window's rows where the line
-        is in sight. Only lines whose largest response reaches ``min_response`` are kept.
+        is in sight. Only lines whose largest response reaches ``min_response`` are kept. ``weaken``: a
+        line narrower in the image than ``narrow_px``, or closer to its neighbours, responds weaker (the lines
+        model); without it (the rows model, whose filter mixes neighbours itself) it keeps its full step, and
+        the narrowness of an object only bounds which of its silhouettes can count (its two cancel beyond it).
     """
     geom, kind, ref, first, members = entries(cam, fwd, focal, cx, width, max_range, seg_a, seg_b, seg_z0, seg_z1, cull,
                                                disc_xy, disc_r, disc_z0, disc_z1)  # fmt: skip
@@ -183,7 +188,7 @@ def lines(
                         step = max(abs(brun_right[j, 0] - brun_left[j, 0]), abs(brun_right[j, 1] - brun_left[j, 1]),
                                    abs(brun_right[j, 2] - brun_left[j, 2]))  # fmt: skip
                         acc += cover / (top - bottom) * step
-                bound = max(bound, crowd * acc)
+                bound = max(bound, (crowd if weaken else 1.0) * acc)  # (the rows model's filter adds close steps)
             if bound < min_response:
                 continue
             nb = blockers(u, z, cam_h, focal, cx, geom, kind, first, members, blo, bhi)
@@ -195,7 +200,7 @@ def lines(
                     seen, _ = seen_part(max(brun_z0[j], bottom), min(brun_z1[j], top), blo, bhi, nb)
                     if seen <= 0.0:
                         continue
-                    share = crowd * seen / (top - bottom)
+                    share = (crowd if weaken else 1.0) * seen / (top - bottom)
                     for c in range(3):
                         resp[c] += share * (brun_right[j, c] - brun_left[j, c])
                 if max(abs(resp[0]), abs(resp[1]), abs(resp[2])) < min_response or n >= cap:
@@ -281,7 +286,7 @@ def lines(
                 if not corner:
                     mean_behind(span_lo, span_hi, z, p_lo, p_hi, p_rgb, pieces, background, focal, cy, cam_h,
                                  right if front_prev else left)  # fmt: skip
-                share = weight * seen / (top - bottom)
+                share = (weight if weaken else 1.0) * seen / (top - bottom)
                 for c in range(3):
                     resp[c] = share * (right[c] - left[c])
                 if max(abs(resp[0]), abs(resp[1]), abs(resp[2])) < min_response or n >= cap:
@@ -337,7 +342,7 @@ def lines(
                 body = right if side < 0 else left
                 for c in range(3):
                     body[c] = disc_rgb[i, c]
-                share = narrow * seen / (top - bottom)
+                share = (narrow if weaken else 1.0) * seen / (top - bottom)
                 for c in range(3):
                     resp[c] = share * (right[c] - left[c])
                 if max(abs(resp[0]), abs(resp[1]), abs(resp[2])) < min_response or n >= cap:
@@ -407,3 +412,33 @@ def camera_edges(
         out_s[m] = strength[i]
         m += 1
     return out_u[:m].copy(), out_t[:m].copy(), out_s[:m].copy()
+
+
+@numba.njit(cache=True)
+def row_response(
+    u: Array, level: IntArray, response: Array, gains: Array, width: int, levels: int, half: int
+) -> NDArray[np.float32]:  # fmt: skip
+    """One camera's filter response along each detection row, rebuilt from the lines' colour steps: what
+    :func:`localizers.stereo_edges.vertical_edge_response` gives on an image whose only changes along a row
+    are these steps (the fast mode's ``fast_edges: rows``).
+
+    Line ``n`` at column ``u[n]`` (continuous) is a step of ``gains * response[n]`` (right minus left, per
+    channel, the window's share included) at the pixel boundary ``b = ceil(u - 0.5)``, where a renderer
+    sampling pixel centres puts it. The filter (the mean of the ``half`` columns right of column ``k`` minus
+    that of the ``half`` left of it) answers a unit step at ``b`` with
+    ``(clamp(k + half - b + 1, 0, half) - clamp(k - b, 0, half)) / half``: 1 at ``k = b - 1`` and ``b``,
+    falling to 0 ``half`` columns either side. Steps closer than the filter's width add up or cancel, as in
+    the image. Columns within ``half`` of the border get 0, as in the image.
+
+    Returns:
+        ``(levels, width, 3)`` float32.
+    """
+    out = np.zeros((levels, width, 3))
+    for n in range(u.shape[0]):
+        b = int(math.ceil(u[n] - 0.5))
+        lv = level[n]
+        for k in range(max(half, b - half), min(width - half, b + half)):
+            w = (min(max(k + half - b + 1, 0), half) - min(max(k - b, 0), half)) / half
+            for c in range(3):
+                out[lv, k, c] += w * gains[c] * response[n, c]
+    return out.astype(np.float32)

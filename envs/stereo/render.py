@@ -171,11 +171,12 @@ def _fill(
     ref_z0: Array, ref_z1: Array, ref_rgb: Array, ref_profile: NDArray[np.int64],
     prof_first: NDArray[np.int64], int_s0: Array, int_s1: Array, int_first_run: NDArray[np.int64],
     run_z0: Array, run_z1: Array, run_rgb: Array, background: Array,
-    gain: float, noise: NDArray[np.float32],
+    gain: Array, noise: NDArray[np.float32],
 ) -> None:  # fmt: skip
     """Paint every column near to far, then the ``background`` ``(H, 3)`` (sky, ground) where
-    nothing stands (module docstring); each pixel value is ``clip(round(gain * colour +
-    noise))``, ``noise`` one value per pixel and channel in image order (or a single value for all)."""
+    nothing stands (module docstring); each pixel value is ``clip(round(gain[c] * colour[c] +
+    noise))``, ``gain`` ``(3,)`` one per channel, ``noise`` one value per pixel and channel in image
+    order (or a single value for all)."""
     height, width = image.shape[0], image.shape[1]
     filled = np.zeros(height, dtype=np.bool_)
     order = np.empty(MAX_HITS, dtype=np.int64)
@@ -216,7 +217,7 @@ def _fill(
                 run_end = int_first_run[g]
             else:
                 for c in range(3):
-                    colour[c] = gain * ref_rgb[ref, c]
+                    colour[c] = gain[c] * ref_rgb[ref, c]
             for r in range(r0, r1 + 1):
                 if filled[r]:
                     continue
@@ -227,7 +228,7 @@ def _fill(
                     while run > run_end and zr < run_z0[run]:
                         run -= 1
                     for c in range(3):
-                        colour[c] = gain * run_rgb[run, c]
+                        colour[c] = gain[c] * run_rgb[run, c]
                 base = (r * width + k) * 3
                 for c in range(3):
                     value = colour[c] + (noise[base + c] if noisy else noise[0])
@@ -239,7 +240,7 @@ def _fill(
                 continue
             base = (r * width + k) * 3
             for c in range(3):
-                value = gain * background[r, c] + (noise[base + c] if noisy else noise[0])
+                value = gain[c] * background[r, c] + (noise[base + c] if noisy else noise[0])
                 image[r, k, c] = min(255, max(0, int(value + 0.5)))
 
 
@@ -285,14 +286,15 @@ class ColumnRenderer:
         cam_xy: Array,
         forward: Array,
         moving: Moving,
-        gain: float = 1.0,
+        gain: float | Array = 1.0,
         noise: NDArray[np.float32] | None = None,
     ) -> NDArray[np.uint8]:
         """The ``(H, W, 3)`` image from ``cam_xy`` ``(2,)`` looking along ``forward`` (unit ``(2,)``).
 
         Args:
             moving: the moving bodies: box sides ``(a, b, z0, z1, rgb)`` and discs ``(xy, r, z0, z1, rgb)``.
-            gain: the exposure gain; ``noise``: ``(H W 3,)`` pixel noise in image order (None: none).
+            gain: the exposure gain, one number or ``(3,)`` one per channel (a white balance);
+                ``noise``: ``(H W 3,)`` pixel noise in image order (None: none).
         """
         sc = self.scene
         side_a, side_b, side_z0, side_z1, side_rgb, disc_xy, disc_r, disc_z0, disc_z1, disc_rgb = moving
@@ -315,5 +317,6 @@ class ColumnRenderer:
         image = np.empty((self.height, self.width, 3), dtype=np.uint8)
         _fill(image, self.focal, self.cy, self.cam_h, *buffers, ref_z0, ref_z1, ref_rgb, ref_profile,
               sc.prof_first, sc.int_s0, sc.int_s1, sc.int_first_run, sc.run_z0, sc.run_z1, sc.run_rgb, self.background,
-              float(gain), self._no_noise if noise is None else noise)  # fmt: skip
+              np.broadcast_to(np.asarray(gain, dtype=np.float64), (3,)).copy(),
+              self._no_noise if noise is None else noise)  # fmt: skip
         return image

@@ -67,6 +67,18 @@ class Rig(NamedTuple):
         lateral = np.array([self.baseline_m, 0.0, -self.baseline_m])
         return centre + lateral[:, None] * left, forward
 
+    def cameras_at(self, poses: Array) -> tuple[Array, Array]:
+        """``(3, 2)`` each camera's position and ``(3, 2)`` its forward unit vector, camera ``j``
+        (left, middle, right) on the rig when the robot held ``poses[j]`` ``(3, 3)``: cameras that
+        take their frames at different times (unsynchronised webcams on a moving robot)."""
+        xy = np.empty((3, 2))
+        forward = np.empty((3, 2))
+        for j in range(3):
+            cams, fwd = self.cameras(poses[j])
+            xy[j] = cams[j]
+            forward[j] = fwd
+        return xy, forward
+
     @property
     def hfov_rad(self) -> float:
         """The horizontal field of view."""

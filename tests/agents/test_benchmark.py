@@ -103,7 +103,7 @@ def _numbers(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 @pytest.mark.parametrize(
     ("flags", "named"),
     [
-        (["--worlds", "crowdloc/Nowhere-v0"], "'crowdloc/Nowhere-v0' is not a world of crowdloc-benchmark-v1"),
+        (["--worlds", "crowdloc/Nowhere-v0"], "'crowdloc/Nowhere-v0' is not a world of crowdloc-benchmark-v2"),
         (["--localizers", "no_such_localizer"], "unknown localizer 'no_such_localizer'"),
         (["--policies", "moonwalk"], "unknown policy 'moonwalk'"),
         (["--plugins", "no_such_plugin_module"], "--plugins no_such_plugin_module: cannot import it"),
@@ -149,6 +149,14 @@ def _protocol_text(edit: Any) -> str:
         (lambda d: d["seeds"].update(first=2**31), f"first must be >= {RESERVED_BELOW}"),
         (lambda d: d["seeds"].update(first=2**32 - 5), "first + count must be <= 2**32"),
         (lambda d: d["quick"].update(seeds=50), "quick.seeds (50) exceeds seeds.count (20)"),
+        (
+            lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(paper_localizers=["mcl_lidar", "pose_oracle"]),
+            "paper_localizers: 'pose_oracle' is not a built-in localizer",
+        ),
+        (
+            lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(paper_localizers=["mcl_lidar", "mcl_lidar"]),
+            "paper_localizers repeat",
+        ),
     ],
 )
 def test_the_loader_refuses_a_bad_protocol_naming_file_and_key(tmp_path: Path, edit: Any, message: str) -> None:
@@ -157,6 +165,42 @@ def test_the_loader_refuses_a_bad_protocol_naming_file_and_key(tmp_path: Path, e
     with pytest.raises(ConfigError, match="bad.yaml") as info:
         load_protocol(path)
     assert message in str(info.value)
+
+
+def test_the_papers_table_shows_the_paper_localizers_at_zero_default_and_most(tmp_path: Path) -> None:
+    """The leaderboard's papers' table: the protocol's paper_localizers under the paper policy at crowd 0,
+    the world's default (16 in the room) and its maximum, with the same numbers as the world's own table."""
+    path = tmp_path / "papers.yaml"
+    path.write_text(_protocol_text(lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(paper_localizers=["far_point_mcl",
+                                                                                                           "mcl_lidar"])))  # fmt: skip
+    doc = _bench(tmp_path, "--protocol", str(path), "--quick", "--worlds", "crowdloc/CrowdedRoom-v0", "--seeds", "1",
+                 "--localizers", "mcl_lidar", "far_point_mcl", "dead_reckoning", "--policies", "patrol", "--no-progress")  # fmt: skip
+    board = (tmp_path / "out" / "leaderboard.md").read_text()
+    table = board.split("## The papers' methods as the crowd grows", 1)[1].split("\n## ", 1)[0]
+    assert "| localizer | crowd 0 | crowd 16 (default) | crowd 30 |" in table
+    lines = [line for line in table.splitlines() if line.startswith("| ") and "localizer" not in line]
+    assert [line.split(" | ")[0] for line in lines] == ["| far_point_mcl", "| mcl_lidar"]  # dead_reckoning is no paper's
+    for line in lines:
+        name = line.split(" | ")[0][2:]
+        for size, cell in zip((0, 16, 30), line.split(" | ")[1:], strict=True):
+            row = next(r for r in doc["rows"] if (r["localizer"], r["crowd_size"]) == (name, size))
+            assert cell.strip(" |").startswith(
+                f"{row['error_mean_m']:.2f} / {row['error_p95_m']:.2f} / {row['failure_share']:.2f}"
+            )
+
+
+def test_a_paper_localizer_that_cannot_run_in_its_world_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(_protocol_text(lambda d: d["worlds"]["crowdloc/CrowdedRoom-v0"].update(paper_localizers=["ceiling_target"])))
+    with pytest.raises(SystemExit) as exit_info:
+        main(["benchmark", "--protocol", str(path), "--quick", "--worlds", "crowdloc/CrowdedRoom-v0",
+              "--out", str(tmp_path / "out"), "--no-progress"])  # fmt: skip
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert (
+        "bad.yaml: worlds.crowdloc/CrowdedRoom-v0.paper_localizers: 'ceiling_target' cannot run there (ceiling_target in" in err
+    )
+    assert not (tmp_path / "out").exists()
 
 
 def test_an_unknown_protocol_name_lists_the_shipped_ones() -> None:
@@ -324,3 +368,14 @@ def test_the_shipped_league_table_is_the_protocols_as_the_repository_stands() ->
     assert shipped["seeds"] == list(protocol.seeds.seeds) and len(shipped["rows"]) == 190
     board = (REPO / "docs" / "leaderboard.md").read_text()
     assert shipped["protocol_digest"][:16] in board
+
+
+def test_the_papers_table_in_the_docs_is_the_shipped_leaderboards() -> None:
+    """docs/papers.md's crowd-density table per world is the shipped leaderboard's, copied whole."""
+    board = (REPO / "docs" / "leaderboard.md").read_text()
+    table = board.split("## The papers' methods as the crowd grows", 1)[1].split("\n## crowdloc/", 1)[0].strip("\n")
+    papers = (REPO / "docs" / "papers.md").read_text()
+    copied = papers.split("<!-- papers' table: copied from docs/leaderboard.md -->\n", 1)[1].split(
+        "\n<!-- end of papers' table -->", 1
+    )[0]
+    assert "### crowdloc/StereoCampus-v0" in table and copied == table

@@ -235,8 +235,8 @@ def test_the_same_env_replays_a_seed() -> None:
 @pytest.mark.parametrize(
     ("behind_m", "crowd"),
     [
-        (0.6, {}),  # too close to stop or step aside
-        (2.0, {"detour_ahead_m": 0.0, "robot_repulsion_gain": 0.0}),  # one that does not avoid the robot
+        (0.6, {"sees_robot": 0.0}),  # an inattentive walker too close to stop or step aside
+        (2.0, {"detour_ahead_m": 0.0, "robot_repulsion_gain": 0.0, "sees_robot": 0.0}),  # one that does not avoid the robot
     ],
 )
 def test_a_walker_pushes_a_stopped_robot(behind_m: float, crowd: dict) -> None:

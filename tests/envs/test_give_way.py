@@ -13,8 +13,9 @@ from envs.crowds.steering import give_way
 
 def head_meets_robot(seed: int, give: bool) -> tuple[float, float, int]:
     """(closest centre distance, largest robot displacement, contacts) over 15 s with the robot
-    standing at the world's mass on the line the left queue's head walks along."""
-    env = gym.make("crowdloc/CrowdedRoom-v0", crowd_size=2, crowd={"queues": {"give_way": give}})
+    standing at the world's mass on the line the left queue's head walks along. The queue does not
+    see the robot otherwise (``sees_robot: 0``): only ``give`` decides whether the head avoids it."""
+    env = gym.make("crowdloc/CrowdedRoom-v0", crowd_size=2, crowd={"queues": {"give_way": give, "sees_robot": 0.0}})
     env.reset(seed=seed, options={"robot_pose": [3.5, 6.4, 0.0]})
     world = env.unwrapped.world
     start = world.robot_pose[:2].copy()

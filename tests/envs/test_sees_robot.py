@@ -157,8 +157,8 @@ def test_bad_sees_robot_values_are_refused(env_id: str, crowd: str) -> None:
             gym.make(env_id, crowd={crowd: {"sees_robot": value}})
 
 
-def test_every_shipped_people_crowd_keeps_the_invisible_robot() -> None:
-    """The default this step (issue 30 wants 1 once the reproductions are re-run): nobody sees it."""
+def test_every_shipped_people_crowd_sees_the_robot() -> None:
+    """The default (issue 30): everyone in every crowd of people sees the robot."""
     from envs.config import load_world
     from envs.crowds.base import PeopleConfig
 
@@ -166,7 +166,7 @@ def test_every_shipped_people_crowd_keeps_the_invisible_robot() -> None:
     for name in ("crowded_room", "ceiling_corridor", "stereo_campus"):
         for crowd in load_world(name).crowds.values():
             assert isinstance(crowd, PeopleConfig)
-            assert crowd.sees_robot == 0.0
+            assert crowd.sees_robot == 1.0
             people += 1
     assert people == 4
 

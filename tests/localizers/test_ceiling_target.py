@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import math
 from pathlib import Path
@@ -12,7 +13,7 @@ import pytest
 import yaml
 
 import envs  # noqa: F401  (registers the ids)
-from agents.papers.ceiling_target.fit import FitPlan, fit, inside, labelled_images
+from agents.papers.ceiling_target.fit import FitPlan, camera_json, fit, inside, labelled_images
 from envs.features.ceiling import LABEL_LIGHT, LABEL_SIGN, PALETTE, CeilingConfig, colour_label
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
@@ -446,3 +447,21 @@ def test_plan_settings_are_checked() -> None:
         dataclasses.replace(params, plan_after_s=math.nan)
     with pytest.raises(ConfigError, match="plan_cell_px must be in 1..16"):
         dataclasses.replace(params, plan_cell_px=0)
+
+
+def test_the_fit_renders_its_images_under_the_cameras_light() -> None:
+    """``crowdloc fit ceiling_target --camera``: the same poses and labels, each channel scaled by the light's colour."""
+    warm = FitPlan(camera={**IDEAL, "white_balance_k": 6500.0, "cct_k": [4000.0, 4000.0]})
+    plain = FitPlan(camera=dict(IDEAL))
+    cam = LocalizationEnv("ceiling_corridor", camera=warm.camera).sensors["camera"]
+    assert isinstance(cam, CeilingCamera)
+    colour = cam.channel_gains(np.zeros(3), 0.0) / cam.gain(np.zeros(3), 0.0)
+    for (image, labels), (tinted, tinted_labels) in zip(labelled_images(plain, 3, 4), labelled_images(warm, 3, 4)):
+        assert np.array_equal(labels, tinted_labels)
+        for c in (0, 2):
+            want = image[..., c].astype(np.float64) * colour[c]
+            unclipped = (want < 250) & (image[..., c] < 255)
+            assert unclipped.sum() > 100
+            assert np.abs(tinted[..., c][unclipped] - want[unclipped]).max() <= 0.5 + 0.5 * colour[c] + 1e-6  # two roundings
+    with pytest.raises(argparse.ArgumentTypeError, match=r"--camera must be a JSON mapping of the camera's fields, got '\[1\]'"):
+        camera_json("[1]")

@@ -16,10 +16,11 @@ below a marker line; everything above it is kept.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +58,9 @@ class FitPlan:
     coverage: float = 0.995
     margin: float = 0.02  # S, V and RGB
     hue_margin: float = 0.005
+    #: the camera's overrides (the light's colour, auto white balance, glare: issue 30); the light's colour at
+    #: each image's pose times its gain (cct_k's middle value; a per-episode daylight is not drawn here)
+    camera: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         check(self.train_images >= 10 and self.test_images >= 10, "fit: need at least 10 training and 10 test images")
@@ -73,9 +77,16 @@ def camera_of(env: LocalizationEnv) -> CeilingCamera:
     return camera
 
 
+def light_colour(camera: CeilingCamera, pose: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The ``(3,)`` channel gains per unit brightness of the light at ``pose``: ones under a colourless light;
+    the light's colour against the white balance, or its raw colour under the auto white balance (which the
+    render balances by the frame). An image at brightness ``gain`` is rendered with ``gain * light_colour``."""
+    return camera.channel_gains(pose, 0.0) / camera.gain(pose, 0.0)
+
+
 def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDArray[np.uint8], NDArray[np.uint8]]]:
     """``count`` rendered images and their pixel labels, without motion blur (labels are exact)."""
-    env = LocalizationEnv(plan.world, camera={"exposure_s": 0.0})
+    env = LocalizationEnv(plan.world, camera={**plan.camera, "exposure_s": 0.0})
     camera = camera_of(env)
     ceiling = camera.ceiling
     rng = np.random.default_rng(seed)
@@ -98,7 +109,7 @@ def labelled_images(plan: FitPlan, seed: int, count: int) -> Iterator[tuple[NDAr
         # gains spread evenly over the range (a low-discrepancy sequence), whatever the count
         lo, hi = plan.gain_range
         gain = lo + (hi - lo) * ((i * 0.6180339887498949 + rng.uniform(0, 0.05)) % 1.0)
-        image, labels = camera.render(pose, heads, gain, int(rng.integers(1 << 30)), labels=True)
+        image, labels = camera.render(pose, heads, gain * light_colour(camera, pose[0]), int(rng.integers(1 << 30)), labels=True)
         assert labels is not None
         yield image, labels
 
@@ -217,6 +228,17 @@ def write(path: Path, ranges: dict[str, ColourRange], record: dict[str, Any], ov
     return path
 
 
+def camera_json(text: str) -> dict[str, Any]:
+    """``--camera``: a JSON mapping of the camera's fields (their names and values are checked by the env)."""
+    try:
+        value = json.loads(text)
+    except ValueError:
+        value = None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"--camera must be a JSON mapping of the camera's fields, got {text!r}")
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("results/fit/ceiling_target.yaml"),
                         help="the localizer YAML to write (default results/fit/ceiling_target.yaml; the shipped one is "
@@ -232,6 +254,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"held-out images the thresholds are measured on (>= 10; default {FitPlan.test_images})",
     )
     parser.add_argument(
+        "--camera",
+        type=camera_json,
+        default={},
+        help="the camera's overrides as JSON, to fit under the light's colour (issue 30), e.g. "
+        '\'{"white_balance_k": 6500, "cct_k": [4230, 5500]}\' (default: the world\'s camera)',
+    )
+    parser.add_argument(
         "--seed",
         type=seed_int,
         default=FitPlan.seed,
@@ -242,7 +271,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> Path:
     if args.out.exists() and not args.overwrite:
         raise ConfigError(f"--out {args.out} exists; give --overwrite to replace its thresholds")
-    plan = FitPlan(train_images=args.train_images, test_images=args.test_images, seed=args.seed)
+    plan = FitPlan(train_images=args.train_images, test_images=args.test_images, seed=args.seed, camera=args.camera)
     ranges, record = fit(plan)
     for colour, spaces in record["held_out"].items():
         worst = max(spaces["hsv"]["false_positive"].items(), key=lambda kv: kv[1])

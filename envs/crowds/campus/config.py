@@ -88,7 +88,7 @@ class CampusConfig(PeopleConfig):
         give_way, give_way_margin_m, give_way_horizon_s: walkers curve around the robot
             (:func:`~envs.crowds.steering.give_way`).
         sees_robot: the share of the pedestrians (walkers and standing people) who see the robot
-            and react to it (:class:`~envs.crowds.base.PeopleConfig`; 0 here, issue 30 wants 1).
+            and react to it (:class:`~envs.crowds.base.PeopleConfig`; 1: everyone, as in every crowd of people).
         yield_s: walkers do not step where a moving car will be within this time (1.5 s).
         group_sizes: standing groups' sizes, in turn (2-4: conversation groups).
         group_spacing_m: neighbours' distance in a group (0.6 m: Hall's personal distance).

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from agents.cli import main
-from agents.papers.ceiling_target import paper, static
+from agents.papers.ceiling_target import QUICK_FIT_IMAGES, paper, static
 from agents.papers.ceiling_target.demo import corridor_section
+from envs.sensors.ceiling_camera import CeilingCamera
 from tests.console import assert_aligned, printed_tables
 
 
@@ -42,6 +43,26 @@ def test_quick_run_writes_report_results_and_figures(quick: tuple[Path, str]) ->
     assert (out / "tables_2_4.png").stat().st_size > 0 and (out / "run.json").is_file()
     tables = printed_tables(printed)
     assert tables and all(assert_aligned(t) is None for t in tables)
+
+
+def test_the_illumination_study_runs_under_each_modelled_light(quick: tuple[Path, str]) -> None:
+    # issue 30: beside the gain sweep, each light (a camera override) with the shipped and the refitted thresholds
+    out = quick[0]
+    results = json.loads((out / "results.json").read_text())
+    report = (out / "report.md").read_text()
+    assert list(results["illumination_light"]) == [light.name for light in static.LIGHTS]
+    for light in static.LIGHTS:
+        study = results["illumination_light"][light.name]
+        assert light.name in report
+        assert study["camera"] == json.loads(json.dumps(dict(light.camera)))
+        assert study["fit_images"]["train"] == QUICK_FIT_IMAGES
+        assert set(study["fitted"]) >= {"red", "green"}
+        for which in ("shipped thresholds", "fitted under this light"):
+            rows = study["rows"][which]
+            assert [(r["space"], r["gain"]) for r in rows] == [(s, g) for s in ("hsv", "rgb") for g in static.LIGHT_GAINS]
+            assert all(0 <= r["fix_rate"] <= 1 for r in rows)
+    # the colourless study is still there, as it was
+    assert list(results["illumination"]) == ["learned over gains 0.6-1.4 (shipped)", "learned at one light (gains 0.95-1.05)"]
 
 
 def test_static_tables_against_the_paper(quick: tuple[Path, str]) -> None:
@@ -97,3 +118,57 @@ def test_the_demo_section_writes_its_frames(tmp_path: Path) -> None:
     image = cv2.imread(str(tmp_path / "corridor" / "ceiling_camera.png"))
     assert image is not None and image.shape == (720, 960, 3)
     assert np.any(np.all(image == (0, 255, 0), axis=-1))  # end A ringed (BGR green)
+
+
+def _study_images(monkeypatch: pytest.MonkeyPatch, camera: dict[str, object] | None) -> list[np.ndarray]:
+    """The images the illumination study renders (one seed, gain 1), with ``camera``'s overrides."""
+    images: list[np.ndarray] = []
+    render = CeilingCamera.render
+
+    def keep(self: CeilingCamera, *args: object, **kwargs: object) -> tuple[np.ndarray, np.ndarray | None]:
+        image, labels = render(self, *args, **kwargs)  # type: ignore[arg-type]
+        images.append(image)
+        return image, labels
+
+    monkeypatch.setattr(CeilingCamera, "render", keep)
+    static.illumination(1, gains=(1.0,), camera=camera)
+    monkeypatch.setattr(CeilingCamera, "render", render)
+    return images
+
+
+def test_each_lights_camera_override_reaches_the_studys_images(monkeypatch: pytest.MonkeyPatch) -> None:
+    cast, auto, glare = (dict(light.camera) for light in static.LIGHTS)
+    plain = _study_images(monkeypatch, None)[0].reshape(-1, 3).astype(float)
+    # a 4230-5500 K light under a 6500 K white balance: red up and blue down against green
+    red_blue = _study_images(monkeypatch, cast)[0].reshape(-1, 3).astype(float)
+    (r0, g0, b0), (r1, g1, b1) = plain.mean(axis=0), red_blue.mean(axis=0)
+    assert r1 / g1 > 1.05 * r0 / g0 and b1 / g1 < 0.95 * b0 / g0
+    # the auto white balance takes most of that cast away again
+    balanced = _study_images(monkeypatch, auto)[0].reshape(-1, 3).astype(float).mean(axis=0)
+    assert abs(balanced[0] / balanced[2] - r0 / b0) < 0.5 * abs(r1 / b1 - r0 / b0)
+    # the lamp by the target puts a saturated glare spot on its tape
+    spot = _study_images(monkeypatch, glare)[0].reshape(-1, 3)
+    assert np.all(spot == 255, axis=1).sum() > np.all(plain == 255, axis=1).sum() + 20
+
+
+def test_the_rows_under_a_light_are_deterministic() -> None:
+    light = static.LIGHTS[0].camera
+    first = static.illumination(2, gains=(0.6, 1.4), camera=light)
+    again = static.illumination(2, gains=(0.6, 1.4), camera=light)
+    assert first == again and any(r["fix_rate"] > 0 for r in first)
+
+
+@pytest.mark.parametrize(
+    ("hsv", "rgb", "n", "says"),
+    [
+        (0.42, 0.43, 100, "no difference beyond chance"),  # one image apart
+        (0.12, 0.36, 100, "RGB ahead beyond chance"),
+        (0.60, 0.30, 100, "HSV ahead beyond chance"),
+        (0.12, 0.36, 10, "no difference beyond chance"),  # too few images to tell
+        (1.0, 1.0, 100, "no difference beyond chance"),
+    ],
+)
+def test_a_light_study_calls_a_colour_space_ahead_only_beyond_chance(hsv: float, rgb: float, n: int, says: str) -> None:
+    from agents.papers.ceiling_target.report import _ahead
+
+    assert _ahead(hsv, rgb, n).startswith(says)
