@@ -96,7 +96,17 @@ def _add_train(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="override any config field, e.g. --set ppo.learning_rate=1e-3 (repeatable)",
+        help="override any config field, e.g. --set ppo.learning_rate=1e-3 (repeatable); a mapping is merged "
+        "key by key: --set env_kwargs={prior: start} keeps the file's other env_kwargs",
+    )
+    train.add_argument(
+        "--replace",
+        dest="replacements",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="set a config field whole, as if the file said so (applied before --set), e.g. --replace env_kwargs={} "
+        "drops the file's conditions (repeatable)",
     )
     train.add_argument("--resume", metavar="CHECKPOINT", help="a checkpoint .zip to resume from, or 'latest'")
     train.add_argument(
@@ -373,11 +383,12 @@ def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
         parser.error("--resume continues a run and --overwrite starts it again: give one")
     if (args.workers or args.ray_address) and not args.seeds:
         parser.error("--workers and --ray-address spread several runs: give --seeds")
-    overrides = parse_overrides(args.overrides)
+    overrides = parse_overrides(args.overrides, flag="--set")
     for key, value in (("total_timesteps", args.total_timesteps), ("seed", args.seed), ("n_envs", args.n_envs)):
         if value is not None:
             overrides[key] = value
-    config = load_train_config(args.config, overrides)
+    replacements = parse_overrides(args.replacements, flag="--replace")
+    config = load_train_config(args.config, overrides, replacements)
     resume = None
     if args.resume == "latest":
         resume = latest_checkpoint(config, args.out)

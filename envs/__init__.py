@@ -30,8 +30,18 @@ ENV_WORLDS = {
 TASK_CONFIGS = {
     "crowdloc/ActiveCandidateSets-v0": "ppo_candidate_sets",
     "crowdloc/ActiveMCLBearing-v0": "ppo_mcl_bearing",
+    "crowdloc/ActiveRoomLidar-v0": "ppo_room_lidar",
+    "crowdloc/ActiveCorridorTargets-v0": "ppo_corridor_targets",
+    "crowdloc/ActiveCampusStereo-v0": "ppo_campus_stereo",
 }
-TASK_EPISODE_STEPS = 450  # 15 s at 30 Hz: the shipped configs' training episodes (ppo.n_steps)
+
+
+def task_episode_steps(config: str) -> int:
+    """A task's episode length: its training config's ``ppo.n_steps`` (one episode per env per rollout)."""
+    import crowdloc_configs
+    from localizers.schema import load_yaml
+
+    return int(load_yaml(crowdloc_configs.path("experiments", f"{config}.yaml"))["ppo"]["n_steps"])
 
 
 def _register() -> None:
@@ -51,10 +61,10 @@ def _register() -> None:
                 id=env_id,
                 entry_point="agents.rl.tasks:make_task",
                 kwargs={"config": config},
-                max_episode_steps=TASK_EPISODE_STEPS,
+                max_episode_steps=task_episode_steps(config),
             )
 
 
 _register()
 
-__all__ = ["ENV_WORLDS", "TASK_CONFIGS", "LocalizationEnv", "WorldConfig", "available_worlds", "load_world"]
+__all__ = ["ENV_WORLDS", "TASK_CONFIGS", "task_episode_steps", "LocalizationEnv", "WorldConfig", "available_worlds", "load_world"]

@@ -453,7 +453,8 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
         for key, value in range_sensor_kwargs(base.sensor_metadata).items():
             kwargs.setdefault(key, value)
         lmap = base.landmark_map
-        route = route_points(config, lmap.features, kwargs.pop("route", None))
+        route = kwargs.pop("route", None)  # a route feature's name, or the points themselves (a task's route)
+        route = route_points(config, lmap.features, route) if route is None or isinstance(route, str) else route
         return RouteFollower(space, route, lmap.bounds_m, seed, **kwargs)
     return FIXED_POLICIES[name](space, seed=seed, **kwargs)
 

@@ -3,6 +3,7 @@
 - :mod:`agents.rl.tasks`: the ``crowdloc/*Task-v0`` ids' entry point (a world, its
   localizer and the reward, from a training config);
 - :mod:`agents.rl.rewards`: the active-localization reward wrapper;
+- :mod:`agents.rl.observation`: what a task's policy observes, and the task's route;
 - :mod:`agents.rl.train`: training configs, PPO runs with exact resume, ``EVAL_SEED_BASE``.
 
 May import: ``envs``, ``localizers``, :mod:`agents.common`; never :mod:`agents.policies`,

@@ -3,8 +3,9 @@
 A bare world id (``crowdloc/RoboCupCrowded-v0``) returns reward 0: it is the world and its
 sensors. A task id adds what a shipped training config (``configs/experiments/NAME.yaml``)
 trains on: the localizer wrapper, the training conditions (camera, prior, sonar, belief
-spread), the active-localization reward inside the env and the training episode length. So
-off-the-shelf tools (stable-baselines3's ``Monitor``, rl-zoo3) see the real reward::
+spread), the active-localization reward inside the env, what its policy observes and the
+training episode length. So off-the-shelf tools (stable-baselines3's ``Monitor``, rl-zoo3) see
+the real reward, and ``env.spec.id`` names the task (:func:`agents.rl.train.make_world`)::
 
     env = gym.make("crowdloc/ActiveCandidateSets-v0")   # == configs/experiments/ppo_candidate_sets.yaml
 

@@ -32,6 +32,7 @@ import numpy as np
 import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
 from agents.common.util import nest, write_run_record
+from agents.rl.observation import ObservationConfig, RouteConfig, TaskObservation
 from agents.rl.rewards import ActiveLocalizationReward, RewardWeights
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, merge_nested, parse_yaml, replace_checked
 
@@ -76,6 +77,8 @@ class TrainConfig:
     localizer: str = "candidate_sets"
     localizer_params: Mapping[str, Any] = field(default_factory=dict)
     reward: RewardWeights = field(default_factory=RewardWeights)
+    observation: ObservationConfig = field(default_factory=ObservationConfig)  # what the policy sees (agents.rl.observation)
+    route: RouteConfig = field(default_factory=RouteConfig)  # the task's route (progress, waypoint); default the map's
     n_envs: int = 4
     vec_env: str = "subproc"  # "subproc" (one process per env) or "dummy" (in-process)
     seed: int = 0
@@ -99,15 +102,43 @@ class TrainConfig:
         return self.ppo.n_steps * self.n_envs
 
 
-def load_train_config(path_or_name: str | Path, overrides: Mapping[str, Any] | None = None) -> TrainConfig:
-    """Load ``configs/experiments/<name>.yaml`` (or a path) and apply dotted-key overrides."""
+def load_train_config(
+    path_or_name: str | Path, overrides: Mapping[str, Any] | None = None, replacements: Mapping[str, Any] | None = None
+) -> TrainConfig:
+    """Load ``configs/experiments/<name>.yaml`` (or a path) and apply dotted-key changes.
+
+    ``replacements`` (``crowdloc train --replace``) come first and set a key's value whole, as if
+    the file said so: ``{"env_kwargs": {}}`` drops every condition of the file. ``overrides``
+    (``--set``) then merge on top: a mapping given to a mapping field (``env_kwargs``, ``reward``)
+    changes the keys it names and keeps the others.
+    """
     path = Path(path_or_name)
     if path.suffix not in (".yaml", ".yml"):
         path = EXPERIMENT_DIR / f"{path_or_name}.yaml"
-    config = from_mapping(TrainConfig, load_yaml(path), where=str(path))
+    data = load_yaml(path)
+    for key, value in (replacements or {}).items():
+        _replace_dotted(data, key, value, where=f"replacement {key!r} of {path}")
+    config = from_mapping(TrainConfig, data, where=str(path))
     if overrides:
         config = replace_checked(config, nest(overrides), where=f"overrides of {path}")
     return config
+
+
+def _replace_dotted(data: dict[str, Any], dotted: str, value: Any, where: str) -> None:
+    """Set ``data[a][b][c] = value`` for ``dotted = "a.b.c"``, making missing sections; the value
+    replaces what was there whole (the keys are checked when the config is built from ``data``).
+
+    Raises:
+        ConfigError: when a section on the way is not a mapping.
+    """
+    *parents, leaf = dotted.split(".")
+    node = data
+    for part in parents:
+        child = node.setdefault(part, {})
+        if not isinstance(child, dict):
+            raise ConfigError(f"{where}: {part!r} is {child!r}, not a section with keys")
+        node = child
+    node[leaf] = value
 
 
 def parse_overrides(items: Sequence[str], flag: str = "override") -> dict[str, Any]:
@@ -146,7 +177,8 @@ class EpisodeSeeds(gym.Wrapper):
 
 def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: Any) -> gym.Env[Any, Any]:
     """The task a training config describes, at one crowd size: its world, localizer and
-    conditions (``env_kwargs``, then ``make_kwargs`` on top), with the active-localization reward.
+    conditions (``env_kwargs``, then ``make_kwargs`` on top), with the active-localization reward
+    and the observation the config gives its policy.
 
     ``make_kwargs`` may override the localizer's parameters (``localizer_params``, merged over the
     config's key by key) but not the localizer itself (a ``ConfigError``: the task is its localizer's).
@@ -162,14 +194,41 @@ def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: An
     extra = {} if extra is None else extra
     if not isinstance(extra, Mapping):
         raise ConfigError(f"localizer_params must be a mapping, got {type(extra).__name__} {extra!r}")
-    env = gym.make(
+    max_episode_steps = kwargs.pop("max_episode_steps", None)
+    world = make_world(
         config.env_id,
         crowd_size=crowd_size,
         localizer=config.localizer,
         localizer_params=merge_nested(config.localizer_params, extra) or None,
         **kwargs,
     )
-    return ActiveLocalizationReward(env, config.reward)
+    env: gym.Env[Any, Any] = ActiveLocalizationReward(world, config.reward, config.route)
+    if config.observation.changes_anything:
+        env = TaskObservation(env, config.observation, config.route)
+    if max_episode_steps is not None:
+        env = gym.wrappers.TimeLimit(env, max_episode_steps)
+    return env
+
+
+def make_world(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
+    """The env of registered id ``env_id`` from its entry point, without ``gym.make``'s wrappers and spec.
+
+    A task is one env: ``gym.make(task_id)`` adds the checker, the order enforcing and the time
+    limit once around the whole task and names it (``env.spec.id``, which stable-baselines3's
+    ``Monitor`` and rl-zoo3 record, is the task's). A world made by ``gym.make`` inside it would
+    carry the world's spec, cached by its wrappers, to the outside, and a second time limit.
+
+    Raises:
+        gymnasium.error.Error: for an id that is not registered.
+    """
+    from gymnasium.envs.registration import load_env_creator
+
+    spec = gym.spec(env_id)
+    creator = spec.entry_point if callable(spec.entry_point) else load_env_creator(str(spec.entry_point))
+    env = creator(**{**spec.kwargs, **kwargs})
+    if not isinstance(env, gym.Env):
+        raise ConfigError(f"{env_id}'s entry point made a {type(env).__name__}, not an env")
+    return env
 
 
 def make_training_env(config: TrainConfig, env_index: int, first_episode: int = 0) -> gym.Env[Any, Any]:

@@ -62,7 +62,11 @@ def _zoo(*argv: str) -> str:
 
 @pytest.mark.slow
 def test_rl_zoo3_trains_enjoys_and_records_a_task_id(tmp_path: Path) -> None:
-    env_id, logs, episode = "crowdloc/ActiveCandidateSets-v0", str(tmp_path / "logs"), envs.TASK_EPISODE_STEPS
+    env_id, logs, episode = (
+        "crowdloc/ActiveCandidateSets-v0",
+        str(tmp_path / "logs"),
+        envs.task_episode_steps("ppo_candidate_sets"),
+    )
     task = ("--algo", "ppo", "--env", env_id)
     # 2048 steps: two rollouts of 4 envs x 450 steps
     _zoo("-m", "rl_zoo3.train", *task, "--gym-packages", "envs", "--conf-file", str(HYPERPARAMS), "-n", "2048",

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -11,12 +14,15 @@ import envs
 from agents.rl.train import load_train_config
 from localizers.schema import ConfigError
 
+SOCCER_TASKS = {"crowdloc/ActiveCandidateSets-v0": "ppo_candidate_sets", "crowdloc/ActiveMCLBearing-v0": "ppo_mcl_bearing"}
 
-@pytest.mark.parametrize(("env_id", "config"), sorted(envs.TASK_CONFIGS.items()))
+
+@pytest.mark.parametrize(("env_id", "config"), sorted(SOCCER_TASKS.items()))
 def test_a_task_id_is_its_training_config_with_the_reward(env_id: str, config: str) -> None:
+    """The soccer tasks; the other worlds' tasks: tests/agents/test_world_tasks.py."""
     trained = load_train_config(config)
     env = Monitor(gym.make(env_id))
-    assert env.spec is not None and env.spec.max_episode_steps == trained.ppo.n_steps == envs.TASK_EPISODE_STEPS
+    assert env.spec is not None and env.spec.max_episode_steps == trained.ppo.n_steps == envs.task_episode_steps(config)
     obs, info = env.reset(seed=0)
     assert {"estimate", "estimate_valid", "sonar"} <= set(obs) and "true_pose" not in obs
     assert env.unwrapped.config.sensors["camera"].fov_rad == pytest.approx(trained.env_kwargs["camera"]["fov_rad"])
@@ -28,6 +34,22 @@ def test_a_task_id_is_its_training_config_with_the_reward(env_id: str, config: s
     assert steps == trained.ppo.n_steps
     assert total != 0.0 and "reward_terms" in info
     assert env.get_episode_rewards() == [pytest.approx(total)]  # Monitor outside sees the task's reward
+
+
+@pytest.mark.parametrize("env_id", sorted(envs.TASK_CONFIGS))
+def test_a_task_id_names_the_task_in_its_spec_and_monitor_files(env_id: str, tmp_path: Path) -> None:
+    """env.spec.id was the bare world's (its wrappers inside the task cached it): rl-zoo3's monitor
+    files named the world. The spec also re-makes the task, and one time limit ends its episodes."""
+    env = gym.make(env_id)
+    assert env.spec is not None and env.spec.id == env_id
+    Monitor(env, str(tmp_path / "run")).close()
+    header = json.loads((tmp_path / "run.monitor.csv").read_text().splitlines()[0].lstrip("#"))
+    assert header["env_id"] == env_id
+    again = gym.make(env.spec)
+    assert again.spec is not None and again.spec.id == env_id
+    assert str(again) == str(env)
+    assert str(env).count("TimeLimit") == 1
+    again.close()
 
 
 def test_a_bare_world_id_returns_reward_zero() -> None:

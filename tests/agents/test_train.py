@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from agents.rl.train import TrainConfig, latest_checkpoint, load_train_config, parse_overrides, train
+from agents.cli import main
+from agents.rl.train import TrainConfig, check_train_config, latest_checkpoint, load_train_config, parse_overrides, train
 from localizers.schema import ConfigError
 
 
@@ -120,6 +121,39 @@ def test_a_dotted_override_of_env_kwargs_keeps_the_other_conditions() -> None:
         "camera": {**shipped.env_kwargs["camera"], "fov_rad": 1.0},
         "belief_spread": True,
     }
+
+
+def test_a_replacement_sets_a_field_whole_and_overrides_merge_on_top() -> None:
+    """--set env_kwargs={} merges nothing; --replace env_kwargs={} drops the file's conditions (the camera,
+    which another world's env refuses), and --set then merges on top of the replacement."""
+    shipped = load_train_config("ppo_mcl_bearing")
+    assert load_train_config("ppo_mcl_bearing", {"env_kwargs": {}}).env_kwargs == shipped.env_kwargs
+    room = {"env_id": "crowdloc/CrowdedRoom-v0", "localizer": "mcl_lidar", "crowd_sizes": [4]}
+    config = load_train_config("ppo_mcl_bearing", {**room, "env_kwargs.prior": "none"}, {"env_kwargs": {}})
+    assert config.env_kwargs == {"prior": "none"} and config.reward == shipped.reward
+    check_train_config(config)  # the room builds: no camera key left
+    with pytest.raises(ConfigError, match="unknown env keyword 'camera'"):
+        check_train_config(load_train_config("ppo_mcl_bearing", room))
+    replaced = load_train_config("ppo_mcl_bearing", None, {"env_kwargs.camera": {"fov_rad": 1.0}})
+    assert replaced.env_kwargs["camera"] == {"fov_rad": 1.0}  # the camera's distractors: [] went with it
+    with pytest.raises(ConfigError, match=r"replacement 'name.x' of .*ppo_mcl_bearing.yaml: 'name' is 'ppo_mcl_bearing', not a"):
+        load_train_config("ppo_mcl_bearing", None, {"name.x": 1})
+    with pytest.raises(ConfigError, match="unknown key 'env_kwarg'"):
+        load_train_config("ppo_mcl_bearing", None, {"env_kwarg": {}})
+
+
+def test_the_train_command_replaces_env_kwargs(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    argv = ["train", "ppo_mcl_bearing", "--set", "env_id=crowdloc/CrowdedRoom-v0", "--set", "localizer=mcl_lidar",
+            "--set", "crowd_sizes=[4]", "--total-timesteps", "1", "--out", str(tmp_path), "--no-progress",
+            "--set", "n_envs=1", "--set", "ppo.n_steps=8", "--set", "ppo.batch_size=8"]  # fmt: skip
+    with pytest.raises(SystemExit):
+        main([*argv, "--set", "env_kwargs={}"])
+    assert "unknown env keyword 'camera'" in capsys.readouterr().err
+    assert main([*argv, "--replace", "env_kwargs={}"]) == 0
+    assert (tmp_path / "ppo_mcl_bearing" / "seed_0" / "model.zip").is_file()
+    with pytest.raises(SystemExit):
+        main([*argv, "--replace", "env_kwargs"])
+    assert "--replace 'env_kwargs' is not KEY=VALUE" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("name", ["ppo_candidate_sets", "ppo_mcl_bearing"])

@@ -1,0 +1,230 @@
+"""What a task's policy observes: the localizer's belief and what the task needs, not the raw sensors.
+
+:class:`TaskObservation` wraps a task (a world behind ``LocalizationObservation``) and reshapes its
+observation as the task's training config says (:class:`ObservationConfig`, the config's
+``observation:`` section):
+
+- ``drop``: keys the policy does not see (the corridor's 320 x 240 ``ceiling_image``, for which
+  stable-baselines3 would build a 15 M-parameter CNN; a raw 1081-beam ``lidar``; the ``stereo``
+  edges). The localizer still reads them: it runs inside, before this wrapper.
+- ``lidar_sectors`` > 0 adds ``lidar_summary`` ``(sectors,)``: the shortest range of the ``lidar``
+  entry in each of that many equal sectors of its field of view (counter-clockwise from its first
+  beam), clipped at ``lidar_clip_m`` and divided by it, so 0 is touching and 1 is free to the clip.
+  It is a coarse range sensor like a sonar ring: where the crowd is, at the cost of a few numbers.
+- ``waypoint`` adds ``waypoint`` ``(3,)``: the task's next route point (:class:`RouteConfig`) by
+  the estimate, in the estimate's frame: the direction's ``(cos, sin)`` and the distance over
+  ``waypoint_clip_m`` (clipped to 1). The next point is the first more than ``reached_m`` ahead,
+  along the route, of the estimate's place on it (:class:`RouteCursor`), the last one at the end.
+  All zeros without a valid estimate: the policy only knows where to go from where it believes it is.
+
+Also here: :class:`RouteConfig` and :class:`RouteCursor`, the task's route, which the reward's
+progress term (from the truth) shares with the waypoint (from the estimate).
+
+Nothing here reads the truth (``info``); a test checks that no observed number equals the true pose.
+With every field at its default the wrapper is not applied (the soccer tasks observe what they did).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from localizers.schema import ConfigError, check
+
+
+@dataclass(frozen=True)
+class RouteConfig:
+    """A task's route: the points a robot is to drive past in order (:class:`RouteCursor`)."""
+
+    points_m: tuple[tuple[float, float], ...] = ()  # world frame; () = the map's (:func:`task_route`)
+    reached_m: float = 0.3  # a point less than this ahead along the route is passed: the waypoint moves on
+    search_m: float = 5.0  # the progress is searched this far either side of the last
+
+    def __post_init__(self) -> None:
+        for name in ("reached_m", "search_m"):
+            value = getattr(self, name)
+            check(math.isfinite(value) and value > 0, f"route.{name} must be finite and > 0, got {value!r}")
+        check(
+            all(len(p) == 2 and all(math.isfinite(float(c)) for c in p) for p in self.points_m),
+            f"route.points_m must be finite (x, y) pairs, got {list(self.points_m)!r}",
+        )
+
+
+class RouteCursor:
+    """How far along a route a position is, and which route point is next.
+
+    The progress ``s`` is the arc length from the route's start to the position's nearest point on
+    it. The first position joins the route where it is nearest (as ``route_follower`` does: a start
+    beside the route skips what lies behind it); later ones search only within ``search_m`` of the
+    last progress, so a loop's end is not mistaken for its start and a robot pushed back loses
+    progress. ``remaining_m`` is the route's length beyond ``s``; the next point is the first one
+    more than ``reached_m`` ahead of ``s`` (the last one at the end). The reward's progress (from the
+    truth) and the observation's waypoint (from the estimate) each keep one.
+    """
+
+    def __init__(self, points_m: NDArray[np.float64], route: RouteConfig) -> None:
+        check(points_m.ndim == 2 and points_m.shape[0] >= 2 and points_m.shape[1] == 2,
+              f"a route needs at least two points (x, y), got shape {points_m.shape}")  # fmt: skip
+        self.points_m = points_m
+        self.route = route
+        self._a, edge = points_m[:-1], np.diff(points_m, axis=0)
+        self._length2 = np.einsum("sk,sk->s", edge, edge)
+        self._edge = edge
+        self._point_s = np.concatenate([[0.0], np.cumsum(np.sqrt(self._length2))])  # arc length at each point
+        self.length_m = float(self._point_s[-1])
+        self.progress_m: float | None = None  # None before the route is joined
+
+    def reset(self) -> None:
+        self.progress_m = None
+
+    def update(self, x_m: float, y_m: float) -> float:
+        """Move the progress to the position ``(x_m, y_m)``; return the remaining route length (m)."""
+        here = np.array([x_m, y_m])
+        t = np.clip(np.einsum("sk,sk->s", here - self._a, self._edge) / np.where(self._length2 > 0, self._length2, 1.0), 0, 1)
+        distance = np.hypot(*(self._a + t[:, None] * self._edge - here).T)
+        s = self._point_s[:-1] + t * np.sqrt(self._length2)
+        if self.progress_m is not None:  # only the nearest point within search_m of the last progress
+            distance = np.where(np.abs(s - self.progress_m) <= self.route.search_m, distance, np.inf)
+            if not np.isfinite(distance).any():  # every segment's nearest point beyond the window: stay
+                return self.length_m - self.progress_m
+        self.progress_m = float(s[int(np.argmin(distance))])
+        return self.length_m - self.progress_m
+
+    @property
+    def next_point(self) -> NDArray[np.float64]:
+        """The first point more than ``reached_m`` ahead of the progress (the last one at the end)."""
+        ahead = np.flatnonzero(self._point_s > (self.progress_m or 0.0) + self.route.reached_m)
+        return self.points_m[ahead[0] if ahead.size else -1]
+
+
+@dataclass(frozen=True)
+class ObservationConfig:
+    """How a task reshapes the observation (module docstring); the defaults change nothing."""
+
+    drop: tuple[str, ...] = ()  # observation keys the policy does not see
+    lidar_sectors: int = 0  # > 0: add lidar_summary, the least range of the lidar entry per sector
+    lidar_clip_m: float = 5.0  # lidar_summary's ranges are clipped here and divided by it
+    waypoint: bool = False  # add waypoint: the route's next point in the estimate's frame
+    waypoint_clip_m: float = 10.0  # the waypoint's distance is divided by this, clipped to 1
+
+    def __post_init__(self) -> None:
+        check(self.lidar_sectors >= 0, f"observation.lidar_sectors must be >= 0, got {self.lidar_sectors!r}")
+        for name in ("lidar_clip_m", "waypoint_clip_m"):
+            value = getattr(self, name)
+            check(math.isfinite(value) and value > 0, f"observation.{name} must be finite and > 0, got {value!r}")
+        check(len(set(self.drop)) == len(self.drop), f"observation.drop repeats a key: {list(self.drop)}")
+
+    @property
+    def changes_anything(self) -> bool:
+        return bool(self.drop) or self.lidar_sectors > 0 or self.waypoint
+
+
+def task_route(base: Any, route: RouteConfig) -> NDArray[np.float64] | None:
+    """A task's route points ``(V, 2)`` (world frame, m): ``route.points_m`` when given, else the
+    points of the map's one route feature, else the targets of its one ceiling feature in the map's
+    order (the order a robot drives under them); None when there is none of these.
+
+    ``base``: the unwrapped env (its ``landmark_map``).
+    """
+    if route.points_m:
+        return np.asarray(route.points_m, dtype=np.float64)
+    features = base.landmark_map.features
+    for kind, points in (("route", lambda f: f["points_m"]), ("ceiling", lambda f: [(t["x_m"], t["y_m"]) for t in f["targets"]])):
+        found = [data for data in features.values() if data.get("type") == kind]
+        if len(found) == 1:
+            return np.asarray(points(found[0]), dtype=np.float64).reshape(-1, 2)
+    return None
+
+
+def route_cursor(base: Any, route: RouteConfig, who: str) -> RouteCursor:
+    """A :class:`RouteCursor` on the task's route (:func:`task_route`).
+
+    Raises:
+        ConfigError: naming ``who`` needs it, when the task has no route.
+    """
+    points = task_route(base, route)
+    if points is None:
+        raise ConfigError(
+            f"{who} needs a route: world {base.config.name!r} has no route feature and no ceiling targets in its map "
+            "(give the task's route.points_m)"
+        )
+    return RouteCursor(points, route)
+
+
+class TaskObservation(gym.ObservationWrapper[dict[str, Any], Any, dict[str, Any]], gym.utils.RecordConstructorArgs):
+    """Reshape a task's observation as ``config`` says (module docstring).
+
+    Args:
+        env: a crowdloc env behind ``LocalizationObservation`` (its ``estimate`` entry).
+        config: :class:`ObservationConfig`.
+        route: the task's route (for the waypoint).
+
+    Raises:
+        ConfigError: naming a dropped key the observation lacks, a LIDAR summary without a
+            ``lidar`` entry, or a waypoint without a route.
+    """
+
+    def __init__(self, env: gym.Env[Any, Any], config: ObservationConfig, route: RouteConfig | None = None) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, config=config, route=route)
+        gym.ObservationWrapper.__init__(self, env)
+        self.config = config
+        space = env.observation_space
+        assert isinstance(space, spaces.Dict)
+        base: Any = env.unwrapped
+        missing = [key for key in config.drop if key not in space.spaces]
+        if missing:
+            raise ConfigError(f"observation.drop: {missing} not in the observation (keys: {', '.join(space.spaces)})")
+        kept = {key: sub for key, sub in space.spaces.items() if key not in config.drop}
+        self._sector_of: NDArray[np.intp] | None = None
+        if config.lidar_sectors:
+            if "lidar" not in space.spaces:
+                raise ConfigError(f"observation.lidar_sectors = {config.lidar_sectors} needs a lidar entry; world "
+                                  f"{base.config.name!r} observes {', '.join(space.spaces)}")  # fmt: skip
+            beams = int(np.prod(space.spaces["lidar"].shape or (0,)))
+            check(
+                config.lidar_sectors <= beams, f"observation.lidar_sectors = {config.lidar_sectors} > the LIDAR's {beams} beams"
+            )
+            self._sector_of = (np.arange(beams) * config.lidar_sectors) // beams
+            kept["lidar_summary"] = spaces.Box(0.0, 1.0, (config.lidar_sectors,), np.float32)
+        self._cursor: RouteCursor | None = None
+        if config.waypoint:
+            if "estimate" not in space.spaces:
+                raise ConfigError("observation.waypoint is in the estimate's frame: make the env with localizer=...")
+            self._cursor = route_cursor(base, route or RouteConfig(), "observation.waypoint")
+            kept["waypoint"] = spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.observation_space = spaces.Dict(kept)
+
+    def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
+        out = {key: value for key, value in observation.items() if key not in self.config.drop}
+        if self._sector_of is not None:
+            ranges = np.minimum(np.asarray(observation["lidar"], dtype=np.float64), self.config.lidar_clip_m)
+            least = np.full(self.config.lidar_sectors, self.config.lidar_clip_m)
+            np.minimum.at(least, self._sector_of, ranges)
+            out["lidar_summary"] = (least / self.config.lidar_clip_m).astype(np.float32)
+        if self._cursor is not None:
+            out["waypoint"] = self._waypoint()
+        return out
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+        if self._cursor is not None:
+            self._cursor.reset()
+        return super().reset(seed=seed, options=options)
+
+    def _waypoint(self) -> NDArray[np.float32]:
+        assert self._cursor is not None
+        out = np.zeros(3, dtype=np.float32)
+        est = self.env.get_wrapper_attr("estimate")
+        if not est.valid:
+            return out
+        self._cursor.update(est.x_m, est.y_m)
+        point = self._cursor.next_point
+        dx, dy = point[0] - est.x_m, point[1] - est.y_m
+        bearing = math.atan2(dy, dx) - est.theta_rad
+        out[:] = (math.cos(bearing), math.sin(bearing), min(math.hypot(dx, dy) / self.config.waypoint_clip_m, 1.0))
+        return out
