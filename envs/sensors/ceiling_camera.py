@@ -119,7 +119,7 @@ class CeilingCameraConfig(SensorConfig):
     gain_time_period_s: float = 7.0
     vignetting: float = 0.25  # relative darkening at the image corners
     exposure_s: float = 1.0 / 60.0  # 0: no motion blur
-    # The light's colour (issue 30; off by default, the shipped worlds keep a colourless light). To turn it on,
+    # The light's colour (issue 30; off by default: the shipped corridor's light is colourless). To turn it on,
     # set the camera's fixed white balance, e.g. white_balance_k: 6500 (sRGB's D65 white, a camera's daylight
     # preset), and the light's CCT: cct_k: [4230, 5500] (under the panels cool-white fluorescent tubes, CIE
     # illuminant F2, CCT 4230 K; midway between them more daylight through the doors, CIE D55, 5503 K;

@@ -45,7 +45,7 @@ from localizers.schema import check
 class GlareConfig:
     """The lamps that the ceiling's glossy tape mirrors into the camera, and the tape's gloss.
 
-    Off by default (no lamps; issue 30's later step turns it on). To turn it on, give lamps below the
+    Off by default (no lamps: the shipped corridor's panels sit flush with the ceiling). To turn it on, give lamps below the
     ceiling, e.g. the corridor's pendant fluorescent lamps hung 0.5 m below a 2.5 m ceiling over its
     centre line between the panels, ``lamps_m: [[0, 2.4, 2.0], [0, 4.8, 2.0], ...]``; the other fields
     hold their physically sourced values.
