@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import re
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -15,6 +14,7 @@ from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
 from envs.sensors.light_colour import grey_world_gains
 from localizers.schema import ConfigError, replace_checked
+from tests.envs.ceiling_frames import ceiling_frames
 
 #: midway between two light panels, away from the sprinklers, signs and targets: tiles and joints only
 PLAIN = np.array([0.0, 2.4, math.pi / 2])
@@ -56,14 +56,8 @@ def test_grey_world_makes_the_frames_mean_grey_and_cancels_the_lights_colour() -
 
 
 def frames(seed: int, steps: int = 4, **fields: object) -> tuple[list[np.ndarray], float]:
-    env = gym.make("crowdloc/CeilingCorridor-v0", camera=fields or None, crowd_size=10)
-    obs, _ = env.reset(seed=seed)
-    out = [obs["ceiling_image"]]
-    for k in range(steps):
-        obs, *_ = env.step(np.array([0.8, 0.3 * math.sin(k)], dtype=np.float32))
-        out.append(obs["ceiling_image"])
-    daylight = env.unwrapped.sensors["camera"].daylight_k  # type: ignore[attr-defined]
-    env.close()
+    out, camera = ceiling_frames(seed, steps, **fields)
+    daylight = camera.daylight_k
     return out, daylight
 
 

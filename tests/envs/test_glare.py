@@ -6,7 +6,6 @@ import math
 import re
 
 import cv2
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -16,6 +15,7 @@ from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
 from envs.sensors.glare import mirror_spot_xy
 from localizers.schema import ConfigError
+from tests.envs.ceiling_frames import ceiling_frames
 
 CEILING_M, MOUNT_M = 2.5, 0.75
 #: a lamp hung 0.5 m below the ceiling, 0.2 m across the corridor from the second target's centre
@@ -105,14 +105,7 @@ def test_the_glare_adds_to_the_tape_and_the_sensor_saturation_clips_its_hue() ->
 
 
 def frames(seed: int, steps: int = 5, **fields: object) -> list[np.ndarray]:
-    env = gym.make("crowdloc/CeilingCorridor-v0", camera=fields or None, crowd_size=10)
-    obs, _ = env.reset(seed=seed)
-    out = [obs["ceiling_image"]]
-    for k in range(steps):
-        obs, *_ = env.step(np.array([0.8, 0.3 * math.sin(k)], dtype=np.float32))
-        out.append(obs["ceiling_image"])
-    env.close()
-    return out
+    return ceiling_frames(seed, steps, **fields)[0]
 
 
 def test_glare_off_renders_todays_frames_and_on_is_deterministic() -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import re
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -15,6 +14,7 @@ from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
 from envs.sensors.light_colour import XYZ_TO_SRGB, cct_white_rgb
 from localizers.schema import ConfigError
+from tests.envs.ceiling_frames import ceiling_frames
 
 ID = "crowdloc/CeilingCorridor-v0"
 #: cool-white fluorescent light seen by a camera balanced for daylight
@@ -37,14 +37,7 @@ def tabulated_white(cct_k: float) -> np.ndarray:
 
 
 def frames(seed: int, steps: int = 6, **fields: object) -> list[np.ndarray]:
-    env = gym.make(ID, camera=fields or None, crowd_size=10)
-    obs, _ = env.reset(seed=seed)
-    out = [obs["ceiling_image"]]
-    for k in range(steps):
-        obs, *_ = env.step(np.array([0.8, 0.3 * math.sin(k)], dtype=np.float32))
-        out.append(obs["ceiling_image"])
-    env.close()
-    return out
+    return ceiling_frames(seed, steps, **fields)[0]
 
 
 @pytest.mark.parametrize("cct_k", [4000.0, 6500.0])
