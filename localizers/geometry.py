@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -146,11 +147,20 @@ def poses_along_step(start: ArrayLike, end: ArrayLike, lag_fractions: ArrayLike)
     (:func:`deskewed_scan`)."""
     s = np.asarray(start, dtype=np.float64)
     e = np.asarray(end, dtype=np.float64)
-    f = np.asarray(lag_fractions, dtype=np.float64)
+    turn = float(wrap_angle(e[2] - s[2]))
+    return _along_step(float(s[0]), float(s[1]), float(e[0]), float(e[1]), float(e[2]), turn,
+                       np.asarray(lag_fractions, dtype=np.float64))  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _along_step(sx: float, sy: float, ex: float, ey: float, eth: float, turn: float, f: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The loop of :func:`poses_along_step` (one pass, as the swept LIDAR calls it every step)."""
     out = np.empty((f.shape[0], 3), dtype=np.float64)
-    out[:, 0] = e[0] - f * (e[0] - s[0])
-    out[:, 1] = e[1] - f * (e[1] - s[1])
-    out[:, 2] = e[2] - f * wrap_angle(e[2] - s[2])
+    dx, dy = ex - sx, ey - sy
+    for k in range(f.shape[0]):
+        out[k, 0] = ex - f[k] * dx
+        out[k, 1] = ey - f[k] * dy
+        out[k, 2] = eth - f[k] * turn
     return out
 
 

@@ -257,7 +257,7 @@ def cast_rays_from(
     obstacle (correct, slower).
 
     Args:
-        origins: ``(B, 2)`` each ray's origin (world frame).
+        origins: ``(B, 2)`` each ray's origin (world frame); more columns are ignored (a ``(B, 3)`` pose array).
         angles, max_range, seg_a, seg_b, centres, radii: as for :func:`cast_rays`.
 
     Returns:

@@ -128,7 +128,7 @@ class RangeSensor(SensorBase):
         else:  # each ray from where the robot was at its time
             poses = poses_along_step(state.robot_start, state.robot_pose, self._lag_fractions)
             rays = cast_rays_from(
-                np.ascontiguousarray(poses[:, 0:2]),
+                poses,  # (x, y, heading): the kernel reads the first two columns
                 self.relative_angles + poses[:, 2],
                 cfg.max_range_m,
                 seg_a,
