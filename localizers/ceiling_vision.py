@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import cv2
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -334,14 +335,19 @@ def _line_blobs(mask: NDArray[np.uint8], min_px: int) -> list[_Blob]:
     """The blobs of a line colour large enough to be a line, each with its least-squares direction."""
     if cv2.countNonZero(mask) < min_px:  # most frames: no line of this colour in view
         return []
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    # the components of the box around the colour's pixels only (a line is a few percent of the frame): they
+    # are the whole mask's, numbered in the same order when the box starts on an even row and column (OpenCV
+    # labels 8-connected components by 2 x 2 blocks, in the blocks' raster order)
+    bu, bv, bw, bh = cv2.boundingRect(mask)
+    bw, bh, bu, bv = bw + bu % 2, bh + bv % 2, bu - bu % 2, bv - bv % 2
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask[bv : bv + bh, bu : bu + bw], connectivity=8)
     out = []
     for k in range(1, count):
         if stats[k, cv2.CC_STAT_AREA] < min_px:
             continue
         x0, y0, w, h = (int(stats[k, i]) for i in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
         rows, cols = np.nonzero(labels[y0 : y0 + h, x0 : x0 + w] == k)
-        pts = np.stack([cols + x0 + 0.5, rows + y0 + 0.5], axis=1).astype(np.float64)
+        pts = np.stack([cols + (x0 + bu) + 0.5, rows + (y0 + bv) + 0.5], axis=1).astype(np.float64)
         centre, direction = fit_line(pts)
         t = (pts - centre) @ direction
         out.append(_Blob(pts, centre, direction, (centre + t.min() * direction, centre + t.max() * direction)))
@@ -560,11 +566,14 @@ class CeilingPlan:
         return best
 
 
+@numba.njit(cache=True)
 def _rect_distance(dx: NDArray[np.float64], dy: NDArray[np.float64], hx: float, hy: float) -> NDArray[np.float64]:
     """Signed distance (m) of points ``(dx, dy)`` from a rectangle's centre to the rectangle of half sizes ``(hx, hy)``."""
-    ox, oy = np.abs(dx) - hx, np.abs(dy) - hy
-    outside = np.hypot(np.maximum(ox, 0.0), np.maximum(oy, 0.0))
-    return np.asarray(np.where((ox <= 0) & (oy <= 0), np.maximum(ox, oy), outside), dtype=np.float64)
+    out = np.empty(dx.shape[0])
+    for i in range(dx.shape[0]):
+        ox, oy = abs(dx[i]) - hx, abs(dy[i]) - hy
+        out[i] = max(ox, oy) if ox <= 0.0 and oy <= 0.0 else math.hypot(max(ox, 0.0), max(oy, 0.0))
+    return out
 
 
 @dataclass(frozen=True)
@@ -613,8 +622,9 @@ def cell_tint(image: NDArray[np.uint8], cell_px: int) -> tuple[NDArray[np.float6
     """
     h, w = image.shape[0] // cell_px, image.shape[1] // cell_px
     small = cv2.resize(image[: h * cell_px, : w * cell_px], (w, h), interpolation=cv2.INTER_AREA).astype(np.float64)
-    value = small.max(axis=2)
-    saturation = (value - small.min(axis=2)) / np.maximum(value, 1.0)
+    r, g, b = small[:, :, 0], small[:, :, 1], small[:, :, 2]
+    value = np.maximum(np.maximum(r, g), b)  # over the channels pairwise: numpy reduces a last axis of 3 slowly
+    saturation = (value - np.minimum(np.minimum(r, g), b)) / np.maximum(value, 1.0)
     return saturation.ravel(), value.ravel()
 
 

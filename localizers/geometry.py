@@ -153,7 +153,9 @@ def poses_along_step(start: ArrayLike, end: ArrayLike, lag_fractions: ArrayLike)
 
 
 @numba.njit(cache=True)
-def _along_step(sx: float, sy: float, ex: float, ey: float, eth: float, turn: float, f: NDArray[np.float64]) -> NDArray[np.float64]:
+def _along_step(
+    sx: float, sy: float, ex: float, ey: float, eth: float, turn: float, f: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """The loop of :func:`poses_along_step` (one pass, as the swept LIDAR calls it every step)."""
     out = np.empty((f.shape[0], 3), dtype=np.float64)
     dx, dy = ex - sx, ey - sy

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
+import numba
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
@@ -85,15 +86,13 @@ class RouteCursor:
 
     def update(self, x_m: float, y_m: float) -> float:
         """Move the progress to the position ``(x_m, y_m)``; return the remaining route length (m)."""
-        here = np.array([x_m, y_m])
-        t = np.clip(np.einsum("sk,sk->s", here - self._a, self._edge) / np.where(self._length2 > 0, self._length2, 1.0), 0, 1)
-        distance = np.hypot(*(self._a + t[:, None] * self._edge - here).T)
-        s = self._point_s[:-1] + t * np.sqrt(self._length2)
-        if self.progress_m is not None:  # only the nearest point within search_m of the last progress
-            distance = np.where(np.abs(s - self.progress_m) <= self.route.search_m, distance, np.inf)
-            if not np.isfinite(distance).any():  # every segment's nearest point beyond the window: stay
-                return self.length_m - self.progress_m
-        self.progress_m = float(s[int(np.argmin(distance))])
+        last = math.nan if self.progress_m is None else self.progress_m
+        s = _nearest_progress(
+            float(x_m), float(y_m), self._a, self._edge, self._length2, self._point_s, last, self.route.search_m
+        )
+        if not math.isnan(s):  # NaN: every segment's nearest point beyond the search window: stay
+            self.progress_m = s
+        assert self.progress_m is not None
         return self.length_m - self.progress_m
 
     @property
@@ -101,6 +100,28 @@ class RouteCursor:
         """The first point more than ``reached_m`` ahead of the progress (the last one at the end)."""
         ahead = np.flatnonzero(self._point_s > (self.progress_m or 0.0) + self.route.reached_m)
         return self.points_m[ahead[0] if ahead.size else -1]
+
+
+@numba.njit(cache=True)
+def _nearest_progress(
+    x: float, y: float, a: NDArray[np.float64], edge: NDArray[np.float64], length2: NDArray[np.float64],
+    point_s: NDArray[np.float64], last: float, search_m: float,
+) -> float:  # fmt: skip
+    """:meth:`RouteCursor.update`'s search (called twice a step): the progress (arc length) of the point of
+    the route nearest ``(x, y)``, among the segments' nearest points within ``search_m`` of ``last``
+    (NaN: any segment); the first of equally near ones; NaN when none lies within the window."""
+    best, best_s = math.inf, math.nan
+    for k in range(a.shape[0]):
+        dx, dy = x - a[k, 0], y - a[k, 1]
+        t = (dx * edge[k, 0] + dy * edge[k, 1]) / (length2[k] if length2[k] > 0 else 1.0)
+        t = min(max(t, 0.0), 1.0)
+        s = point_s[k] + t * math.sqrt(length2[k])
+        if not math.isnan(last) and not abs(s - last) <= search_m:
+            continue
+        d = math.hypot(a[k, 0] + t * edge[k, 0] - x, a[k, 1] + t * edge[k, 1] - y)
+        if d < best:
+            best, best_s = d, s
+    return best_s
 
 
 @dataclass(frozen=True)
