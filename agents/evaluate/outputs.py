@@ -91,7 +91,8 @@ def summary_markdown(result: EvalResult) -> str:
     return "\n".join(lines)
 
 
-def _write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Path:
+def write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Path:
+    """Write ``header`` and ``rows`` to the CSV file ``path``; return ``path``."""
     with open(path, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(header)
@@ -112,14 +113,14 @@ def write_tables(result: EvalResult, out_dir: Path) -> dict[str, Path]:
                 *[_cell_value(m, e.cell.localizer, e.metrics.get(m.key, math.nan)) for m in infos]]
                for e in result.episodes]  # fmt: skip
     ep_cols = ["policy", "localizer", "crowd_size", "seed", "steps", *keys]
-    out["episodes"] = _write_csv(out_dir / "episodes.csv", ep_cols, ep_rows)
+    out["episodes"] = write_csv(out_dir / "episodes.csv", ep_cols, ep_rows)
     stat_cols = [f"{k}{suffix}" for k in keys for suffix in ("", "_ci_low", "_ci_high", "_n")]
     sum_rows = [[label(r.policy), r.localizer, r.crowd_size, r.episodes,
                  *[_cell_value(m, r.localizer, x) for m in infos
                    for x in (r.stats[m.key].mean, r.stats[m.key].low, r.stats[m.key].high, r.stats[m.key].n)]]
                 for r in result.summary]  # fmt: skip
     sum_cols = ["policy", "localizer", "crowd_size", "episodes", *stat_cols]
-    out["summary_csv"] = _write_csv(out_dir / "summary.csv", sum_cols, sum_rows)
+    out["summary_csv"] = write_csv(out_dir / "summary.csv", sum_cols, sum_rows)
     out["run"] = write_run_record(
         out_dir / "run.json",
         spec=dataclasses.asdict(result.spec),
@@ -291,6 +292,8 @@ EVAL_OUTPUTS = (
     "run.json",
     "episode.gif",
     "episodes.jsonl",
+    "verdict.md",
+    "verdict.csv",
     "plots/*.png",
     "tum/*.tum",
 )
