@@ -27,6 +27,10 @@ GOAL_METRICS: tuple[MetricInfo, ...] = (
     MetricInfo("time_to_goal_s", "time to goal [s] (episodes that reached it)", "{:.2f}"),
 )
 
+#: the summary page's legend of the goal rows
+GOAL_NOTE = ("Goal not reached: share of episodes the world did not end at its goal within the episode; time to goal: "
+             "seconds from the reset until it did, over the episodes that reached it. ")  # fmt: skip
+
 
 def goal_metrics(track: Track, reached: bool) -> dict[str, float]:
     """The goal metrics of one episode of a world with a goal (module docstring).

@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike
 from agents.common.util import flatten, write_run_record
 from agents.evaluate.consistency import NO_COVARIANCE, reports_covariance
 from agents.evaluate.episode import rollout
+from agents.evaluate.goal import GOAL_NOTE
 from agents.evaluate.plugins import Array, MetricInfo, localizer_kind, plugins_for
 from agents.evaluate.spec import Cell, EvalSpec
 from agents.evaluate.stats import EvalResult, Stat
@@ -167,7 +168,8 @@ def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
             "mean, one such step would make it inf); all three over the valid steps with a usable covariance; "
             f"{NO_COVARIANCE}: the localizer reports none; `plots/error_vs_spread.png`: error "
             "against reported spread; availability: share of all steps with a pose; first fix: time and distance travelled from the reset; "
-            f"collisions: contact events. {notes}Trajectories (TUM format, for evo): `tum/`. {animated}",
+            f"collisions: contact events. {GOAL_NOTE if s.has_goal else ''}{notes}Trajectories (TUM format, for evo): `tum/`. "
+            f"{animated}",
             "",
         ]
     )

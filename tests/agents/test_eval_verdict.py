@@ -13,7 +13,7 @@ import pytest
 from agents.cli import build_parser
 from agents.evaluate import EvalSpec, run_cli
 from agents.evaluate.goal import goal_metrics
-from agents.evaluate.paired import paired_difference, paired_verdict, verdict_policy
+from agents.evaluate.paired import paired_difference, paired_verdict, verdict_metrics, verdict_policy
 from agents.evaluate.plugins import Track
 from agents.evaluate.spec import Cell
 from agents.evaluate.stats import EvalResult
@@ -109,6 +109,12 @@ def test_a_goal_world_ending_early_has_goal_metrics_and_no_nan_where_a_value_exi
     episode = run_episode(spec, spec.cells()[0])
     assert episode.metrics["goal_missed"] == 1.0 and math.isnan(episode.metrics["time_to_goal_s"])  # 1.5 s: not there yet
     assert all(np.isfinite(episode.metrics[k]) for k in ("position_error_mean_m", "collisions", "episode_return"))
+    # the verdict judges the goal here, and the first fix: ceiling_target is not given its start (it fixes under a target)
+    assert verdict_metrics(spec, "ceiling_target") == ("position_error_mean_m", "failure_rate", "first_fix_s", "goal_missed",
+                                                       "time_to_goal_s", "collisions")  # fmt: skip
+    campus = EvalSpec(policies=("route_follower",), localizers=("far_landmark_pf",), crowd_sizes=(0,), seeds=1,
+                      env_id="crowdloc/StereoCampus-v0")  # fmt: skip
+    assert "first_fix_s" not in verdict_metrics(campus, "far_landmark_pf") and campus.has_goal  # given its start: no first fix
 
 
 def test_the_paired_interval_excludes_zero_for_a_steady_gain_and_holds_it_for_noise() -> None:
