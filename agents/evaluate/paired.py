@@ -15,7 +15,7 @@ start every policy has its fix at once), the share of episodes that missed the g
 to the goal (only in a world with a goal, :mod:`agents.evaluate.goal`) and the collisions. Against
 each metric's best fixed policy: the fixed policy of the same run (not the judged one) with the
 lowest mean of that metric over the run's seeds. It says "A better" when the interval lies below
-0, "B better" when above, else "no significant difference".
+0, "B better" when above, else "no significant difference" ("no pair" when no seed gave both a value).
 
 Reading it: the best fixed policy is picked on the same seeds it is compared on, which favours it
 (the verdict is conservative for the judged policy); a pair counts only where both episodes have
@@ -93,6 +93,10 @@ class VerdictRow:
 
     @property
     def word(self) -> str:
+        """The verdict in words; "no pair" when no seed gave both policies a value (e.g. the time to
+        the goal when one of them never reached it: its miss share says the rest)."""
+        if not self.difference.n:
+            return "no pair"
         return {-1: "A better", 1: "B better", 0: "no significant difference"}[self.difference.outcome]
 
 
@@ -187,7 +191,7 @@ def write_verdict(rows: Sequence[VerdictRow], spec: EvalSpec, out_dir: Path) -> 
         "seeds, which favours it). A - B: mean over seeds of the per-seed difference (both policies play the same "
         f"seeds), over the seeds where both have a value (pairs), with its 95% percentile-bootstrap interval "
         f"({spec.bootstrap_resamples} resamples). Every metric is lower-is-better: \"A better\" when the interval lies "
-        "below 0, \"B better\" above 0, else no significant difference. First fix: only where the localizer starts "
+        "below 0, \"B better\" above 0, else no significant difference; \"no pair\": no seed where both have a value. First fix: only where the localizer starts "
         "without the pose; goal not reached and time to goal (of the seeds where both reached it): only in a world "
         "with a goal.",
         "",

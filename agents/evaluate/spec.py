@@ -221,11 +221,13 @@ class EvalSpec:
 
     @property
     def metrics(self) -> tuple[MetricInfo, ...]:
-        """The metric rows of this grid: the core ones, those of its localizers' kinds, in a world
-        with a goal the goal's (:data:`agents.evaluate.goal.GOAL_METRICS`) and, with a kidnap, the
-        recovery's (:data:`agents.evaluate.kidnap.KIDNAP_METRICS`)."""
-        rows = localizer_metrics(self.localizers) + (GOAL_METRICS if self.has_goal else ())
-        return rows + KIDNAP_METRICS if self.kidnap is not None else rows
+        """The metric rows of this grid: the core ones, those of its localizers' kinds, with a kidnap
+        the recovery's (:data:`agents.evaluate.kidnap.KIDNAP_METRICS`) and, in a world with a goal,
+        the goal's (:data:`agents.evaluate.goal.GOAL_METRICS`), last, so that every other row but the
+        consistency ones keeps its bootstrap stream (:func:`agents.evaluate.stats.summarize` numbers
+        the consistency rows last: in a world with a goal their intervals are drawn from streams two further on)."""
+        rows = localizer_metrics(self.localizers) + (KIDNAP_METRICS if self.kidnap is not None else ())
+        return rows + GOAL_METRICS if self.has_goal else rows
 
     @property
     def eval_seeds(self) -> tuple[int, ...]:

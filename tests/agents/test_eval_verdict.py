@@ -139,18 +139,20 @@ def test_the_verdict_picks_each_metrics_best_fixed_policy_and_pairs_by_seed() ->
     from types import SimpleNamespace
 
     spec = EvalSpec(policies=("patrol", "spin", "random_walk"), localizers=("mcl_lidar",), crowd_sizes=(8,), seeds=30,
-                    env_id="crowdloc/CrowdedRoom-v0", env_kwargs={"prior": "start"})  # fmt: skip
+                    env_id="crowdloc/CrowdedRoom-v0", env_kwargs={"prior": "none"})  # fmt: skip
     rng = np.random.default_rng(3)
     hard = rng.normal(2.0, 1.0, spec.seeds)  # per seed, shared by every policy
     values = {"patrol": (hard - 0.3, 4.0), "spin": (hard, 1.0), "random_walk": (hard + 0.2, 2.0)}  # (error, collisions)
     episodes = [SimpleNamespace(cell=Cell(p, "mcl_lidar", 8, s),
-                                metrics={"position_error_mean_m": values[p][0][i], "failure_rate": 0.1, "collisions": values[p][1]})
+                                metrics={"position_error_mean_m": values[p][0][i], "failure_rate": 0.1, "collisions": values[p][1],
+                                         "first_fix_s": math.nan if p == "patrol" else 1.0})
                 for p in spec.policies for i, s in enumerate(spec.eval_seeds)]  # fmt: skip
     rows = {r.metric: r for r in paired_verdict(EvalResult(spec, tuple(episodes), (), 0.0), "patrol")}  # type: ignore[arg-type]
-    assert list(rows) == ["position_error_mean_m", "failure_rate", "collisions"]  # a known start: no first fix
+    assert list(rows) == ["position_error_mean_m", "failure_rate", "first_fix_s", "collisions"]  # prior none: the first fix too
     assert rows["position_error_mean_m"].best_fixed == "spin" and rows["position_error_mean_m"].word == "A better"
     assert rows["position_error_mean_m"].difference.mean == pytest.approx(-0.3)
     assert rows["collisions"].best_fixed == "spin" and rows["collisions"].word == "B better"
     assert rows["failure_rate"].word == "no significant difference"
+    assert rows["first_fix_s"].word == "no pair" and rows["first_fix_s"].difference.n == 0  # patrol never fixed
     with pytest.raises(ConfigError, match="every episode of the grid"):
         paired_verdict(EvalResult(spec, tuple(episodes[:-1]), (), 0.0), "patrol")  # type: ignore[arg-type]
