@@ -159,8 +159,9 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ev.add_argument(
         "--conditions",
         metavar="EXPERIMENT",
-        help="evaluate in a training config's conditions: its env id, env_kwargs (camera, prior, ...) "
-        "and reward (a path or a name under configs/experiments/)",
+        help="evaluate in a training config's conditions: its env id, env_kwargs (camera, prior, ...), reward, route and "
+        "the observation its trained policies see (a path or a name under configs/experiments/); the episode length stays "
+        "--episode-steps (the config's ppo.n_steps is its training episode's)",
     )
     ev.add_argument(
         "--env-set",
@@ -189,6 +190,12 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     kid.add_argument("--recover-m", type=float, metavar="M", help="a pose this close to the truth is a recovery (default 0.2)")
     kid.add_argument("--recover-window-s", type=float, metavar="S", help="look for the recovery this long (default 30)")
+    ev.add_argument(
+        "--verdict",
+        metavar="POLICY",
+        help="judge this policy of --policies (e.g. ppo:models/x.zip) against the best fixed policy of the run per "
+        "localizer, crowd size and metric, with paired 95%% intervals over the seeds; writes verdict.md and verdict.csv",
+    )
     ev.add_argument("--workers", type=positive_int, help="local worker processes (default: the core count)")
     ev.add_argument("--ray-address", help="run the episodes on this Ray cluster (e.g. auto)")
     ev.add_argument("--gif-cell", metavar="POLICY,LOCALIZER,CROWD", help="the episode to animate (default: the first)")

@@ -15,6 +15,9 @@ path), with any localizer whose measurement kind's sensor that world has. Cells 
 - :mod:`.stats`: :func:`bootstrap_ci`, :func:`summarize` and :func:`evaluate`;
 - :mod:`.outputs`: CSV tables, ``summary.md``, plots, TUM trajectories, the GIF;
 - :mod:`.journal`: ``episodes.jsonl``, each episode written as it finishes (``--resume``);
+- :mod:`.goal`: ``goal_missed`` and ``time_to_goal_s`` in a world with a goal;
+- :mod:`.paired`: the paired verdict (``crowdloc eval --verdict POLICY``): a policy against the
+  best fixed policy of the run, per metric the per-seed difference and its bootstrap interval;
 - :mod:`.cli`: :func:`run_cli`;
 - :mod:`.metrics`: the pose metrics on trajectories (errors, NEES, recovery), used by the
   episodes, ``crowdloc tune`` and the reproductions alike;
@@ -38,6 +41,7 @@ from __future__ import annotations
 from agents.evaluate.bearings import BEARING_METRICS, bearing_metrics, bound_rmse_along
 from agents.evaluate.cli import parse_gif_cell, run_cli, spec_from_args
 from agents.evaluate.episode import Episode, Rollout, episode_metrics, rollout, run_episode
+from agents.evaluate.goal import GOAL_METRICS, goal_metrics
 from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap, kidnap_metrics
 from agents.evaluate.outputs import (
     NO_COVARIANCE,
@@ -54,6 +58,7 @@ from agents.evaluate.outputs import (
     write_tum,
     yaw_to_quaternion,
 )
+from agents.evaluate.paired import PairedDifference, VerdictRow, paired_difference, paired_verdict, write_verdict
 from agents.evaluate.plugins import (
     CORE_METRICS,
     EpisodeContext,
@@ -87,11 +92,13 @@ METRIC_KEYS = tuple(m.key for m in METRICS)
 __all__ = [
     "BEARING_METRICS",
     "CORE_METRICS",
+    "GOAL_METRICS",
     "KIDNAP_METRICS",
     "NO_COVARIANCE",
     "METRICS",
     "METRIC_KEYS",
     "PPO_PREFIX",
+    "PairedDifference",
     "Cell",
     "Episode",
     "EpisodeContext",
@@ -105,6 +112,7 @@ __all__ = [
     "Stat",
     "SummaryRow",
     "Track",
+    "VerdictRow",
     "bearing_metrics",
     "bootstrap_ci",
     "bound_rmse_along",
@@ -114,10 +122,13 @@ __all__ = [
     "episode_metrics",
     "evaluate",
     "format_stat",
+    "goal_metrics",
     "kidnap_metrics",
     "localizer_metrics",
     "metric_infos",
     "metric_plugins",
+    "paired_difference",
+    "paired_verdict",
     "parse_gif_cell",
     "plot_error_vs_spread",
     "plot_summary",
@@ -138,5 +149,6 @@ __all__ = [
     "write_outputs",
     "write_tables",
     "write_tum",
+    "write_verdict",
     "yaw_to_quaternion",
 ]

@@ -9,6 +9,7 @@ from agents.common.util import prepare_out_dir
 from agents.evaluate.journal import JOURNAL_NAME, EpisodeJournal
 from agents.evaluate.kidnap import Kidnap
 from agents.evaluate.outputs import EVAL_OUTPUTS, summary_markdown, write_outputs
+from agents.evaluate.paired import paired_verdict, verdict_markdown, verdict_policy, write_verdict
 from agents.evaluate.spec import Cell, EvalSpec, check_first_seed
 from agents.evaluate.stats import EvalResult, evaluate
 from localizers.schema import ConfigError, check
@@ -27,6 +28,10 @@ def parse_gif_cell(text: str, spec: EvalSpec) -> Cell:
 def spec_from_args(args: Any) -> EvalSpec:
     """The :class:`EvalSpec` of the parsed options (``--conditions`` first, ``--env-set`` on top).
 
+    ``--conditions`` gives the training config's env, ``env_kwargs``, reward, route, observation
+    (what its trained policies observe) and localizer; the episode length stays ``--episode-steps``
+    (the config's ``ppo.n_steps`` is its training episode's).
+
     Raises:
         ConfigError: for a bad option value.
     """
@@ -43,7 +48,7 @@ def spec_from_args(args: Any) -> EvalSpec:
               f"--env-id {args.env_id} differs from the env of --conditions {args.conditions} ({trained.env_id})")  # fmt: skip
         # the config's conditions include its localizer, unless --localizers names others
         conditions = {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward,
-                      "localizers": (trained.localizer,)}  # fmt: skip
+                      "route": trained.route, "observation": trained.observation, "localizers": (trained.localizer,)}  # fmt: skip
     conditions["env_kwargs"] = merge_nested(conditions.get("env_kwargs", {}), nest(parse_overrides(args.env_set)))
     chosen = {k: v for k, v in given.items() if v is not None}
     localizer_params = nest(parse_overrides(getattr(args, "localizer_set", []), "--localizer-set"))
@@ -80,15 +85,18 @@ def kidnap_from_args(args: Any) -> Kidnap | None:
 def run_cli(args: Any) -> EvalResult:
     """``crowdloc eval``: build the spec from parsed options, check the output folder, run (each
     episode into the journal as it finishes; with ``--resume`` only those the journal lacks),
-    write, print the summary.
+    write, print the summary and, with ``--verdict POLICY``, the paired verdict on that policy
+    against the best fixed policy (:mod:`agents.evaluate.paired`; ``verdict.md``, ``verdict.csv``).
 
     Raises:
-        ConfigError: for a bad option value, an output folder that is not empty (without
-            ``--overwrite`` or ``--resume``) or cannot be written, or a journal of another run, before
-            any episode runs.
+        ConfigError: for a bad option value (a ``--verdict`` policy that is not among the
+            policies, or without a fixed policy to judge it against), an output folder that is not
+            empty (without ``--overwrite`` or ``--resume``) or cannot be written, or a journal of
+            another run, before any episode runs.
     """
     spec = spec_from_args(args)
     gif_cell = parse_gif_cell(args.gif_cell, spec) if args.gif_cell else None
+    judged = verdict_policy(args.verdict, spec) if getattr(args, "verdict", None) else None
     resume, overwrite = bool(getattr(args, "resume", False)), bool(getattr(args, "overwrite", False))
     check(not (resume and overwrite), "--resume continues a run and --overwrite starts it again: give one")
     out = Path(args.out)
@@ -98,6 +106,10 @@ def run_cli(args: Any) -> EvalResult:
     result = evaluate(spec, workers=args.workers, ray_address=args.ray_address, progress=not args.no_progress, journal=journal)
     written = write_outputs(result, out, gif_cell=gif_cell, gif=not args.no_gif)
     print(summary_markdown(result))
+    if judged is not None:
+        rows = paired_verdict(result, judged)
+        written.update(write_verdict(rows, spec, out))
+        print("\n" + verdict_markdown(rows, spec))
     names = ", ".join(p.name for p in written.values())
     print(f"\n{len(result.episodes)} episodes in {result.wall_s:.0f} s; wrote {args.out}/ ({names})")
     return result

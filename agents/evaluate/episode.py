@@ -1,8 +1,11 @@
 """One evaluated episode: the rollout, the core pose metrics and the plug-ins' metrics.
 
-The env is built like the training env (localizer wrapper, active-localization reward, the
-episode length) and reset with the cell's evaluation seed; a fixed policy gets its own seed
-derived from it, a PPO policy acts deterministically.
+The env is built like the training env (:meth:`EvalSpec.make_env`: localizer wrapper,
+active-localization reward on the task's route, the episode length; a PPO policy's cells observe
+through the task's ``TaskObservation``, a fixed policy reads the raw sensors) and reset with the
+cell's evaluation seed; a fixed policy gets its own seed derived from it, a PPO policy acts
+deterministically. An episode ends at ``episode_steps`` or earlier, when a world with a goal ends
+it there (:mod:`agents.evaluate.goal`); every metric is over the steps it had.
 
 The core metrics of every episode (``t0`` = the first step with a valid estimate, the first fix):
 
@@ -30,7 +33,8 @@ The core metrics of every episode (``t0`` = the first step with a valid estimate
 
 The metric plug-ins of the localizer's measurement kind (:mod:`agents.evaluate.plugins`; for
 bearings :mod:`agents.evaluate.bearings`) add theirs; with ``EvalSpec.kidnap`` the robot is
-carried away mid-episode and the recovery is scored (:mod:`agents.evaluate.kidnap`).
+carried away mid-episode and the recovery is scored (:mod:`agents.evaluate.kidnap`); a world
+with a goal adds ``goal_missed`` and ``time_to_goal_s`` (:mod:`agents.evaluate.goal`).
 """
 
 from __future__ import annotations
@@ -45,11 +49,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 import agents.evaluate.metrics as metrics
+from agents.evaluate.goal import goal_metrics
 from agents.evaluate.kidnap import KIDNAP_SALT, kidnap_metrics
 from agents.evaluate.plugins import EpisodeContext, MetricPlugin, Track, localizer_kind, metric_plugins
 from agents.evaluate.spec import PPO_PREFIX, Cell, EvalSpec, load_ppo, policy_seed
 from agents.experiments.scenarios import kidnap as carry_away
-from agents.rl.rewards import ActiveLocalizationReward
 from localizers.registry import spec as localizer_spec
 
 
@@ -88,6 +92,7 @@ class Rollout:
     frames: list[NDArray[np.uint8]]
     jump_index: int | None = None  # with a kidnap: the first row recorded after the jump (None: no jump)
     update_ms: float = float("nan")  # mean wall time of the localizer's predict and update per step
+    goal_reached: bool | None = None  # the world ended the episode at its goal (None: the world has no goal)
 
 
 class _PPOPolicy:
@@ -99,19 +104,6 @@ class _PPOPolicy:
     def predict(self, observation: Any) -> NDArray[np.float32]:
         action, _ = self.model.predict(observation, deterministic=True)
         return np.asarray(action, dtype=np.float32)
-
-
-def _make_env(spec: EvalSpec, cell: Cell, render_mode: str | None = None) -> gym.Env[Any, Any]:
-    env = gym.make(
-        spec.env_id,
-        crowd_size=cell.crowd_size,
-        localizer=cell.localizer,
-        localizer_params=spec.localizer_params.get(cell.localizer),
-        max_episode_steps=spec.episode_steps,
-        render_mode=render_mode,
-        **dict(spec.env_kwargs),
-    )
-    return ActiveLocalizationReward(env, spec.reward)
 
 
 def _make_policy(cell: Cell, env: gym.Env[Any, Any]) -> Callable[[Any], NDArray[np.float32]]:
@@ -174,7 +166,7 @@ class _Recorder:
 
 def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
     """Play one episode of ``cell``; with ``frame_every > 0`` also render every that many steps."""
-    env = _make_env(spec, cell, "rgb_array" if frame_every else None)
+    env = spec.make_env(cell.policy, cell.localizer, cell.crowd_size, "rgb_array" if frame_every else None)
     act = _make_policy(cell, env)
     obs, info = env.reset(seed=cell.seed)
     base = env.unwrapped
@@ -192,7 +184,7 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
             frames.append(env.render())  # type: ignore[arg-type]
 
     keep(0, info)
-    step, done = 0, False
+    step, done, terminated = 0, False, False
     kidnap, jump_index = spec.kidnap, None
     kidnap_rng = np.random.default_rng([cell.seed, KIDNAP_SALT])
     while not done:
@@ -207,9 +199,10 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
                        max_distance_m=kidnap.max_distance_m, keep_heading=kidnap.keep_heading)  # fmt: skip
             jump_index = step + 1
     seconds, updates = env.get_wrapper_attr("update_seconds"), env.get_wrapper_attr("updates")
+    reached = bool(terminated) if base.config.goal is not None else None  # type: ignore[attr-defined]
     env.close()
     collected = {name: np.stack(values) for name, values in recorder.collected.items()}
-    return Rollout(recorder.track(), collected, context, frames, jump_index, 1000.0 * seconds / max(updates, 1))
+    return Rollout(recorder.track(), collected, context, frames, jump_index, 1000.0 * seconds / max(updates, 1), reached)
 
 
 def episode_metrics(track: Track) -> dict[str, float]:
@@ -240,6 +233,8 @@ def run_episode(spec: EvalSpec, cell: Cell) -> Episode:
     played = rollout(spec, cell)
     track = played.track
     values = episode_metrics(track)
+    if played.goal_reached is not None:
+        values.update(goal_metrics(track, played.goal_reached))
     if spec.kidnap is not None:
         values.update(kidnap_metrics(track, spec.kidnap, played.jump_index))
     series: dict[str, NDArray[Any]] = dict(played.collected)

@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike
 from agents.common.util import flatten, write_run_record
 from agents.evaluate.consistency import NO_COVARIANCE, reports_covariance
 from agents.evaluate.episode import rollout
+from agents.evaluate.goal import GOAL_NOTE
 from agents.evaluate.plugins import Array, MetricInfo, localizer_kind, plugins_for
 from agents.evaluate.spec import Cell, EvalSpec
 from agents.evaluate.stats import EvalResult, Stat
@@ -91,7 +92,8 @@ def summary_markdown(result: EvalResult) -> str:
     return "\n".join(lines)
 
 
-def _write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Path:
+def write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Path:
+    """Write ``header`` and ``rows`` to the CSV file ``path``; return ``path``."""
     with open(path, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(header)
@@ -112,14 +114,14 @@ def write_tables(result: EvalResult, out_dir: Path) -> dict[str, Path]:
                 *[_cell_value(m, e.cell.localizer, e.metrics.get(m.key, math.nan)) for m in infos]]
                for e in result.episodes]  # fmt: skip
     ep_cols = ["policy", "localizer", "crowd_size", "seed", "steps", *keys]
-    out["episodes"] = _write_csv(out_dir / "episodes.csv", ep_cols, ep_rows)
+    out["episodes"] = write_csv(out_dir / "episodes.csv", ep_cols, ep_rows)
     stat_cols = [f"{k}{suffix}" for k in keys for suffix in ("", "_ci_low", "_ci_high", "_n")]
     sum_rows = [[label(r.policy), r.localizer, r.crowd_size, r.episodes,
                  *[_cell_value(m, r.localizer, x) for m in infos
                    for x in (r.stats[m.key].mean, r.stats[m.key].low, r.stats[m.key].high, r.stats[m.key].n)]]
                 for r in result.summary]  # fmt: skip
     sum_cols = ["policy", "localizer", "crowd_size", "episodes", *stat_cols]
-    out["summary_csv"] = _write_csv(out_dir / "summary.csv", sum_cols, sum_rows)
+    out["summary_csv"] = write_csv(out_dir / "summary.csv", sum_cols, sum_rows)
     out["run"] = write_run_record(
         out_dir / "run.json",
         spec=dataclasses.asdict(result.spec),
@@ -166,7 +168,8 @@ def _summary_page(result: EvalResult, gif_cell: Cell | None) -> str:
             "mean, one such step would make it inf); all three over the valid steps with a usable covariance; "
             f"{NO_COVARIANCE}: the localizer reports none; `plots/error_vs_spread.png`: error "
             "against reported spread; availability: share of all steps with a pose; first fix: time and distance travelled from the reset; "
-            f"collisions: contact events. {notes}Trajectories (TUM format, for evo): `tum/`. {animated}",
+            f"collisions: contact events. {GOAL_NOTE if s.has_goal else ''}{notes}Trajectories (TUM format, for evo): `tum/`. "
+            f"{animated}",
             "",
         ]
     )
@@ -291,6 +294,8 @@ EVAL_OUTPUTS = (
     "run.json",
     "episode.gif",
     "episodes.jsonl",
+    "verdict.md",
+    "verdict.csv",
     "plots/*.png",
     "tum/*.tum",
 )

@@ -15,11 +15,13 @@ import numpy as np
 from gymnasium import spaces
 
 import envs  # registers the crowdloc ids
+from agents.evaluate.goal import GOAL_METRICS
 from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
 from agents.policies import FIXED_POLICIES
+from agents.rl.observation import ObservationConfig, RouteConfig
 from agents.rl.rewards import RewardWeights
-from agents.rl.train import EVAL_SEED_BASE
+from agents.rl.train import EVAL_SEED_BASE, task_wrappers
 from localizers.measurements import find_sensor
 from localizers.schema import ConfigError, check
 
@@ -66,6 +68,12 @@ class EvalSpec:
             true start pose; ``"none"``: they start lost; default: each localizer's own) and
             ``belief_spread`` (see ``localizers.wrappers``).
         reward: the reward weights reported as the episode return.
+        route: the task's route, for the reward's progress term and the observation's waypoint
+            (``agents.rl.observation.RouteConfig``; default: the map's).
+        observation: what a trained (``ppo:``) policy observes
+            (``agents.rl.observation.ObservationConfig``, a training config's ``observation:``):
+            its cells' envs are wrapped in ``TaskObservation`` exactly as in training; the fixed
+            policies keep the raw observation they read (the LIDAR, the camera, ...).
         bootstrap_resamples: bootstrap resamples per confidence interval.
         bootstrap_seed: seeds the bootstrap's generator.
         kidnap: carry the robot away mid-episode and score the recovery
@@ -93,6 +101,8 @@ class EvalSpec:
     bootstrap_seed: int = 0
     kidnap: Kidnap | None = None
     localizer_params: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    route: RouteConfig = field(default_factory=RouteConfig)
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
 
     def __post_init__(self) -> None:
         for name in ("policies", "localizers", "crowd_sizes"):  # lists from Python callers become tuples
@@ -110,16 +120,52 @@ class EvalSpec:
                   f"an episode of {self.episode_steps} steps ({length_s:g} s) ends before the kidnap's recovery window "
                   f"does (at_s {self.kidnap.at_s:g} + window_s {self.kidnap.window_s:g} = {self.kidnap.ends_s:g} s): "
                   f"raise episode_steps to at least {math.ceil(self.kidnap.ends_s / world.dt_s - 1e-9)}")  # fmt: skip
-        ppo = [policy for policy in self.policies if policy.startswith(PPO_PREFIX)]
-        if ppo:
-            env = gym.make(self.env_id, localizer=self.localizers[0], **dict(self.env_kwargs))
-            for policy in ppo:
-                check_observation_space(policy, load_ppo(policy[len(PPO_PREFIX) :]).observation_space, env.observation_space)
-            env.close()
+        self._check_task()
         limit = world.crowd.max_count if world.crowd is not None else 0
         for size in self.crowd_sizes:
             check(isinstance(size, (int, np.integer)) and 0 <= size <= limit,
                   f"crowd size {size!r} out of range 0..{limit} for {where}")  # fmt: skip
+
+    def _check_task(self) -> None:
+        """Each trained policy was trained on the observation its cells give (the task's, when
+        ``observation`` changes anything), which keeps the odometry the episode records; the
+        reward's route and the observation's build (one env, when either is used)."""
+        check(isinstance(self.route, RouteConfig), f"route must be a RouteConfig, got {self.route!r}")
+        check(isinstance(self.observation, ObservationConfig), f"observation must be an ObservationConfig, got {self.observation!r}")  # fmt: skip
+        ppo = [policy for policy in self.policies if policy.startswith(PPO_PREFIX)]
+        if not ppo and not self.reward.progress:
+            return
+        env = self.make_env(ppo[0] if ppo else self.policies[0], self.localizers[0], None)
+        sensors = env.unwrapped.sensor_metadata  # type: ignore[attr-defined]
+        observed = env.observation_space
+        assert isinstance(observed, spaces.Dict)
+        odometry = [str(meta["key"]) for meta in sensors.values() if meta.get("type") == "odometry"]
+        dropped = [key for key in odometry if key not in observed.spaces]
+        if dropped:
+            raise ConfigError(f"observation.drop removes {dropped[0]!r}, the odometry the evaluation records: keep it")
+        for policy in ppo:
+            check_observation_space(policy, load_ppo(policy[len(PPO_PREFIX) :]).observation_space, observed)
+        env.close()
+
+    def make_env(self, policy: str, localizer: str, crowd_size: int | None, render_mode: str | None = None) -> gym.Env[Any, Any]:
+        """The env of one cell of the grid: the world under these conditions with ``localizer``, the
+        active-localization reward on :attr:`route` and, for a trained (``ppo:``) ``policy``, the
+        task's :attr:`observation` (:func:`agents.rl.train.task_wrappers`, as in training)."""
+        env = gym.make(
+            self.env_id,
+            crowd_size=crowd_size,
+            localizer=localizer,
+            localizer_params=self.localizer_params.get(localizer),
+            max_episode_steps=self.episode_steps,
+            render_mode=render_mode,
+            **dict(self.env_kwargs),
+        )
+        return task_wrappers(env, self.reward, self.route, self.observation if policy.startswith(PPO_PREFIX) else None)
+
+    @functools.cached_property
+    def has_goal(self) -> bool:
+        """Whether the evaluated world ends an episode at a goal (:mod:`agents.evaluate.goal`)."""
+        return self.world().goal is not None
 
     def _check_localizer_params(self) -> None:
         """Each override names a localizer of the grid and fields its parameters have."""
@@ -175,10 +221,13 @@ class EvalSpec:
 
     @property
     def metrics(self) -> tuple[MetricInfo, ...]:
-        """The metric rows of this grid: the core ones, those of its localizers' kinds and, with a
-        kidnap, the recovery's (:data:`agents.evaluate.kidnap.KIDNAP_METRICS`)."""
-        rows = localizer_metrics(self.localizers)
-        return rows + KIDNAP_METRICS if self.kidnap is not None else rows
+        """The metric rows of this grid: the core ones, those of its localizers' kinds, with a kidnap
+        the recovery's (:data:`agents.evaluate.kidnap.KIDNAP_METRICS`) and, in a world with a goal,
+        the goal's (:data:`agents.evaluate.goal.GOAL_METRICS`), last, so that every other row but the
+        consistency ones keeps its bootstrap stream (:func:`agents.evaluate.stats.summarize` numbers
+        the consistency rows last: in a world with a goal their intervals are drawn from streams two further on)."""
+        rows = localizer_metrics(self.localizers) + (KIDNAP_METRICS if self.kidnap is not None else ())
+        return rows + GOAL_METRICS if self.has_goal else rows
 
     @property
     def eval_seeds(self) -> tuple[int, ...]:

@@ -202,11 +202,24 @@ def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: An
         localizer_params=merge_nested(config.localizer_params, extra) or None,
         **kwargs,
     )
-    env: gym.Env[Any, Any] = ActiveLocalizationReward(world, config.reward, config.route)
-    if config.observation.changes_anything:
-        env = TaskObservation(env, config.observation, config.route)
+    env = task_wrappers(world, config.reward, config.route, config.observation)
     if max_episode_steps is not None:
         env = gym.wrappers.TimeLimit(env, max_episode_steps)
+    return env
+
+
+def task_wrappers(
+    env: gym.Env[Any, Any], reward: RewardWeights, route: RouteConfig, observation: ObservationConfig | None
+) -> gym.Env[Any, Any]:
+    """``env`` (a world behind its localizer) as a task's policy meets it: the active-localization
+    reward on the task's route and, when ``observation`` changes anything, the task's observation
+    (:class:`TaskObservation`). Training (:func:`make_task_env`) and ``crowdloc eval`` (a trained
+    policy's cells with the observation; a fixed policy's with ``observation=None``, the raw
+    sensors it reads) build their envs with it.
+    """
+    env = ActiveLocalizationReward(env, reward, route)
+    if observation is not None and observation.changes_anything:
+        env = TaskObservation(env, observation, route)
     return env
 
 
