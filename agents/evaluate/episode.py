@@ -106,12 +106,13 @@ class _PPOPolicy:
         return np.asarray(action, dtype=np.float32)
 
 
-def _make_policy(cell: Cell, env: gym.Env[Any, Any]) -> Callable[[Any], NDArray[np.float32]]:
+def _make_policy(spec: EvalSpec, cell: Cell, env: gym.Env[Any, Any]) -> Callable[[Any], NDArray[np.float32]]:
     if cell.policy.startswith(PPO_PREFIX):
         return _PPOPolicy(cell.policy[len(PPO_PREFIX) :]).predict
     from agents.policies import make_policy
 
-    fixed = make_policy(cell.policy, env, seed=policy_seed(cell.seed))
+    kwargs = {"route": np.asarray(spec.route.points_m, dtype=np.float64)} if spec.drives_task_route(cell.policy) else {}
+    fixed = make_policy(cell.policy, env, seed=policy_seed(cell.seed), **kwargs)
     return lambda obs: fixed.predict(obs, deterministic=True)[0]
 
 
@@ -167,7 +168,7 @@ class _Recorder:
 def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
     """Play one episode of ``cell``; with ``frame_every > 0`` also render every that many steps."""
     env = spec.make_env(cell.policy, cell.localizer, cell.crowd_size, "rgb_array" if frame_every else None)
-    act = _make_policy(cell, env)
+    act = _make_policy(spec, cell, env)
     obs, info = env.reset(seed=cell.seed)
     base = env.unwrapped
     sensors = base.sensor_metadata  # type: ignore[attr-defined]

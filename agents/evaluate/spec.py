@@ -211,9 +211,16 @@ class EvalSpec:
         for policy in self.policies:
             check_policy(policy)
             unmet = None if policy.startswith(PPO_PREFIX) else FIXED_POLICIES[policy].unmet_need(world)
+            if unmet is not None and self.drives_task_route(policy):
+                unmet = None  # it drives the task's route, not a route of the map
             if unmet is not None:
                 raise ConfigError(f"policy {policy!r} needs {unmet[0]} and {where} has none ({unmet[1]}); "
                                   f"fixed policies it can run: {', '.join(runnable_policies(world))}")  # fmt: skip
+
+    def drives_task_route(self, policy: str) -> bool:
+        """Whether fixed policy ``policy`` drives :attr:`route`'s points (``route_follower`` when the
+        conditions give the points, as a task's config does) rather than the map's route feature."""
+        return policy == "route_follower" and bool(self.route.points_m)
 
     def world(self) -> WorldConfig:
         """The world evaluated: the id's (or ``env_kwargs["world"]``) with the conditions applied."""

@@ -39,13 +39,13 @@ def _eval_args(tmp_path: Path, *extra: str) -> list[str]:
 
 
 def test_a_room_task_policy_is_evaluated_beside_a_fixed_one_with_a_paired_verdict(tmp_path: Path, room_model: str) -> None:
-    args = build_parser(["eval"]).parse_args(_eval_args(tmp_path, "--policies", room_model, "spin", "--verdict", room_model))
+    args = build_parser(["eval"]).parse_args(_eval_args(tmp_path, "--policies", room_model, "route_follower", "--verdict", room_model))
     result = run_cli(args)
     trained = load_train_config("ppo_room_lidar")
     spec = result.spec
     assert (spec.route, spec.observation, spec.reward) == (trained.route, trained.observation, trained.reward)
     # the trained policy's cells observe the task's observation, the fixed policy's the raw LIDAR it reads
-    ppo_env, fixed_env = (spec.make_env(p, "mcl_lidar", 8) for p in (room_model, "spin"))
+    ppo_env, fixed_env = (spec.make_env(p, "mcl_lidar", 8) for p in (room_model, "route_follower"))
     ppo_keys, fixed_keys = set(ppo_env.observation_space.spaces), set(fixed_env.observation_space.spaces)
     assert {"lidar_summary", "waypoint"} <= ppo_keys and "lidar" not in ppo_keys
     assert "lidar" in fixed_keys and not {"lidar_summary", "waypoint"} & fixed_keys
@@ -57,7 +57,9 @@ def test_a_room_task_policy_is_evaluated_beside_a_fixed_one_with_a_paired_verdic
     with open(tmp_path / "verdict.csv") as f:
         rows = list(csv.DictReader(f))
     assert [r["metric"] for r in rows] == ["position_error_mean_m", "failure_rate", "first_fix_s", "collisions"]
-    assert {r["best_fixed"] for r in rows} == {"spin"} and all(r["crowd_size"] == "8" for r in rows)
+    assert {r["best_fixed"] for r in rows} == {"route_follower"} and all(r["crowd_size"] == "8" for r in rows)
+    # the room's map has no route: route_follower drives the task's square (the config's route points)
+    assert spec.drives_task_route("route_follower") and not spec.drives_task_route("patrol")
     assert "paired verdict on ppo:model" in (tmp_path / "verdict.md").read_text()
     run = (tmp_path / "run.json").read_text()
     assert '"lidar_sectors": 12' in run and '"points_m"' in run  # run.json records the observation and the route
