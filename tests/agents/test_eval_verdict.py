@@ -39,7 +39,9 @@ def _eval_args(tmp_path: Path, *extra: str) -> list[str]:
 
 
 def test_a_room_task_policy_is_evaluated_beside_a_fixed_one_with_a_paired_verdict(tmp_path: Path, room_model: str) -> None:
-    args = build_parser(["eval"]).parse_args(_eval_args(tmp_path, "--policies", room_model, "route_follower", "--verdict", room_model))
+    args = build_parser(["eval"]).parse_args(
+        _eval_args(tmp_path, "--policies", room_model, "route_follower", "--verdict", room_model)
+    )
     result = run_cli(args)
     trained = load_train_config("ppo_room_lidar")
     spec = result.spec
