@@ -28,7 +28,8 @@ def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "by type, a top view with the particles and the selected far landmarks); then evaluate the fixed policies and the "
         "shipped PPO policies x 2 localizers x 3 crowd sizes on held-out test seeds (the active-localization "
         "table), and judge each trained policy against the table's best fixed policies on fresh test seeds "
-        "(the verdict).",
+        "(the verdict); last, each world task (room, corridor, campus) briefly: its paper policy, random_walk and its "
+        "shipped PPO policy on a few test seeds.",
     )
     demo.add_argument("--steps", type=positive_int, default=3000, help="steps per (world, density) run (default 3000)")
     demo.add_argument("--seed", type=seed_int, default=0, help="seed of the env and the policy (default 0)")
@@ -51,6 +52,13 @@ def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=None,
         help="fresh test seeds, after the table's, on which the trained policies meet the best fixed "
         "policies of the table (default 100; 0 judges on the table's seeds)",
+    )
+    demo.add_argument(
+        "--task-seeds",
+        type=int,
+        default=None,
+        help="test seeds per world task (room, corridor, campus) of the last part: its paper policy, random_walk and "
+        "its shipped PPO policy (default 2; 0 skips it)",
     )
     demo.add_argument(
         "--model",
@@ -360,11 +368,14 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
 
 def _run_demo(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.demo import ACTIVE_LOCALIZERS, VERDICT_SEEDS, run_demo
+    from agents.demo_tasks import TASK_SEEDS
 
     if args.active_seeds < 0:
         parser.error(f"--active-seeds must be >= 0, got {args.active_seeds}")
     if args.verdict_seeds is not None and args.verdict_seeds < 0:
         parser.error(f"--verdict-seeds must be >= 0, got {args.verdict_seeds}")
+    if args.task_seeds is not None and args.task_seeds < 0:
+        parser.error(f"--task-seeds must be >= 0, got {args.task_seeds}")
     if args.model is not None and not args.model.is_file():
         parser.error(f"--model {args.model}: no such file")
     run_demo(
@@ -373,6 +384,7 @@ def _run_demo(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         seed=args.seed,
         active_seeds=args.active_seeds,
         verdict_seeds=VERDICT_SEEDS if args.verdict_seeds is None else args.verdict_seeds,
+        task_seeds=TASK_SEEDS if args.task_seeds is None else args.task_seeds,
         models=None if args.model is None else dict.fromkeys(ACTIVE_LOCALIZERS, args.model),
         workers=args.workers,
         overwrite=args.overwrite,

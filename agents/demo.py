@@ -22,6 +22,8 @@ evaluated by :mod:`agents.evaluate` on held-out seeds (bootstrap 95 % intervals)
 table, plots and a GIF; then the verdict on whether the policy trained for each localizer
 beats the best fixed one: the table picks the best fixed policy of each metric, and that policy
 and the trained one meet again on fresh test seeds (:data:`VERDICT_SEEDS`).
+
+Last, the world tasks of the room, the corridor and the campus, briefly (:mod:`agents.demo_tasks`).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from tqdm import tqdm
 
 import crowdloc_models
 import envs
+from agents.demo_tasks import TASK_OUTPUTS, TASK_SEEDS, tasks_section
 from agents.evaluate.metrics import beam_breakdown
 from agents.evaluate.outputs import EVAL_OUTPUTS
 from agents.policies import RandomWalk
@@ -245,6 +248,7 @@ DEMO_OUTPUTS: tuple[str, ...] = (
     "campus/campus_top.png",
     *(f"active/{pattern}" for pattern in EVAL_OUTPUTS),
     *(f"active/verdict/{name}" for name in ("episodes.csv", "summary.csv", "run.json")),
+    *TASK_OUTPUTS,
 )
 
 
@@ -258,8 +262,10 @@ def run_demo(
     workers: int | None = None,
     verdict_seeds: int = VERDICT_SEEDS,
     overwrite: bool = False,
+    task_seeds: int = TASK_SEEDS,
 ) -> Path:
-    """Part 1, the corridor, the campus and part 2; writes ``out_dir/report.md`` and prints it.
+    """Part 1, the corridor, the campus, part 2 and the world tasks (:mod:`agents.demo_tasks`, ``task_seeds``
+    test seeds each; 0 skips them); writes ``out_dir/report.md`` and prints it.
 
     ``models``: the PPO policy per localizer (default :data:`SHIPPED_MODELS`). ``out_dir`` must be
     empty or missing unless ``overwrite``, which first deletes what an earlier demo wrote there
@@ -282,6 +288,8 @@ def run_demo(
         active = run_active(out_dir / "active", seeds=active_seeds, models=models, workers=workers,
                             verdict_seeds=verdict_seeds)  # fmt: skip
         report.write_text(report.read_text() + "\n" + active)
+    if task_seeds > 0:
+        report.write_text(report.read_text() + "\n" + tasks_section(out_dir / "tasks", seeds=task_seeds, workers=workers))
     print(report.read_text())
     return report
 

@@ -256,3 +256,32 @@ def test_demo_refuses_a_folder_that_is_not_empty_and_overwrite_clears_only_the_d
 def test_make_demo_replaces_the_previous_demo() -> None:
     makefile = (Path(__file__).parents[2] / "Makefile").read_text()
     assert "\t$(VENV)/bin/crowdloc demo --overwrite\n" in makefile  # a second make demo is no surprise
+
+
+def test_the_world_tasks_part_plays_each_task_s_policies_and_its_shipped_policy_where_there_is_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """make demo's last part: each world task's paper policy and random_walk in the task's conditions, and the
+    task's PPO policy beside them where models/ holds one (here an untrained one saved for the corridor)."""
+    from stable_baselines3 import PPO
+
+    import agents.demo_tasks as demo_tasks
+    from agents.rl.train import load_train_config, make_task_env
+
+    env = make_task_env(load_train_config("ppo_corridor_targets"), 0)
+    corridor_model = tmp_path / "ppo_corridor_targets.zip"
+    PPO("MultiInputPolicy", env, n_steps=16, batch_size=16, policy_kwargs={"net_arch": [8]}, seed=0, device="cpu").save(
+        corridor_model
+    )
+    env.close()
+    monkeypatch.setattr(demo_tasks, "shipped_model", lambda task: tmp_path / f"{task}.zip")
+    section = demo_tasks.tasks_section(tmp_path / "tasks", seeds=1, workers=1, episode_steps=15)
+    for task, paper_policy in demo_tasks.WORLD_TASKS.items():
+        with open(tmp_path / "tasks" / task / "summary.csv") as f:
+            policies = [row["policy"] for row in csv.DictReader(f)]
+        has_model = task == "ppo_corridor_targets"
+        assert policies[:2] == [paper_policy, "random_walk"] and len(policies) == 2 + has_model, task
+        assert f"### `{task}`" in section
+        assert (f"No trained policy at `models/{task}.zip`" in section) is not has_model
+    assert "goal not reached" in section and "time to goal" in section  # the corridor and the campus have a goal
+    assert all(f"tasks/{task}/summary.csv" in demo_tasks.TASK_OUTPUTS for task in demo_tasks.WORLD_TASKS)
