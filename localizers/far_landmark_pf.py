@@ -247,6 +247,15 @@ def order_detections(
 
 
 @numba.njit(cache=True)
+def _pair_log_likelihood(e_r: float, det_bearing: float, dx: float, dy: float, pth: float, inv_sigma_t: float) -> float:
+    """``-0.5 d^2`` of a detection against one landmark at ``(dx, dy)`` from pose heading ``pth``, given
+    its inverse range's error ``e_r`` in standard deviations (eqs. (6)-(12))."""
+    e_t = det_bearing - (math.atan2(dy, dx) - pth)  # eq. (12), counter-clockwise from the heading
+    e_t = ((e_t + math.pi) % (2.0 * math.pi) - math.pi) * inv_sigma_t
+    return -0.5 * (e_r * e_r + e_t * e_t)
+
+
+@numba.njit(cache=True)
 def detection_log_likelihood(
     px: float, py: float, pth: float, det_type: int, det_inv_r: float, det_bearing: float,
     lm_xy: Array, type_start: IntArray, inv_sigma_r: float, inv_sigma_t: float,
@@ -261,10 +270,7 @@ def detection_log_likelihood(
         r = math.sqrt(dx * dx + dy * dy)
         if r <= 0.0:
             continue
-        e_r = (det_inv_r - 1.0 / r) * inv_sigma_r
-        e_t = det_bearing - (math.atan2(dy, dx) - pth)  # eq. (12), counter-clockwise from the heading
-        e_t = ((e_t + math.pi) % (2.0 * math.pi) - math.pi) * inv_sigma_t
-        ll = -0.5 * (e_r * e_r + e_t * e_t)
+        ll = _pair_log_likelihood((det_inv_r - 1.0 / r) * inv_sigma_r, det_bearing, dx, dy, pth, inv_sigma_t)
         if ll > best:
             best = ll
     return best
@@ -280,24 +286,59 @@ def particle_log_weights(
     log-likelihoods of the detections used (eq. (14)): with ``first_only`` the first in each
     group's order that matches (its log-likelihood at least ``log_gate``), else every one that
     matches. ``log_norm``: the Gaussians' log normalizing constant, added per detection used.
-    ``chosen`` ``(G,)``, for the last particle: the detection each group used (-1: none)."""
+    ``chosen`` ``(G,)``, for the last particle: the detection each group used (-1: none).
+
+    The same numbers as :func:`detection_log_likelihood` per detection (bit for bit), with less work: only
+    a likelihood at least ``log_gate`` is ever used, so a landmark is skipped as soon as its inverse range
+    alone (``-0.5 e_r^2 < log_gate``) or its bearing (outside a cone of the gate's bearing error, plus 1e-6 rad
+    for rounding, around the detection's direction: a cross and a dot product) rules that out, before its
+    ``atan2``; each landmark's ``1/r`` is computed once per particle (lazily: with ``first_only`` most
+    detections are never weighed). The best of the landmarks left is the same value, and one below the gate
+    is no match either way."""
     n = particles.shape[1]
     out = np.zeros(n)
     groups = starts.shape[0] - 1
+    inv_r = np.empty(lm_xy.shape[0])  # this particle's 1/r per landmark (NaN: r is not positive) ...
+    filled = np.full(lm_xy.shape[0], -1, dtype=np.int64)  # ... filled for particle filled[m]
+    cone = math.sqrt(-2.0 * log_gate) / inv_sigma_t + 1e-6  # beyond this bearing error no landmark matches
+    use_cone = cone < 0.25 * math.pi
+    sin_cone = math.sin(cone)
+    cos_b = np.cos(det_bearing)
+    sin_b = np.sin(det_bearing)
     for i in range(n):
         px = particles[0, i]
         py = particles[1, i]
         pth = particles[2, i]
+        cos_h = math.cos(pth)
+        sin_h = math.sin(pth)
         total = 0.0
         for g in range(groups):
             if i == n - 1:
                 chosen[g] = -1
             for q in range(starts[g], starts[g + 1]):
                 k = order[q]
-                ll = detection_log_likelihood(px, py, pth, det_type[k], det_inv_r[k], det_bearing[k], lm_xy, type_start,
-                                              inv_sigma_r, inv_sigma_t)  # fmt: skip
-                if ll >= log_gate:
-                    total += ll + log_norm
+                ux = cos_h * cos_b[k] - sin_h * sin_b[k]  # the detection's direction in the world
+                uy = sin_h * cos_b[k] + cos_h * sin_b[k]
+                best = -math.inf
+                for m in range(type_start[det_type[k]], type_start[det_type[k] + 1]):
+                    dx = lm_xy[m, 0] - px
+                    dy = lm_xy[m, 1] - py
+                    if filled[m] != i:
+                        filled[m] = i
+                        r = math.sqrt(dx * dx + dy * dy)
+                        inv_r[m] = 1.0 / r if r > 0.0 else math.nan
+                    if math.isnan(inv_r[m]):
+                        continue
+                    e_r = (det_inv_r[k] - inv_r[m]) * inv_sigma_r
+                    if -0.5 * (e_r * e_r) < log_gate:
+                        continue
+                    if use_cone and (ux * dx + uy * dy <= 0.0 or abs(ux * dy - uy * dx) * inv_r[m] > sin_cone):
+                        continue
+                    ll = _pair_log_likelihood(e_r, det_bearing[k], dx, dy, pth, inv_sigma_t)
+                    if ll > best:
+                        best = ll
+                if best >= log_gate:
+                    total += best + log_norm
                     if i == n - 1:
                         chosen[g] = k
                     if first_only:
@@ -334,6 +375,16 @@ def detection_distances(
 
 
 @numba.njit(cache=True)
+def _ray_in_band(offset: float, u: float, width: float, margin: float) -> tuple[float, float]:
+    """The ``rho`` for which ``offset - rho u`` lies within ``[-margin, width + margin]`` (empty: ``lo > hi``)."""
+    if u > 0.0:
+        return (offset - width - margin) / u, (offset + margin) / u
+    if u < 0.0:
+        return (offset + margin) / u, (offset - width - margin) / u
+    return (-math.inf, math.inf) if -margin <= offset <= width + margin else (math.inf, -math.inf)
+
+
+@numba.njit(cache=True)
 def position_votes(
     cx: float, cy: float, headings: Array, half_cells: int, cell_m: float, det_type: IntArray, det_inv_r: Array,
     det_bearing: Array, order: IntArray, lm_xy: Array, type_start: IntArray, inv_r_gate: float,
@@ -342,11 +393,19 @@ def position_votes(
     a detection ``(1/r, theta)`` of a landmark at ``l`` puts the robot on the ray ``l - rho (cos, sin)(theta + heading)``
     with ``1/rho`` within ``inv_r_gate`` of ``1/r``; each detection votes once for every cell (of ``cell_m``, the grid
     centred on ``(cx, cy)``) one of its same-type landmarks puts the robot in. A cell's votes: how many detections
-    it explains."""
+    it explains.
+
+    ``rho`` walks the ray in steps of half a cell from where it may come within ``1.5 (half_cells + 1)`` cells of the
+    centre; the steps outside the grid (widened by a cell against rounding: the ray's slab intersection) only advance
+    ``rho``, by the same additions, and a ray that misses the grid takes none: the same cells, fewer operations."""
     n = 2 * half_cells + 1
     ox = cx - (half_cells + 0.5) * cell_m
     oy = cy - (half_cells + 0.5) * cell_m
     reach = (half_cells + 1) * cell_m * 1.5
+    width = n * cell_m
+    dist = np.empty(lm_xy.shape[0])  # each landmark's distance from the centre, at every heading and detection
+    for m in range(lm_xy.shape[0]):
+        dist[m] = math.hypot(lm_xy[m, 0] - cx, lm_xy[m, 1] - cy)
     votes = np.zeros((headings.shape[0], n, n), dtype=np.int64)
     stamp = np.empty((n, n), dtype=np.int64)
     for h in range(headings.shape[0]):
@@ -363,10 +422,17 @@ def position_votes(
             for m in range(type_start[t], type_start[t + 1]):
                 lx = lm_xy[m, 0]
                 ly = lm_xy[m, 1]
-                d = math.hypot(lx - cx, ly - cy)
-                rho = max(rho_lo, d - reach)
-                hi = min(rho_hi, d + reach)
-                while rho <= hi:
+                rho = max(rho_lo, dist[m] - reach)
+                hi = min(rho_hi, dist[m] + reach)
+                x_lo, x_hi = _ray_in_band(lx - ox, ux, width, cell_m)
+                y_lo, y_hi = _ray_in_band(ly - oy, uy, width, cell_m)
+                enter = max(x_lo, y_lo)
+                hi_in = min(hi, x_hi, y_hi)
+                if max(rho, enter) > hi_in:
+                    continue  # no step of this ray lands in the grid
+                while rho < enter:
+                    rho += 0.5 * cell_m
+                while rho <= hi_in:
                     i = int(math.floor((lx - rho * ux - ox) / cell_m))
                     j = int(math.floor((ly - rho * uy - oy) / cell_m))
                     if 0 <= i < n and 0 <= j < n and stamp[i, j] != q:
