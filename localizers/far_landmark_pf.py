@@ -355,13 +355,17 @@ def detection_distances(
     """``(K,)`` for the detections ``order``, seen from pose ``(px, py, pth)``: the Mahalanobis distance
     (in ``(1/r, theta)``) to the nearest same-type landmark (eq. (13)'s best; inf without one); NaN for a
     detection with no landmark of any type within ``cover_rad`` of its bearing (a direction the mapping
-    drive never looked in, which says nothing about the pose)."""
+    drive never looked in, which says nothing about the pose). Each landmark's bearing from the pose is computed
+    once, not once per detection."""
     out = np.empty(order.shape[0])
+    seen_at = np.empty(lm_xy.shape[0])  # each landmark's atan2 - pth, the same for every detection
+    for m in range(lm_xy.shape[0]):
+        seen_at[m] = math.atan2(lm_xy[m, 1] - py, lm_xy[m, 0] - px) - pth
     for q in range(order.shape[0]):
         k = order[q]
         covered = False
         for m in range(lm_xy.shape[0]):
-            e = det_bearing[k] - (math.atan2(lm_xy[m, 1] - py, lm_xy[m, 0] - px) - pth)
+            e = det_bearing[k] - seen_at[m]
             if abs((e + math.pi) % (2.0 * math.pi) - math.pi) <= cover_rad:
                 covered = True
                 break

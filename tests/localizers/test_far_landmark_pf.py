@@ -32,6 +32,7 @@ from localizers.far_landmark_pf import (
     SELECTIONS,
     FarLandmarkParams,
     FarLandmarkPF,
+    detection_distances,
     detection_log_likelihood,
     order_detections,
     particle_log_weights,
@@ -172,6 +173,25 @@ def reference_position_votes(
     return votes
 
 
+@numba.njit(cache=True)
+def reference_detection_distances(
+    px: float, py: float, pth: float, det_type: np.ndarray, det_inv_r: np.ndarray, det_bearing: np.ndarray,
+    order: np.ndarray, lm_xy: np.ndarray, type_start: np.ndarray, inv_sigma_r: float, inv_sigma_t: float, cover_rad: float,
+) -> np.ndarray:  # fmt: skip
+    """:func:`detection_distances` as first written: every landmark's bearing computed again for every detection."""
+    out = np.empty(order.shape[0])
+    for q in range(order.shape[0]):
+        k = order[q]
+        covered = False
+        for m in range(lm_xy.shape[0]):
+            e = det_bearing[k] - (math.atan2(lm_xy[m, 1] - py, lm_xy[m, 0] - px) - pth)
+            covered = covered or abs((e + math.pi) % (2.0 * math.pi) - math.pi) <= cover_rad
+        ll = detection_log_likelihood(px, py, pth, det_type[k], det_inv_r[k], det_bearing[k], lm_xy, type_start,
+                                      inv_sigma_r, inv_sigma_t)  # fmt: skip
+        out[q] = (math.sqrt(-2.0 * ll) if ll > -math.inf else math.inf) if covered else math.nan
+    return out
+
+
 def random_frame(rng: np.random.Generator, landmarks: int, detections: int) -> tuple[np.ndarray, ...]:
     """Landmarks of random types in a 60 m square, their type-grouped ``(xy, type_start)``, the pose
     ``(30, 30, heading)`` and detections of them seen from it (noise of the filter's size), half of them
@@ -208,6 +228,18 @@ def test_particle_log_weights_is_bit_identical_to_the_plain_kernel(seed: int) ->
         assert (expected != 0.0).sum() > 100  # detections match: the comparison is about numbers, not zeros
         np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))  # bit for bit
         np.testing.assert_array_equal(chosen, expected_chosen)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_detection_distances_are_those_of_the_plain_kernel(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    lm_xy, type_start, pose, types, inv_r, bearings = random_frame(rng, 100, 60)
+    order, _ = order_detections(inv_r, bearings, math.radians(30.0), 3.0, "all")
+    for heading in (pose[2], pose[2] + 4.0 * math.pi):
+        args = (pose[0], pose[1], heading, types, inv_r, bearings, order, lm_xy, type_start, 1 / 0.005, 1 / 0.01, 0.02)
+        got, expected = detection_distances(*args), reference_detection_distances(*args)
+        assert np.isfinite(expected).sum() >= 5 and np.isnan(expected).any()  # near ones, far ones, uncovered ones
+        np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))
 
 
 @pytest.mark.parametrize("seed", range(4))
