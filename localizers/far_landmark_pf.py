@@ -75,7 +75,6 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -95,6 +94,7 @@ from localizers.base import (
     within_spread,
 )
 from localizers.contradiction import ContradictionClock
+from localizers.far_landmark_kernels import detection_distances, particle_log_weights, position_votes
 from localizers.particles import (
     MAX_PARTICLES,
     PARTICLE_MEMORY,
@@ -244,136 +244,6 @@ def order_detections(
     bounds = np.flatnonzero(np.diff(sector)) + 1
     starts = np.concatenate([[0], bounds, [keep.size]]).astype(np.int64)
     return keep[order].astype(np.int64), starts
-
-
-@numba.njit(cache=True)
-def detection_log_likelihood(
-    px: float, py: float, pth: float, det_type: int, det_inv_r: float, det_bearing: float,
-    lm_xy: Array, type_start: IntArray, inv_sigma_r: float, inv_sigma_t: float,
-) -> float:  # fmt: skip
-    """Eq. (13): the largest log-likelihood ``-0.5 d^2`` (without the normalizing constant) over
-    the same-type map landmarks of a detection seen from pose ``(px, py, pth)``, ``d`` the
-    Mahalanobis distance in ``(1/r, theta)``; ``-inf`` without such a landmark."""
-    best = -math.inf
-    for m in range(type_start[det_type], type_start[det_type + 1]):
-        dx = lm_xy[m, 0] - px
-        dy = lm_xy[m, 1] - py
-        r = math.sqrt(dx * dx + dy * dy)
-        if r <= 0.0:
-            continue
-        e_r = (det_inv_r - 1.0 / r) * inv_sigma_r
-        e_t = det_bearing - (math.atan2(dy, dx) - pth)  # eq. (12), counter-clockwise from the heading
-        e_t = ((e_t + math.pi) % (2.0 * math.pi) - math.pi) * inv_sigma_t
-        ll = -0.5 * (e_r * e_r + e_t * e_t)
-        if ll > best:
-            best = ll
-    return best
-
-
-@numba.njit(cache=True)
-def particle_log_weights(
-    particles: Array, det_type: IntArray, det_inv_r: Array, det_bearing: Array, order: IntArray, starts: IntArray,
-    first_only: bool, lm_xy: Array, type_start: IntArray, inv_sigma_r: float, inv_sigma_t: float, log_gate: float,
-    log_norm: float, chosen: IntArray,
-) -> Array:  # fmt: skip
-    """``(N,)`` each particle's log-weight change: the sum, over the groups (sectors), of the
-    log-likelihoods of the detections used (eq. (14)): with ``first_only`` the first in each
-    group's order that matches (its log-likelihood at least ``log_gate``), else every one that
-    matches. ``log_norm``: the Gaussians' log normalizing constant, added per detection used.
-    ``chosen`` ``(G,)``, for the last particle: the detection each group used (-1: none)."""
-    n = particles.shape[1]
-    out = np.zeros(n)
-    groups = starts.shape[0] - 1
-    for i in range(n):
-        px = particles[0, i]
-        py = particles[1, i]
-        pth = particles[2, i]
-        total = 0.0
-        for g in range(groups):
-            if i == n - 1:
-                chosen[g] = -1
-            for q in range(starts[g], starts[g + 1]):
-                k = order[q]
-                ll = detection_log_likelihood(px, py, pth, det_type[k], det_inv_r[k], det_bearing[k], lm_xy, type_start,
-                                              inv_sigma_r, inv_sigma_t)  # fmt: skip
-                if ll >= log_gate:
-                    total += ll + log_norm
-                    if i == n - 1:
-                        chosen[g] = k
-                    if first_only:
-                        break
-        out[i] = total
-    return out
-
-
-@numba.njit(cache=True)
-def detection_distances(
-    px: float, py: float, pth: float, det_type: IntArray, det_inv_r: Array, det_bearing: Array, order: IntArray,
-    lm_xy: Array, type_start: IntArray, inv_sigma_r: float, inv_sigma_t: float, cover_rad: float,
-) -> Array:  # fmt: skip
-    """``(K,)`` for the detections ``order``, seen from pose ``(px, py, pth)``: the Mahalanobis distance
-    (in ``(1/r, theta)``) to the nearest same-type landmark (eq. (13)'s best; inf without one); NaN for a
-    detection with no landmark of any type within ``cover_rad`` of its bearing (a direction the mapping
-    drive never looked in, which says nothing about the pose)."""
-    out = np.empty(order.shape[0])
-    for q in range(order.shape[0]):
-        k = order[q]
-        covered = False
-        for m in range(lm_xy.shape[0]):
-            e = det_bearing[k] - (math.atan2(lm_xy[m, 1] - py, lm_xy[m, 0] - px) - pth)
-            if abs((e + math.pi) % (2.0 * math.pi) - math.pi) <= cover_rad:
-                covered = True
-                break
-        if not covered:
-            out[q] = math.nan
-            continue
-        ll = detection_log_likelihood(px, py, pth, det_type[k], det_inv_r[k], det_bearing[k], lm_xy, type_start,
-                                      inv_sigma_r, inv_sigma_t)  # fmt: skip
-        out[q] = math.sqrt(-2.0 * ll) if ll > -math.inf else math.inf
-    return out
-
-
-@numba.njit(cache=True)
-def position_votes(
-    cx: float, cy: float, headings: Array, half_cells: int, cell_m: float, det_type: IntArray, det_inv_r: Array,
-    det_bearing: Array, order: IntArray, lm_xy: Array, type_start: IntArray, inv_r_gate: float,
-) -> IntArray:  # fmt: skip
-    """Hough votes for the robot's position, ``(H, 2 half_cells + 1, 2 half_cells + 1)``: at heading ``headings[h]``,
-    a detection ``(1/r, theta)`` of a landmark at ``l`` puts the robot on the ray ``l - rho (cos, sin)(theta + heading)``
-    with ``1/rho`` within ``inv_r_gate`` of ``1/r``; each detection votes once for every cell (of ``cell_m``, the grid
-    centred on ``(cx, cy)``) one of its same-type landmarks puts the robot in. A cell's votes: how many detections
-    it explains."""
-    n = 2 * half_cells + 1
-    ox = cx - (half_cells + 0.5) * cell_m
-    oy = cy - (half_cells + 0.5) * cell_m
-    reach = (half_cells + 1) * cell_m * 1.5
-    votes = np.zeros((headings.shape[0], n, n), dtype=np.int64)
-    stamp = np.empty((n, n), dtype=np.int64)
-    for h in range(headings.shape[0]):
-        stamp[:, :] = -1
-        for q in range(order.shape[0]):
-            k = order[q]
-            inv = det_inv_r[k]
-            rho_lo = 1.0 / (inv + inv_r_gate)
-            rho_hi = 1.0 / (inv - inv_r_gate) if inv > inv_r_gate else 1e9
-            a = det_bearing[k] + headings[h]
-            ux = math.cos(a)
-            uy = math.sin(a)
-            t = det_type[k]
-            for m in range(type_start[t], type_start[t + 1]):
-                lx = lm_xy[m, 0]
-                ly = lm_xy[m, 1]
-                d = math.hypot(lx - cx, ly - cy)
-                rho = max(rho_lo, d - reach)
-                hi = min(rho_hi, d + reach)
-                while rho <= hi:
-                    i = int(math.floor((lx - rho * ux - ox) / cell_m))
-                    j = int(math.floor((ly - rho * uy - oy) / cell_m))
-                    if 0 <= i < n and 0 <= j < n and stamp[i, j] != q:
-                        stamp[i, j] = q
-                        votes[h, i, j] += 1
-                    rho += 0.5 * cell_m
-    return votes
 
 
 class FarLandmarkPF:

@@ -3,10 +3,12 @@ file and world, bad input, and tracking the campus route."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
 import gymnasium as gym
+import numba
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -26,16 +28,12 @@ from localizers.base import (
     OdometryDelta,
     PoseEstimate,
 )
-from localizers.far_landmark_pf import (
-    FarLandmarkParams,
-    FarLandmarkPF,
-    detection_log_likelihood,
-    order_detections,
-    particle_log_weights,
-)
+from localizers.far_landmark_kernels import detection_distances, detection_log_likelihood, particle_log_weights, position_votes
+from localizers.far_landmark_pf import SELECTIONS, FarLandmarkParams, FarLandmarkPF, order_detections
 from localizers.scene_map import SceneMap, geometry_fingerprint
 from localizers.schema import ConfigError
 from localizers.stereo_vision import edge_type
+from tests.pinning import PINNED_DIR, assert_same_numbers
 
 CAMPUS = "crowdloc/StereoCampus-v0"
 SQUARE = LandmarkMap(np.zeros((0, 2)), (), (0.0, 0.0, 50.0, 50.0), np.array([[0.0, 0.0, 50.0, 0.0]]), {})
@@ -89,6 +87,165 @@ def test_a_detection_beyond_the_gate_is_a_mismatch_and_weighs_nothing() -> None:
     assert near[0] == pytest.approx(7.0 - 0.5 * 4.0) and chosen[0] == 0
     far = particle_log_weights(particles, np.array([2]), np.array([0.1]), np.array([0.05]), *args)  # 5 sd: rejected
     assert far[0] == 0.0 and chosen[0] == -1
+
+
+# ------------------------------------------------------------------ the kernels' savings change no number
+
+
+@numba.njit(cache=True)
+def reference_particle_log_weights(
+    particles: np.ndarray, det_type: np.ndarray, det_inv_r: np.ndarray, det_bearing: np.ndarray, order: np.ndarray,
+    starts: np.ndarray, first_only: bool, lm_xy: np.ndarray, type_start: np.ndarray, inv_sigma_r: float,
+    inv_sigma_t: float, log_gate: float, log_norm: float, chosen: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """:func:`particle_log_weights` as first written: every same-type landmark's likelihood for every detection weighed."""
+    n = particles.shape[1]
+    out = np.zeros(n)
+    for i in range(n):
+        total = 0.0
+        for g in range(starts.shape[0] - 1):
+            if i == n - 1:
+                chosen[g] = -1
+            for q in range(starts[g], starts[g + 1]):
+                k = order[q]
+                best = -math.inf
+                for m in range(type_start[det_type[k]], type_start[det_type[k] + 1]):
+                    dx = lm_xy[m, 0] - particles[0, i]
+                    dy = lm_xy[m, 1] - particles[1, i]
+                    r = math.sqrt(dx * dx + dy * dy)
+                    if r <= 0.0:
+                        continue
+                    e_r = (det_inv_r[k] - 1.0 / r) * inv_sigma_r
+                    e_t = det_bearing[k] - (math.atan2(dy, dx) - particles[2, i])
+                    e_t = ((e_t + math.pi) % (2.0 * math.pi) - math.pi) * inv_sigma_t
+                    best = max(best, -0.5 * (e_r * e_r + e_t * e_t))
+                if best >= log_gate:
+                    total += best + log_norm
+                    if i == n - 1:
+                        chosen[g] = k
+                    if first_only:
+                        break
+        out[i] = total
+    return out
+
+
+@numba.njit(cache=True)
+def reference_position_votes(
+    cx: float, cy: float, headings: np.ndarray, half_cells: int, cell_m: float, det_type: np.ndarray,
+    det_inv_r: np.ndarray, det_bearing: np.ndarray, order: np.ndarray, lm_xy: np.ndarray, type_start: np.ndarray,
+    inv_r_gate: float,
+) -> np.ndarray:  # fmt: skip
+    """:func:`position_votes` as first written: every ray walked over its whole reach."""
+    n = 2 * half_cells + 1
+    ox = cx - (half_cells + 0.5) * cell_m
+    oy = cy - (half_cells + 0.5) * cell_m
+    reach = (half_cells + 1) * cell_m * 1.5
+    votes = np.zeros((headings.shape[0], n, n), dtype=np.int64)
+    stamp = np.empty((n, n), dtype=np.int64)
+    for h in range(headings.shape[0]):
+        stamp[:, :] = -1
+        for q in range(order.shape[0]):
+            k = order[q]
+            inv = det_inv_r[k]
+            rho_hi = 1.0 / (inv - inv_r_gate) if inv > inv_r_gate else 1e9
+            ux = math.cos(det_bearing[k] + headings[h])
+            uy = math.sin(det_bearing[k] + headings[h])
+            for m in range(type_start[det_type[k]], type_start[det_type[k] + 1]):
+                lx = lm_xy[m, 0]
+                ly = lm_xy[m, 1]
+                d = math.hypot(lx - cx, ly - cy)
+                rho = max(1.0 / (inv + inv_r_gate), d - reach)
+                while rho <= min(rho_hi, d + reach):
+                    i = int(math.floor((lx - rho * ux - ox) / cell_m))
+                    j = int(math.floor((ly - rho * uy - oy) / cell_m))
+                    if 0 <= i < n and 0 <= j < n and stamp[i, j] != q:
+                        stamp[i, j] = q
+                        votes[h, i, j] += 1
+                    rho += 0.5 * cell_m
+    return votes
+
+
+@numba.njit(cache=True)
+def reference_detection_distances(
+    px: float, py: float, pth: float, det_type: np.ndarray, det_inv_r: np.ndarray, det_bearing: np.ndarray,
+    order: np.ndarray, lm_xy: np.ndarray, type_start: np.ndarray, inv_sigma_r: float, inv_sigma_t: float, cover_rad: float,
+) -> np.ndarray:  # fmt: skip
+    """:func:`detection_distances` as first written: every landmark's bearing computed again for every detection."""
+    out = np.empty(order.shape[0])
+    for q in range(order.shape[0]):
+        k = order[q]
+        covered = False
+        for m in range(lm_xy.shape[0]):
+            e = det_bearing[k] - (math.atan2(lm_xy[m, 1] - py, lm_xy[m, 0] - px) - pth)
+            covered = covered or abs((e + math.pi) % (2.0 * math.pi) - math.pi) <= cover_rad
+        ll = detection_log_likelihood(px, py, pth, det_type[k], det_inv_r[k], det_bearing[k], lm_xy, type_start,
+                                      inv_sigma_r, inv_sigma_t)  # fmt: skip
+        out[q] = (math.sqrt(-2.0 * ll) if ll > -math.inf else math.inf) if covered else math.nan
+    return out
+
+
+def random_frame(rng: np.random.Generator, landmarks: int, detections: int) -> tuple[np.ndarray, ...]:
+    """Landmarks of random types in a 60 m square, their type-grouped ``(xy, type_start)``, the pose
+    ``(30, 30, heading)`` and detections of them seen from it (noise of the filter's size), half of them
+    clutter: ``(lm_xy, type_start, pose, types, inverse ranges, bearings)``."""
+    types = rng.integers(0, 30, landmarks)
+    lm_xy, type_start = grouped(types, rng.uniform(0.0, 60.0, (landmarks, 2)))
+    lm_types = np.repeat(np.arange(30), np.diff(type_start))
+    pose = np.array([30.0, 30.0, rng.uniform(-math.pi, math.pi)])
+    seen = rng.integers(0, landmarks, detections)
+    rel = lm_xy[seen] - pose[:2]
+    inv_r = 1.0 / np.hypot(rel[:, 0], rel[:, 1]) + rng.normal(0.0, 0.005, detections)
+    bearings = np.arctan2(rel[:, 1], rel[:, 0]) - pose[2] + rng.normal(0.0, 0.01, detections)
+    clutter = rng.random(detections) < 0.5
+    inv_r[clutter] = rng.uniform(0.01, 0.3, clutter.sum())
+    bearings[clutter] = rng.uniform(-math.pi, math.pi, clutter.sum())
+    bearings = (bearings + math.pi) % (2.0 * math.pi) - math.pi
+    return lm_xy, type_start, pose, lm_types[seen], np.abs(inv_r) + 1e-3, bearings
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_particle_log_weights_is_bit_identical_to_the_plain_kernel(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    lm_xy, type_start, pose, types, inv_r, bearings = random_frame(rng, 150, 60)
+    particles = pose[:, None] + rng.normal(0.0, 1.0, (3, 300)) * np.array([[0.5], [0.5], [0.05]])
+    if seed % 2:  # headings a few turns off (no span of headings to prune by)
+        particles[2, :50] += 2.0 * math.pi * rng.integers(-3, 4, 50)
+    particles[:2, 50] = lm_xy[0]  # a particle on a landmark (r = 0: that landmark is skipped)
+    gate = [3.0, 3.0, 100.0][seed % 3]  # 100 sd: a gate wider than the bearing cone the kernel skips by
+    for selection in SELECTIONS:
+        order, starts = order_detections(inv_r, bearings, math.radians(30.0), 3.0, selection)
+        args = (particles, types, inv_r, bearings, order, starts, selection != "all", lm_xy, type_start, 1 / 0.005,
+                1 / 0.01, -0.5 * gate**2, 7.0)  # fmt: skip
+        chosen, expected_chosen = np.full(starts.size - 1, -9), np.full(starts.size - 1, -9)
+        got, expected = particle_log_weights(*args, chosen), reference_particle_log_weights(*args, expected_chosen)
+        assert (expected != 0.0).sum() > 100  # detections match: the comparison is about numbers, not zeros
+        np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))  # bit for bit
+        np.testing.assert_array_equal(chosen, expected_chosen)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_detection_distances_are_those_of_the_plain_kernel(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    lm_xy, type_start, pose, types, inv_r, bearings = random_frame(rng, 100, 60)
+    order, _ = order_detections(inv_r, bearings, math.radians(30.0), 3.0, "all")
+    for heading in (pose[2], pose[2] + 4.0 * math.pi):
+        args = (pose[0], pose[1], heading, types, inv_r, bearings, order, lm_xy, type_start, 1 / 0.005, 1 / 0.01, 0.02)
+        got, expected = detection_distances(*args), reference_detection_distances(*args)
+        assert np.isfinite(expected).sum() >= 5 and np.isnan(expected).any()  # near ones, far ones, uncovered ones
+        np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_position_votes_are_those_of_the_plain_kernel(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    lm_xy, type_start, pose, types, inv_r, bearings = random_frame(rng, 200, 40)
+    bearings[0] = -pose[2]  # a ray along the x axis at the middle heading (a sine of exactly 0)
+    headings = pose[2] + np.arange(-5, 6) * 0.02
+    order, _ = order_detections(inv_r, bearings, math.radians(30.0), 3.0, "all")
+    args = (pose[0] + 1.3, pose[1] - 0.7, headings, 12, 0.5, types, inv_r, bearings, order, lm_xy, type_start, 0.015)
+    votes = position_votes(*args)
+    assert votes.max() >= 5  # the true pose's cell gathers its detections' votes
+    np.testing.assert_array_equal(votes, reference_position_votes(*args))
 
 
 # ------------------------------------------------------------------ far emphasis
@@ -395,6 +552,24 @@ def test_a_map_from_the_reference_keeps_its_pose_covariances_and_one_from_the_tr
     assert reference.scene_count >= 2 and (variances > 0).all()  # the LIDAR reference's own uncertainty
     truth = build_scene_map("stereo_campus", MappingDrive(seed=0, crowd_size=0, max_steps=60, pose="truth"))
     np.testing.assert_array_equal(truth.pose_covariances, np.zeros((truth.scene_count, 3, 3)))
+
+
+def test_a_seeded_crowded_campus_run_keeps_the_estimates_pinned_before_the_kernels_savings() -> None:
+    """200 steps of random actions in a crowd of 100 on the default map: the estimates and the searches (lost, the
+    filter searches the scene map) as recorded by the code before :func:`particle_log_weights` and
+    :func:`position_votes` skipped work (commit 73d36e4; a speed-up changes no number: never re-record)."""
+    pinned = json.loads((PINNED_DIR / "far_landmark_pf_campus.json").read_text())
+    env = gym.make(CAMPUS, crowd_size=100, localizer="far_landmark_pf")
+    env.reset(seed=3)
+    estimates = []
+    for action in np.random.default_rng(3).uniform(-1.0, 1.0, size=(200, 2)).astype(np.float32):
+        _, _, terminated, truncated, info = env.step(action)
+        e = info["estimate"]
+        estimates.append([e.x_m, e.y_m, e.theta_rad, e.valid])
+    run = {"searches": env.get_wrapper_attr("localizer").searches, "estimates": estimates}
+    env.close()
+    assert pinned["searches"] > 10  # the re-localization ran: position_votes and the refinement are covered
+    assert_same_numbers(pinned, run, "far_landmark_pf_campus")
 
 
 def test_gym_make_builds_and_caches_the_default_map() -> None:
