@@ -82,7 +82,7 @@ def test_a_detection_beyond_the_gate_is_a_mismatch_and_weighs_nothing() -> None:
     lm_xy, starts = grouped(np.array([2]), np.array([[10.0, 0.0]]))
     particles = np.zeros((3, 1))
     chosen = np.full(1, -1, dtype=np.int64)
-    args = (np.array([0, 1]), np.array([0, 1], dtype=np.int64), True, lm_xy, starts, 1 / 0.005, 1 / 0.01, -0.5 * 9.0, 7.0, chosen)
+    args = (np.array([0]), np.array([0, 1], dtype=np.int64), True, lm_xy, starts, 1 / 0.005, 1 / 0.01, -0.5 * 9.0, 7.0, chosen)
     near = particle_log_weights(particles, np.array([2]), np.array([0.1]), np.array([0.02]), *args)  # 2 sd: matches
     assert near[0] == pytest.approx(7.0 - 0.5 * 4.0) and chosen[0] == 0
     far = particle_log_weights(particles, np.array([2]), np.array([0.1]), np.array([0.05]), *args)  # 5 sd: rejected
