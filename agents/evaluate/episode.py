@@ -52,7 +52,7 @@ import agents.evaluate.metrics as metrics
 from agents.evaluate.goal import goal_metrics
 from agents.evaluate.kidnap import KIDNAP_SALT, kidnap_metrics
 from agents.evaluate.plugins import EpisodeContext, MetricPlugin, Track, localizer_kind, metric_plugins
-from agents.evaluate.spec import PPO_PREFIX, Cell, EvalSpec, load_ppo, policy_seed
+from agents.evaluate.spec import PPO_PREFIX, Cell, EvalSpec, load_ppo, odometry_key_of, policy_seed
 from agents.experiments.scenarios import kidnap as carry_away
 from localizers.registry import spec as localizer_spec
 
@@ -116,13 +116,6 @@ def _make_policy(spec: EvalSpec, cell: Cell, env: gym.Env[Any, Any]) -> Callable
     return lambda obs: fixed.predict(obs, deterministic=True)[0]
 
 
-def _odometry_key(sensors: Mapping[str, Mapping[str, Any]]) -> str:
-    keys = [str(meta["key"]) for meta in sensors.values() if meta.get("type") == "odometry"]
-    if len(keys) != 1:
-        raise ValueError(f"an evaluated world needs exactly one odometry sensor, found {len(keys)}")
-    return keys[0]
-
-
 _NO_COVARIANCE = np.full((3, 3), np.nan)
 
 
@@ -173,7 +166,7 @@ def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
     base = env.unwrapped
     sensors = base.sensor_metadata  # type: ignore[attr-defined]
     context = EpisodeContext(sensors, base.landmark_map, float(base.config.dt_s), spec.known_start(cell.localizer))  # type: ignore[attr-defined]
-    odometry_key = _odometry_key(sensors)
+    odometry_key = odometry_key_of(sensors)
     recorder = _Recorder(
         metric_plugins(localizer_kind(cell.localizer, sensors)), context, localizer_spec(cell.localizer).covariance
     )

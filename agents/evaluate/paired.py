@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from agents.evaluate.outputs import write_csv
 from agents.evaluate.spec import PPO_PREFIX, Cell, EvalSpec
-from agents.evaluate.stats import EvalResult, bootstrap_ci
+from agents.evaluate.stats import EvalResult, Stat
 from localizers.schema import ConfigError, check
 
 #: the metrics of the verdict (every one lower-is-better), in table order
@@ -47,14 +47,9 @@ _PAIRED_SALT = 0x9A12ED
 
 
 @dataclass(frozen=True)
-class PairedDifference:
-    """The mean over seeds of a per-seed difference ``A - B``, its bootstrap 95 % interval and how
-    many seeds had both values (``n``; NaN mean and interval when none did)."""
-
-    mean: float
-    low: float
-    high: float
-    n: int
+class PairedDifference(Stat):
+    """The :class:`~agents.evaluate.stats.Stat` of a per-seed difference ``A - B``: its mean over seeds, its
+    bootstrap 95 % interval and how many seeds had both values (``n``; NaN mean and interval when none did)."""
 
     @property
     def outcome(self) -> int:
@@ -73,9 +68,8 @@ def paired_difference(a: ArrayLike, b: ArrayLike, *, resamples: int, rng: np.ran
     x, y = np.asarray(a, dtype=np.float64).reshape(-1), np.asarray(b, dtype=np.float64).reshape(-1)
     if x.shape != y.shape:
         raise ValueError(f"paired_difference needs one value of each per seed, got {x.size} and {y.size}")
-    d = (x - y)[np.isfinite(x) & np.isfinite(y)]
-    low, high = bootstrap_ci(d, resamples, rng=rng)
-    return PairedDifference(float(d.mean()) if d.size else math.nan, low, high, int(d.size))
+    both = np.isfinite(x) & np.isfinite(y)
+    return PairedDifference.of(np.where(both, x - y, math.nan), resamples, rng)  # over the seeds where both are finite
 
 
 @dataclass(frozen=True)

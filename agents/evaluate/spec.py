@@ -136,16 +136,16 @@ class EvalSpec:
         if not ppo and not self.reward.progress:
             return
         env = self.make_env(ppo[0] if ppo else self.policies[0], self.localizers[0], None)
-        sensors = env.unwrapped.sensor_metadata  # type: ignore[attr-defined]
-        observed = env.observation_space
-        assert isinstance(observed, spaces.Dict)
-        odometry = [str(meta["key"]) for meta in sensors.values() if meta.get("type") == "odometry"]
-        dropped = [key for key in odometry if key not in observed.spaces]
-        if dropped:
-            raise ConfigError(f"observation.drop removes {dropped[0]!r}, the odometry the evaluation records: keep it")
-        for policy in ppo:
-            check_observation_space(policy, load_ppo(policy[len(PPO_PREFIX) :]).observation_space, observed)
-        env.close()
+        try:
+            observed = env.observation_space
+            assert isinstance(observed, spaces.Dict)
+            odometry = odometry_key_of(env.unwrapped.sensor_metadata)  # type: ignore[attr-defined]
+            if odometry not in observed.spaces:
+                raise ConfigError(f"observation.drop removes {odometry!r}, the odometry the evaluation records: keep it")
+            for policy in ppo:
+                check_observation_space(policy, load_ppo(policy[len(PPO_PREFIX) :]).observation_space, observed)
+        finally:
+            env.close()
 
     def make_env(self, policy: str, localizer: str, crowd_size: int | None, render_mode: str | None = None) -> gym.Env[Any, Any]:
         """The env of one cell of the grid: the world under these conditions with ``localizer``, the
@@ -304,6 +304,14 @@ def crowdloc_ids() -> list[str]:
 
 
 _TRAINING_CONDITIONS = "evaluate it in its training conditions (crowdloc eval --conditions <its training config>)"
+
+
+def odometry_key_of(sensors: Mapping[str, Mapping[str, Any]]) -> str:
+    """The observation key of the one odometry sensor among an env's ``sensor_metadata`` (what an episode records)."""
+    keys = [str(meta["key"]) for meta in sensors.values() if meta.get("type") == "odometry"]
+    if len(keys) != 1:
+        raise ValueError(f"an evaluated world needs exactly one odometry sensor, found {len(keys)}")
+    return keys[0]
 
 
 def check_observation_space(policy: str, expected: spaces.Space[Any], given: spaces.Space[Any],

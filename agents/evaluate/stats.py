@@ -7,7 +7,7 @@ import math
 import time
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -49,7 +49,7 @@ class Stat:
     n: int
 
     @classmethod
-    def of(cls, values: ArrayLike, resamples: int, rng: np.random.Generator) -> Stat:
+    def of(cls, values: ArrayLike, resamples: int, rng: np.random.Generator) -> Self:
         """The mean of the finite ``values``, its :func:`bootstrap_ci` and their count."""
         v = np.asarray(values, dtype=np.float64).reshape(-1)
         finite = v[np.isfinite(v)]
