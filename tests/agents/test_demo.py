@@ -201,7 +201,8 @@ def test_every_shipped_policy_was_trained_in_the_conditions_the_demo_evaluates()
 
 
 @pytest.mark.parametrize(("args", "message"), [(["--active-seeds", "-1"], "--active-seeds must be >= 0, got -1"),
-                                               (["--verdict-seeds", "-3"], "--verdict-seeds must be >= 0, got -3")])  # fmt: skip
+                                               (["--verdict-seeds", "-3"], "--verdict-seeds must be >= 0, got -3"),
+                                               (["--task-seeds", "-2"], "--task-seeds must be >= 0, got -2")])  # fmt: skip
 def test_demo_refuses_negative_seed_counts(args: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
     from agents.cli import main
 
