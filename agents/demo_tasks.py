@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 
 #: the world tasks and the paper policy each is measured against
 WORLD_TASKS = {
-    "ppo_room_lidar": "route_follower",  # drives the task's square on the estimate (the room's map has no route)
+    "ppo_room_lidar": "look_then_route",  # turns twice (the start is unknown), then drives the task's square on the estimate
     "ppo_corridor_targets": "corridor_follower",  # the ceiling paper's stop-and-correct drive
     "ppo_campus_stereo": "route_follower",  # the stereo paper's route, pure pursuit on the estimate
 }

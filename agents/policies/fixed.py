@@ -19,7 +19,9 @@ the estimate need the wrapped observation and say so when it is missing.
   side sonars, stopping under each target to correct the pose (:mod:`agents.policies.navigation`).
 - :class:`~agents.policies.route_following.RouteFollower` (``"route_follower"``): pure pursuit along
   the world's route (a ``route`` feature of the map), stopping for obstacles its LIDAR or
-  sonar sees ahead (:mod:`agents.policies.route_following`).
+  sonar sees ahead (:mod:`agents.policies.route_following`); ``"look_then_route"``
+  (:class:`~agents.policies.route_following.LookThenRoute`) turns in place twice first, for a
+  start whose pose the localizer must find (global localization).
 
 The base class and the helpers the policies share are in :mod:`agents.policies.base`. A policy
 names the sensor type it reads (``needs_sensor``) and the map feature type it plans on
@@ -42,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
 from agents.policies.navigation import CorridorFollower
 from agents.policies.paths import EXP1_VERTICES, command_actions, polygon_commands
-from agents.policies.route_following import RouteFollower, range_sensor_kwargs, route_points
+from agents.policies.route_following import LookThenRoute, RouteFollower, range_sensor_kwargs, route_points
 from envs.sensors import BearingCameraConfig
 from localizers.base import LandmarkMap
 from localizers.bounds import bearing_information
@@ -55,6 +57,7 @@ __all__ = [
     "FixedPolicy",
     "GreedyInformationGain",
     "LandmarkSeeking",
+    "LookThenRoute",
     "Observation",
     "PatrolPath",
     "RandomWalk",
@@ -441,7 +444,7 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
             kwargs.setdefault("sonar_cone_rad", sonar.cone_rad)
         lmap = base.landmark_map
         return CorridorFollower(space, ceiling_targets(base.config, lmap.features), lmap.bounds_m, seed, **kwargs)
-    if name == "route_follower":
+    if issubclass(FIXED_POLICIES[name], RouteFollower):
         config = base.config
         kwargs.setdefault("dt_s", config.dt_s)
         kwargs.setdefault("max_speed_mps", config.robot.max_speed_mps)
@@ -455,7 +458,7 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
         lmap = base.landmark_map
         route = kwargs.pop("route", None)  # a route feature's name, or the points themselves (a task's route)
         route = route_points(config, lmap.features, route) if route is None or isinstance(route, str) else route
-        return RouteFollower(space, route, lmap.bounds_m, seed, **kwargs)
+        return FIXED_POLICIES[name](space, route, lmap.bounds_m, seed, **kwargs)
     return FIXED_POLICIES[name](space, seed=seed, **kwargs)
 
 
@@ -485,6 +488,7 @@ FIXED_POLICIES: dict[str, Any] = {
     "greedy_info_gain": GreedyInformationGain,
     "corridor_follower": CorridorFollower,
     "route_follower": RouteFollower,
+    "look_then_route": LookThenRoute,
 }
 
 

@@ -32,7 +32,7 @@ def test_active_part_evaluates_every_policy_and_judges_only_with_enough_seeds(tm
     models = SHIPPED_MODELS if with_model else {loc: tmp_path / "missing.zip" for loc in SHIPPED_MODELS}
     section = run_active(tmp_path, seeds=1, models=models, workers=1, episode_steps=20, verdict_seeds=5)
     for policy in FIXED_POLICIES:  # every one that runs in the shipped policy's world (not the corridor's, the campus's)
-        runs = policy not in ("corridor_follower", "route_follower")
+        runs = policy not in ("corridor_follower", "route_follower", "look_then_route")
         assert (f"| {policy} | candidate_sets | 10 |" in section) == runs, policy
     assert (tmp_path / "episode.gif").is_file() and (tmp_path / "summary.csv").is_file()
     if with_model:

@@ -61,7 +61,8 @@ def test_a_room_task_policy_is_evaluated_beside_a_fixed_one_with_a_paired_verdic
     assert [r["metric"] for r in rows] == ["position_error_mean_m", "failure_rate", "first_fix_s", "collisions"]
     assert {r["best_fixed"] for r in rows} == {"route_follower"} and all(r["crowd_size"] == "8" for r in rows)
     # the room's map has no route: route_follower drives the task's square (the config's route points)
-    assert spec.drives_task_route("route_follower") and not spec.drives_task_route("patrol")
+    assert spec.drives_task_route("route_follower") and spec.drives_task_route("look_then_route")
+    assert not spec.drives_task_route("patrol")
     assert "paired verdict on ppo:model" in (tmp_path / "verdict.md").read_text()
     run = (tmp_path / "run.json").read_text()
     assert '"lidar_sectors": 12' in run and '"points_m"' in run  # run.json records the observation and the route

@@ -14,8 +14,8 @@ from localizers.base import LandmarkMap
 
 BEARING_IDS = ["crowdloc/RoboCupStatic-v0", "crowdloc/RoboCupCrowded-v0"]
 #: every fixed policy but the corridor follower (it needs a sonar and a ceiling's targets: tests/agents/test_navigation.py)
-#: and the route follower (it needs a route: tests/agents/test_route_following.py)
-BEARING_POLICIES = sorted(set(FIXED_POLICIES) - {"corridor_follower", "route_follower"})
+#: and the route followers (they need a route: tests/agents/test_route_following.py)
+BEARING_POLICIES = sorted(set(FIXED_POLICIES) - {"corridor_follower", "route_follower", "look_then_route"})
 
 
 def test_the_policies_say_which_worlds_they_run_in() -> None:
@@ -27,7 +27,7 @@ def test_the_policies_say_which_worlds_they_run_in() -> None:
     corridor = load_world("ceiling_corridor")  # no bearing camera; a sonar and a ceiling
     assert runnable_policies(corridor) == ["random_walk", "spin", "stop_and_go", "patrol", "corridor_follower"]
     campus = load_world("stereo_campus")  # no bearing camera; a route
-    assert runnable_policies(campus) == ["random_walk", "spin", "stop_and_go", "patrol", "route_follower"]
+    assert runnable_policies(campus) == ["random_walk", "spin", "stop_and_go", "patrol", "route_follower", "look_then_route"]
     assert FIXED_POLICIES["corridor_follower"].unmet_need(load_world("crowded_room")) == (
         "a sonar sensor",
         "its sensors: odometry, lidar",

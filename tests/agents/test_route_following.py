@@ -285,6 +285,24 @@ def test_it_turns_in_place_toward_a_route_behind_it_and_ends_standing_at_the_las
     assert done._act(observation((50.0, 50.0), 0.0)).tolist() == [0.0, 0.0]  # done stays done
 
 
+def test_look_around_turns_first_then_drives_and_look_then_route_turns_twice() -> None:
+    policy = follower(look_around_turns=0.5, dt_s=0.1, max_turn_rate_rps=1.0)  # pi rad at 1 rad/s: 32 steps of 0.1 s
+    assert policy.phase == "look"
+    turning = [policy._act(observation((10.0, 50.0), 0.0, valid=k % 2 == 0)) for k in range(32)]  # estimate or none
+    assert all(a.tolist() == [0.0, 1.0] for a in turning)
+    assert policy.phase == "wait" and policy.progress_m is None
+    assert policy._act(observation((10.0, 50.0), 0.0))[0] > 0.0 and policy.phase == "drive"
+    policy.reset()
+    assert policy.phase == "look"  # again each episode
+    assert follower().phase == "wait"  # route_follower does not look around
+    room = gym.make("crowdloc/CrowdedRoom-v0", localizer="mcl_lidar")
+    square = np.array([[2.25, 2.25], [4.75, 2.25], [4.75, 4.75]])
+    made = make_policy("look_then_route", room, route=square)
+    assert isinstance(made, route_following.LookThenRoute) and made.params.look_around_turns == 2.0
+    assert made._look_steps == math.ceil(2 * 2 * math.pi / (1.5 * 0.025))  # the room turns at 1.5 rad/s, 40 Hz
+    room.close()
+
+
 def test_a_sonar_ring_is_read_when_there_is_no_lidar() -> None:
     space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
     policy = RouteFollower(space, ROUTE, (0.0, 0.0, 150.0, 100.0), max_range_m=6.5)
@@ -303,6 +321,7 @@ def test_a_sonar_ring_is_read_when_there_is_no_lidar() -> None:
         ({"lookahead_m": 0.0}, ["lookahead_m", "0.0"]),
         ({"stop_m": 3.0}, ["stop_m (3.0) below slow_m (3.0)"]),
         ({"coast_s": -1.0}, ["coast_s", "-1.0"]),
+        ({"look_around_turns": math.nan}, ["look_around_turns", "nan"]),
         ({"lookahed_m": 1.0}, ["'lookahed_m'"]),
         ({"creep": 0.8, "cruise": 0.5}, ["creep (0.8) at most cruise (0.5)"]),
     ],

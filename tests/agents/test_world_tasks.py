@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 import envs
-from agents.policies.fixed import make_policy
+from agents.policies.fixed import FIXED_POLICIES, RouteFollower, make_policy
 from agents.rl.observation import ObservationConfig, RouteConfig, RouteCursor
 from agents.rl.train import load_train_config, make_task_env
 from localizers.schema import ConfigError
 
 #: task id -> (training config, the world's paper policy, what the policy must not observe)
 TASKS = {
-    "crowdloc/ActiveRoomLidar-v0": ("ppo_room_lidar", "route_follower", "lidar"),
+    "crowdloc/ActiveRoomLidar-v0": ("ppo_room_lidar", "look_then_route", "lidar"),
     "crowdloc/ActiveCorridorTargets-v0": ("ppo_corridor_targets", "corridor_follower", "ceiling_image"),
     "crowdloc/ActiveCampusStereo-v0": ("ppo_campus_stereo", "route_follower", "stereo"),
 }
@@ -101,7 +101,8 @@ def _episode_return(config_name: str, policy: str, seed: int, steps: int | None 
     obs, _ = env.reset(seed=seed)
     driver: Any = None
     if policy not in ("still", "random"):
-        kwargs = {"route": np.asarray(config.route.points_m)} if policy == "route_follower" and config.route.points_m else {}
+        drives_route = issubclass(FIXED_POLICIES[policy], RouteFollower) and config.route.points_m
+        kwargs = {"route": np.asarray(config.route.points_m)} if drives_route else {}
         driver = make_policy(policy, env, seed=seed, **kwargs)
     rng = np.random.default_rng(seed)
     total, done = 0.0, False
