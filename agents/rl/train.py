@@ -8,11 +8,16 @@ checked like the file itself. A run writes ``<out>/<name>/seed_<seed>/``:
 - ``checkpoints/step_<N>.zip`` + ``.state.pkl``: model, optimizer and every random state;
 - ``model.zip``: the final policy; ``tb/``: TensorBoard logs.
 
-Exact resume: every rollout is one whole episode per env (``ppo.n_steps`` equals the
-episode length and episodes only end by truncation), each episode's env seed is a pure
-function of (run seed, env index, episode index), and a checkpoint stores the torch,
-numpy and python random states. Training N steps in one go or in pieces through
-checkpoints then gives identical weights (a test proves it).
+Exact resume, by replay (the worlds cannot be pickled, but each is deterministic given its reset
+seed and actions): each episode's env seed is a pure function of (run seed, env index, episode
+index), and a checkpoint (at a rollout boundary) stores where every env is: the index of its
+current episode and the actions it received since that episode's reset (:class:`EpisodeSeeds`),
+besides the torch, numpy and python random states. A resume rebuilds each env at its episode,
+replays its actions (through its ``Monitor``, so that the partial episode's return is rebuilt),
+checks that it arrives at the observation the model holds, and lets PPO go on without resetting
+the envs. Episodes may end anywhere inside rollouts (the corridor and the campus end at the
+goal): training N steps in one go or in pieces through checkpoints gives identical weights and
+episode logs (tests prove it, with in-process and subprocess envs).
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ import shutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -46,7 +51,7 @@ class PPOConfig:
     """stable-baselines3 PPO hyperparameters (its names and meanings)."""
 
     learning_rate: float = 3e-4
-    n_steps: int = 450  # per env per rollout; must equal the episode length (exact resume)
+    n_steps: int = 450  # per env per rollout; also the episode length (time limit)
     batch_size: int = 450
     n_epochs: int = 5
     gamma: float = 0.99
@@ -154,25 +159,52 @@ def parse_overrides(items: Sequence[str], flag: str = "override") -> dict[str, A
 
 
 class EpisodeSeeds(gym.Wrapper):
-    """Seed every episode from ``(run_seed, env_index, episode_index)``: resets become replayable.
+    """Seed every episode from ``(run_seed, env_index, episode_index)`` and keep the actions of the
+    current one: an env's place in its run is then :meth:`position`, and :meth:`replay` rebuilds it.
 
     A seed passed to ``reset`` is ignored on purpose: stable-baselines3 re-seeds its vector
     env whenever a model is built or loaded, which would make a resumed run differ.
     Training seeds stay below :data:`EVAL_SEED_BASE`, so held-out evaluation seeds (at or
-    above it) are never trained on.
+    above it) are never trained on. The actions are kept as they reach ``step`` (after
+    stable-baselines3's clipping): at most one episode's, ``ppo.n_steps`` x the action size.
     """
 
-    def __init__(self, env: gym.Env[Any, Any], run_seed: int, env_index: int, first_episode: int = 0) -> None:
+    def __init__(self, env: gym.Env[Any, Any], run_seed: int, env_index: int) -> None:
         super().__init__(env)
         self.run_seed = run_seed
         self.env_index = env_index
-        self.episode = first_episode
+        self.episode = 0  # the index of the next episode
+        self.actions: list[np.ndarray] = []  # since the last reset
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         state = np.random.SeedSequence([self.run_seed, self.env_index, self.episode]).generate_state(1)[0]
         episode_seed = int(state) % EVAL_SEED_BASE
         self.episode += 1
+        self.actions = []
         return self.env.reset(seed=episode_seed, options=options)
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        self.actions.append(np.array(action, copy=True))  # a vec env may reuse its action buffer
+        return self.env.step(action)
+
+    def position(self) -> tuple[int, np.ndarray]:
+        """The index of the current episode and the actions since its reset (one row each)."""
+        return self.episode - 1, np.array(self.actions)
+
+    def replay(self, episode: int, actions: np.ndarray) -> tuple[Any, int]:
+        """Reset into episode ``episode`` and step ``actions``: back at :meth:`position` ``(episode, actions)``.
+
+        Returns the last observation and how many actions were played before the episode ended
+        (``len(actions)`` when it did not: a run's episode never ends at its recorded position,
+        so fewer means the env no longer plays as when the position was taken).
+        """
+        self.episode = episode
+        obs, _ = self.reset()
+        for played, action in enumerate(actions, start=1):
+            obs, _, terminated, truncated, _ = self.step(action)
+            if terminated or truncated:
+                return obs, played - 1
+        return obs, len(actions)
 
 
 def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: Any) -> gym.Env[Any, Any]:
@@ -244,26 +276,28 @@ def make_world(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
     return env
 
 
-def make_training_env(config: TrainConfig, env_index: int, first_episode: int = 0) -> gym.Env[Any, Any]:
-    """One training env: the task (:func:`make_task_env`), the episode length, episode seeding."""
+def make_training_env(config: TrainConfig, env_index: int) -> gym.Env[Any, Any]:
+    """One training env: the task (:func:`make_task_env`), the episode length, the episode log
+    (stable-baselines3's ``Monitor``: ep_rew_mean), episode seeding and replay (:class:`EpisodeSeeds`,
+    outside the ``Monitor`` so that a replay rebuilds the return of the episode it replays)."""
+    from stable_baselines3.common.monitor import Monitor
+
     crowd = config.crowd_sizes[env_index % len(config.crowd_sizes)]
     env = make_task_env(config, crowd, max_episode_steps=config.ppo.n_steps)
-    return EpisodeSeeds(env, config.seed, env_index, first_episode)
+    return EpisodeSeeds(Monitor(env), config.seed, env_index)
 
 
-def _env_factory(config: TrainConfig, env_index: int, first_episode: int) -> Callable[[], gym.Env[Any, Any]]:
+def _env_factory(config: TrainConfig, env_index: int) -> Callable[[], gym.Env[Any, Any]]:
     def make() -> gym.Env[Any, Any]:
-        from stable_baselines3.common.monitor import Monitor
-
-        return Monitor(make_training_env(config, env_index, first_episode))
+        return make_training_env(config, env_index)
 
     return make
 
 
-def make_vec_env(config: TrainConfig, first_episode: int = 0) -> Any:
+def make_vec_env(config: TrainConfig) -> Any:
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-    factories = [_env_factory(config, i, first_episode) for i in range(config.n_envs)]
+    factories = [_env_factory(config, i) for i in range(config.n_envs)]
     if config.vec_env == "subproc" and config.n_envs > 1:
         return SubprocVecEnv(factories, start_method="spawn")
     return DummyVecEnv(factories)
@@ -371,18 +405,51 @@ def train(
 
 
 def _resumed_model(config: TrainConfig, resume: Path) -> tuple[Any, Any]:
-    """The PPO model and its vec env from checkpoint ``resume``, random states included."""
+    """The PPO model and its vec env from checkpoint ``resume``, each env replayed to where the
+    run had it, random states included: ``model.learn`` goes on as if never stopped.
+
+    The model's zip carries what stable-baselines3 holds across a rollout boundary (the last
+    observation and episode starts, the episode log behind ep_rew_mean); ``force_reset=False``
+    keeps the last observation, so that ``learn`` does not reset the envs.
+
+    Raises:
+        ConfigError: for a checkpoint of another number of envs, not at a rollout boundary, that
+            predates exact resume, or whose envs no longer replay to the observations it holds.
+    """
     from stable_baselines3 import PPO
 
     state = _load_state(resume)
     done_steps = int(state["num_timesteps"])
     if done_steps % config.rollout_steps:
         raise ConfigError(f"checkpoint {resume} is not at a rollout boundary ({done_steps} steps)")
-    episodes = done_steps // config.rollout_steps  # one episode per env per rollout
-    venv = make_vec_env(config, first_episode=episodes)
-    model = PPO.load(resume, env=venv, device="cpu")
-    _set_random_states(state["random"])
+    if "envs" not in state:
+        raise ConfigError(
+            f"checkpoint {resume} predates exact resume ({resume.with_suffix('.state.pkl').name} has no env positions): "
+            "train the run again (--overwrite)"
+        )
+    positions = state["envs"]
+    if len(positions) != config.n_envs:
+        raise ConfigError(f"checkpoint {resume} has {len(positions)} envs, the config n_envs={config.n_envs}")
+    venv = make_vec_env(config)
+    model = PPO.load(resume, env=venv, device="cpu", force_reset=False)
+    for i, (episode, actions) in enumerate(positions):
+        obs, played = venv.env_method("replay", episode, actions, indices=[i])[0]
+        if played < len(actions) or not _same_obs(obs, model._last_obs, i):
+            venv.close()
+            ended = f" (the episode ended after {played})" if played < len(actions) else ""
+            raise ConfigError(
+                f"checkpoint {resume}: env {i} replayed ({len(actions)} actions into its episode {episode}) does not reach "
+                f"the run's observation{ended}: the task no longer plays as when the checkpoint was written"
+            )
+    _set_random_states(state["random"])  # last: an env in this process may draw from them while replaying
     return model, venv
+
+
+def _same_obs(obs: Any, batch: Any, index: int) -> bool:
+    """Whether ``obs`` (one env's, a dict or an array) is entry ``index`` of a vec env's ``batch``, in the batch's dtypes."""
+    if isinstance(batch, Mapping):
+        return isinstance(obs, Mapping) and set(obs) == set(batch) and all(_same_obs(obs[k], batch[k], index) for k in batch)
+    return np.array_equal(np.asarray(obs, dtype=batch.dtype), batch[index])
 
 
 def _new_model(config: TrainConfig, directory: Path, verbose: int) -> tuple[Any, Any]:
@@ -475,10 +542,12 @@ def _train_task(task: tuple[TrainConfig, Path]) -> Path:
 
 
 def save_checkpoint(model: Any, stem: Path) -> Path:
-    """Write ``stem.zip`` (model + optimizer) and ``stem.state.pkl`` (step count, random states)."""
+    """Write ``stem.zip`` (model + optimizer, the last observation, the episode log) and ``stem.state.pkl``
+    (step count, random states, each env's position: :meth:`EpisodeSeeds.position`). At a rollout boundary."""
     model.save(stem.with_suffix(".zip"))
+    positions = model.get_env().env_method("position")
     with open(stem.with_suffix(".state.pkl"), "wb") as f:
-        pickle.dump({"num_timesteps": model.num_timesteps, "random": _random_states()}, f)
+        pickle.dump({"num_timesteps": model.num_timesteps, "random": _random_states(), "envs": positions}, f)
     return stem.with_suffix(".zip")
 
 
