@@ -22,6 +22,7 @@ episode logs (tests prove it, with in-process and subprocess envs).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import pickle
 import random
@@ -158,6 +159,16 @@ def parse_overrides(items: Sequence[str], flag: str = "override") -> dict[str, A
     return out
 
 
+@dataclass(frozen=True)
+class EnvPosition:
+    """Where a training env is in its run: the index of its current episode, the actions it received
+    since that episode's reset (one row each) and the observation they led to (:class:`EpisodeSeeds`)."""
+
+    episode: int
+    actions: np.ndarray
+    obs: Any
+
+
 class EpisodeSeeds(gym.Wrapper):
     """Seed every episode from ``(run_seed, env_index, episode_index)`` and keep the actions of the
     current one: an env's place in its run is then :meth:`position`, and :meth:`replay` rebuilds it.
@@ -175,36 +186,50 @@ class EpisodeSeeds(gym.Wrapper):
         self.env_index = env_index
         self.episode = 0  # the index of the next episode
         self.actions: list[np.ndarray] = []  # since the last reset
+        self.last_obs: Any = None
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         state = np.random.SeedSequence([self.run_seed, self.env_index, self.episode]).generate_state(1)[0]
         episode_seed = int(state) % EVAL_SEED_BASE
         self.episode += 1
         self.actions = []
-        return self.env.reset(seed=episode_seed, options=options)
+        self.last_obs, info = self.env.reset(seed=episode_seed, options=options)
+        return self.last_obs, info
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         self.actions.append(np.array(action, copy=True))  # a vec env may reuse its action buffer
-        return self.env.step(action)
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.last_obs = obs
+        return obs, reward, terminated, truncated, info
 
-    def position(self) -> tuple[int, np.ndarray]:
-        """The index of the current episode and the actions since its reset (one row each)."""
-        return self.episode - 1, np.array(self.actions)
+    def position(self) -> EnvPosition:
+        """Where this env is now (after its first reset)."""
+        return EnvPosition(self.episode - 1, np.array(self.actions), copy.deepcopy(self.last_obs))
 
-    def replay(self, episode: int, actions: np.ndarray) -> tuple[Any, int]:
-        """Reset into episode ``episode`` and step ``actions``: back at :meth:`position` ``(episode, actions)``.
+    def replay(self, position: EnvPosition) -> str:
+        """Reset into ``position``'s episode and step its actions: back at ``position``.
 
-        Returns the last observation and how many actions were played before the episode ended
-        (``len(actions)`` when it did not: a run's episode never ends at its recorded position,
-        so fewer means the env no longer plays as when the position was taken).
+        Returns ``""`` when the env arrived there, else what went otherwise (the env no longer
+        plays as when the position was taken: an episode of a run never ends at its position).
         """
-        self.episode = episode
-        obs, _ = self.reset()
-        for played, action in enumerate(actions, start=1):
-            obs, _, terminated, truncated, _ = self.step(action)
+        self.episode = position.episode
+        self.reset()
+        for played, action in enumerate(position.actions, start=1):
+            _, _, terminated, truncated, _ = self.step(action)
             if terminated or truncated:
-                return obs, played - 1
-        return obs, len(actions)
+                return f"its episode ended after {played} of the {len(position.actions)} actions"
+        if not _same_obs(self.last_obs, position.obs):
+            return f"its observation after the {len(position.actions)} actions differs"
+        return ""
+
+
+def _same_obs(a: Any, b: Any) -> bool:
+    """Whether two observations (arrays, or dicts / tuples of them) are equal, entry by entry."""
+    if isinstance(a, Mapping):
+        return isinstance(b, Mapping) and set(a) == set(b) and all(_same_obs(a[k], b[k]) for k in a)
+    if isinstance(a, tuple):
+        return isinstance(b, tuple) and len(a) == len(b) and all(map(_same_obs, a, b))
+    return np.array_equal(a, b)
 
 
 def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: Any) -> gym.Env[Any, Any]:
@@ -410,7 +435,8 @@ def _resumed_model(config: TrainConfig, resume: Path) -> tuple[Any, Any]:
 
     The model's zip carries what stable-baselines3 holds across a rollout boundary (the last
     observation and episode starts, the episode log behind ep_rew_mean); ``force_reset=False``
-    keeps the last observation, so that ``learn`` does not reset the envs.
+    keeps the last observation, so that ``learn`` does not reset the envs. Each env checks its
+    replay against the observation it had (its own: stable-baselines3 may transpose images).
 
     Raises:
         ConfigError: for a checkpoint of another number of envs, not at a rollout boundary, that
@@ -432,24 +458,16 @@ def _resumed_model(config: TrainConfig, resume: Path) -> tuple[Any, Any]:
         raise ConfigError(f"checkpoint {resume} has {len(positions)} envs, the config n_envs={config.n_envs}")
     venv = make_vec_env(config)
     model = PPO.load(resume, env=venv, device="cpu", force_reset=False)
-    for i, (episode, actions) in enumerate(positions):
-        obs, played = venv.env_method("replay", episode, actions, indices=[i])[0]
-        if played < len(actions) or not _same_obs(obs, model._last_obs, i):
+    for i, position in enumerate(positions):
+        problem = venv.env_method("replay", position, indices=[i])[0]  # in its process, through its Monitor
+        if problem:
             venv.close()
-            ended = f" (the episode ended after {played})" if played < len(actions) else ""
             raise ConfigError(
-                f"checkpoint {resume}: env {i} replayed ({len(actions)} actions into its episode {episode}) does not reach "
-                f"the run's observation{ended}: the task no longer plays as when the checkpoint was written"
+                f"checkpoint {resume}: env {i}, replayed into its episode {position.episode}, does not reach where the run "
+                f"had it ({problem}): the task no longer plays as when the checkpoint was written"
             )
     _set_random_states(state["random"])  # last: an env in this process may draw from them while replaying
     return model, venv
-
-
-def _same_obs(obs: Any, batch: Any, index: int) -> bool:
-    """Whether ``obs`` (one env's, a dict or an array) is entry ``index`` of a vec env's ``batch``, in the batch's dtypes."""
-    if isinstance(batch, Mapping):
-        return isinstance(obs, Mapping) and set(obs) == set(batch) and all(_same_obs(obs[k], batch[k], index) for k in batch)
-    return np.array_equal(np.asarray(obs, dtype=batch.dtype), batch[index])
 
 
 def _new_model(config: TrainConfig, directory: Path, verbose: int) -> tuple[Any, Any]:
@@ -543,7 +561,7 @@ def _train_task(task: tuple[TrainConfig, Path]) -> Path:
 
 def save_checkpoint(model: Any, stem: Path) -> Path:
     """Write ``stem.zip`` (model + optimizer, the last observation, the episode log) and ``stem.state.pkl``
-    (step count, random states, each env's position: :meth:`EpisodeSeeds.position`). At a rollout boundary."""
+    (step count, random states, each env's :class:`EnvPosition`). At a rollout boundary."""
     model.save(stem.with_suffix(".zip"))
     positions = model.get_env().env_method("position")
     with open(stem.with_suffix(".state.pkl"), "wb") as f:

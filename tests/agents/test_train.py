@@ -253,6 +253,7 @@ def test_resume_is_exact_when_episodes_end_inside_rollouts(tmp_path: Path, vec_e
 
 @pytest.mark.usefixtures("early_ending_tasks")
 def test_a_checkpoint_that_does_not_replay_or_predates_replay_is_refused(tmp_path: Path) -> None:
+    import dataclasses
     import pickle
 
     train(tiny(64), tmp_path, progress_bar=False)
@@ -260,9 +261,11 @@ def test_a_checkpoint_that_does_not_replay_or_predates_replay_is_refused(tmp_pat
     assert checkpoint is not None
     state_path = checkpoint.with_suffix(".state.pkl")
     state = pickle.loads(state_path.read_bytes())
-    assert any(len(actions) for _, actions in state["envs"])  # mid-episode envs
+    first = state["envs"][0]
+    assert len(first.actions)  # mid-episode
     for changed, needle in (
-        ({"envs": [(episode + 1, actions) for episode, actions in state["envs"]]}, "env 0 replayed .* does not reach"),
+        ({"envs": [dataclasses.replace(first, actions=np.repeat(first.actions, 20, axis=0)), *state["envs"][1:]]}, "ended after"),
+        ({"envs": [dataclasses.replace(first, actions=first.actions[:-1]), *state["envs"][1:]]}, "env 0, .*observation after"),
         ({"envs": state["envs"][:1]}, "has 1 envs, the config n_envs=2"),
         ({"envs": None}, "predates exact resume"),
     ):
