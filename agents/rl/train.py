@@ -399,6 +399,7 @@ def train(
     """
     check_train_config(config)
     check_run_dir(config, out, resume=resume is not None, overwrite=overwrite)
+    state = None if resume is None else _resume_state(config, resume)
     # A 64x64 MLP is fastest on one thread; the parallelism is in the env processes. More
     # threads only fight the env workers for the cores (measured: 1.8 ms per layer on 2 busy cores).
     import torch
@@ -407,8 +408,8 @@ def train(
     directory = run_dir(config, out)
     (directory / "checkpoints").mkdir(parents=True, exist_ok=True)
     _write_run_json(config, directory)
-    if resume is not None:
-        model, venv = _resumed_model(config, resume)
+    if resume is not None and state is not None:
+        model, venv = _resumed_model(config, resume, state)
     else:
         model, venv = _new_model(config, directory, verbose)
     # PPO runs whole rollouts: round up to them, so the progress bar's total is what runs
@@ -429,21 +430,13 @@ def train(
     return final
 
 
-def _resumed_model(config: TrainConfig, resume: Path) -> tuple[Any, Any]:
-    """The PPO model and its vec env from checkpoint ``resume``, each env replayed to where the
-    run had it, random states included: ``model.learn`` goes on as if never stopped.
-
-    The model's zip carries what stable-baselines3 holds across a rollout boundary (the last
-    observation and episode starts, the episode log behind ep_rew_mean); ``force_reset=False``
-    keeps the last observation, so that ``learn`` does not reset the envs. Each env checks its
-    replay against the observation it had (its own: stable-baselines3 may transpose images).
+def _resume_state(config: TrainConfig, resume: Path) -> dict[str, Any]:
+    """The state file of checkpoint ``resume`` (:func:`save_checkpoint`), checked against ``config``.
 
     Raises:
-        ConfigError: for a checkpoint of another number of envs, not at a rollout boundary, that
-            predates exact resume, or whose envs no longer replay to the observations it holds.
+        ConfigError: for a checkpoint without its files, of another number of envs, not at a rollout
+            boundary, or that predates exact resume.
     """
-    from stable_baselines3 import PPO
-
     state = _load_state(resume)
     done_steps = int(state["num_timesteps"])
     if done_steps % config.rollout_steps:
@@ -453,12 +446,28 @@ def _resumed_model(config: TrainConfig, resume: Path) -> tuple[Any, Any]:
             f"checkpoint {resume} predates exact resume ({resume.with_suffix('.state.pkl').name} has no env positions): "
             "train the run again (--overwrite)"
         )
-    positions = state["envs"]
-    if len(positions) != config.n_envs:
-        raise ConfigError(f"checkpoint {resume} has {len(positions)} envs, the config n_envs={config.n_envs}")
+    if len(state["envs"]) != config.n_envs:
+        raise ConfigError(f"checkpoint {resume} has {len(state['envs'])} envs, the config n_envs={config.n_envs}")
+    return state
+
+
+def _resumed_model(config: TrainConfig, resume: Path, state: Mapping[str, Any]) -> tuple[Any, Any]:
+    """The PPO model and its vec env from checkpoint ``resume``, each env replayed to where the
+    run had it, random states included: ``model.learn`` goes on as if never stopped.
+
+    The model's zip carries what stable-baselines3 holds across a rollout boundary (the last
+    observation and episode starts, the episode log behind ep_rew_mean); ``force_reset=False``
+    keeps the last observation, so that ``learn`` does not reset the envs. Each env checks its
+    replay against the observation it had (its own: stable-baselines3 may transpose images).
+
+    Raises:
+        ConfigError: for a checkpoint whose envs no longer replay to where the run had them.
+    """
+    from stable_baselines3 import PPO
+
     venv = make_vec_env(config)
     model = PPO.load(resume, env=venv, device="cpu", force_reset=False)
-    for i, position in enumerate(positions):
+    for i, position in enumerate(state["envs"]):
         problem = venv.env_method("replay", position, indices=[i])[0]  # in its process, through its Monitor
         if problem:
             venv.close()

@@ -253,23 +253,37 @@ def test_resume_is_exact_when_episodes_end_inside_rollouts(tmp_path: Path, vec_e
 
 @pytest.mark.usefixtures("early_ending_tasks")
 def test_a_checkpoint_that_does_not_replay_or_predates_replay_is_refused(tmp_path: Path) -> None:
+    """A checkpoint of another env count or without env positions (written before exact resume) is refused
+    before anything is written; one whose envs do not replay to where the run had them, naming the env."""
     import dataclasses
     import pickle
 
     train(tiny(64), tmp_path, progress_bar=False)
     checkpoint = latest_checkpoint(tiny(128), tmp_path)
     assert checkpoint is not None
+    run_json = run_dir(tiny(128), tmp_path) / "run.json"
+    written = run_json.read_text()
     state_path = checkpoint.with_suffix(".state.pkl")
     state = pickle.loads(state_path.read_bytes())
     first = state["envs"][0]
     assert len(first.actions)  # mid-episode
-    for changed, needle in (
-        ({"envs": [dataclasses.replace(first, actions=np.repeat(first.actions, 20, axis=0)), *state["envs"][1:]]}, "ended after"),
-        ({"envs": [dataclasses.replace(first, actions=first.actions[:-1]), *state["envs"][1:]]}, "env 0, .*observation after"),
-        ({"envs": state["envs"][:1]}, "has 1 envs, the config n_envs=2"),
-        ({"envs": None}, "predates exact resume"),
+    for changed, needle, before_writing in (
+        ({"envs": state["envs"][:1]}, "has 1 envs, the config n_envs=2", True),
+        ({"envs": None}, "predates exact resume", True),
+        (
+            {"envs": [dataclasses.replace(first, actions=np.repeat(first.actions, 20, axis=0)), *state["envs"][1:]]},
+            "ended after",
+            False,
+        ),
+        (
+            {"envs": [dataclasses.replace(first, actions=first.actions[:-1]), *state["envs"][1:]]},
+            "env 0, .*observation after",
+            False,
+        ),
     ):
         changed_state = {key: value for key, value in {**state, **changed}.items() if value is not None}
         state_path.write_bytes(pickle.dumps(changed_state))
         with pytest.raises(ConfigError, match=f"checkpoint {re.escape(str(checkpoint))}.*{needle}"):
             train(tiny(128), tmp_path, resume=checkpoint, progress_bar=False)
+        if before_writing:
+            assert run_json.read_text() == written
