@@ -5,19 +5,20 @@ command-line overrides (``--total-timesteps``, ``--set ppo.learning_rate=1e-3``)
 checked like the file itself. A run writes ``<out>/<name>/seed_<seed>/``:
 
 - ``run.json``: the resolved config, the seed, versions and the command;
-- ``checkpoints/step_<N>.zip`` + ``.state.pkl``: model, optimizer and every random state;
+- ``checkpoints/step_<N>.zip`` + ``.state.pkl``: model, optimizer, every random state and where each env is;
 - ``model.zip``: the final policy; ``tb/``: TensorBoard logs.
 
 Exact resume, by replay (the worlds cannot be pickled, but each is deterministic given its reset
 seed and actions): each episode's env seed is a pure function of (run seed, env index, episode
 index), and a checkpoint (at a rollout boundary) stores where every env is: the index of its
-current episode and the actions it received since that episode's reset (:class:`EpisodeSeeds`),
-besides the torch, numpy and python random states. A resume rebuilds each env at its episode,
-replays its actions (through its ``Monitor``, so that the partial episode's return is rebuilt),
-checks that it arrives at the observation the model holds, and lets PPO go on without resetting
-the envs. Episodes may end anywhere inside rollouts (the corridor and the campus end at the
-goal): training N steps in one go or in pieces through checkpoints gives identical weights and
-episode logs (tests prove it, with in-process and subprocess envs).
+current episode, the actions it received since that episode's reset and the observation they led
+to (:class:`EnvPosition`, kept by :class:`EpisodeSeeds`), besides the torch, numpy and python
+random states. A resume rebuilds each env at its episode, replays its actions (through its
+``Monitor``, so that the partial episode's return is rebuilt), checks that it arrives at that
+observation, and lets PPO go on without resetting the envs. Episodes may end anywhere inside
+rollouts (the corridor and the campus end at the goal): training N steps in one go or in pieces
+through checkpoints gives identical weights and episode logs (tests prove it, with in-process and
+subprocess envs).
 """
 
 from __future__ import annotations
