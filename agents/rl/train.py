@@ -5,18 +5,25 @@ command-line overrides (``--total-timesteps``, ``--set ppo.learning_rate=1e-3``)
 checked like the file itself. A run writes ``<out>/<name>/seed_<seed>/``:
 
 - ``run.json``: the resolved config, the seed, versions and the command;
-- ``checkpoints/step_<N>.zip`` + ``.state.pkl``: model, optimizer and every random state;
+- ``checkpoints/step_<N>.zip`` + ``.state.pkl``: model, optimizer, every random state and where each env is;
 - ``model.zip``: the final policy; ``tb/``: TensorBoard logs.
 
-Exact resume: every rollout is one whole episode per env (``ppo.n_steps`` equals the
-episode length and episodes only end by truncation), each episode's env seed is a pure
-function of (run seed, env index, episode index), and a checkpoint stores the torch,
-numpy and python random states. Training N steps in one go or in pieces through
-checkpoints then gives identical weights (a test proves it).
+Exact resume, by replay (the worlds cannot be pickled, but each is deterministic given its reset
+seed and actions): each episode's env seed is a pure function of (run seed, env index, episode
+index), and a checkpoint (at a rollout boundary) stores where every env is: the index of its
+current episode, the actions it received since that episode's reset and the observation they led
+to (:class:`EnvPosition`, kept by :class:`EpisodeSeeds`), besides the torch, numpy and python
+random states. A resume rebuilds each env at its episode, replays its actions (through its
+``Monitor``, so that the partial episode's return is rebuilt), checks that it arrives at that
+observation, and lets PPO go on without resetting the envs. Episodes may end anywhere inside
+rollouts (the corridor and the campus end at the goal): training N steps in one go or in pieces
+through checkpoints gives identical weights and episode logs (tests prove it, with in-process and
+subprocess envs).
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import pickle
 import random
@@ -24,7 +31,7 @@ import shutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -46,7 +53,7 @@ class PPOConfig:
     """stable-baselines3 PPO hyperparameters (its names and meanings)."""
 
     learning_rate: float = 3e-4
-    n_steps: int = 450  # per env per rollout; must equal the episode length (exact resume)
+    n_steps: int = 450  # per env per rollout; also the episode length (time limit)
     batch_size: int = 450
     n_epochs: int = 5
     gamma: float = 0.99
@@ -153,26 +160,77 @@ def parse_overrides(items: Sequence[str], flag: str = "override") -> dict[str, A
     return out
 
 
+@dataclass(frozen=True)
+class EnvPosition:
+    """Where a training env is in its run: the index of its current episode, the actions it received
+    since that episode's reset (one row each) and the observation they led to (:class:`EpisodeSeeds`)."""
+
+    episode: int
+    actions: np.ndarray
+    obs: Any
+
+
 class EpisodeSeeds(gym.Wrapper):
-    """Seed every episode from ``(run_seed, env_index, episode_index)``: resets become replayable.
+    """Seed every episode from ``(run_seed, env_index, episode_index)`` and keep the actions of the
+    current one: an env's place in its run is then :meth:`position`, and :meth:`replay` rebuilds it.
 
     A seed passed to ``reset`` is ignored on purpose: stable-baselines3 re-seeds its vector
     env whenever a model is built or loaded, which would make a resumed run differ.
     Training seeds stay below :data:`EVAL_SEED_BASE`, so held-out evaluation seeds (at or
-    above it) are never trained on.
+    above it) are never trained on. The actions are kept as they reach ``step`` (after
+    stable-baselines3's clipping): at most one episode's, ``ppo.n_steps`` x the action size.
     """
 
-    def __init__(self, env: gym.Env[Any, Any], run_seed: int, env_index: int, first_episode: int = 0) -> None:
+    def __init__(self, env: gym.Env[Any, Any], run_seed: int, env_index: int) -> None:
         super().__init__(env)
         self.run_seed = run_seed
         self.env_index = env_index
-        self.episode = first_episode
+        self.episode = 0  # the index of the next episode
+        self.actions: list[np.ndarray] = []  # since the last reset
+        self.last_obs: Any = None
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         state = np.random.SeedSequence([self.run_seed, self.env_index, self.episode]).generate_state(1)[0]
         episode_seed = int(state) % EVAL_SEED_BASE
         self.episode += 1
-        return self.env.reset(seed=episode_seed, options=options)
+        self.actions = []
+        self.last_obs, info = self.env.reset(seed=episode_seed, options=options)
+        return self.last_obs, info
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        self.actions.append(np.array(action, copy=True))  # a vec env may reuse its action buffer
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.last_obs = obs
+        return obs, reward, terminated, truncated, info
+
+    def position(self) -> EnvPosition:
+        """Where this env is now (after its first reset)."""
+        return EnvPosition(self.episode - 1, np.array(self.actions), copy.deepcopy(self.last_obs))
+
+    def replay(self, position: EnvPosition) -> str:
+        """Reset into ``position``'s episode and step its actions: back at ``position``.
+
+        Returns ``""`` when the env arrived there, else what went otherwise (the env no longer
+        plays as when the position was taken: an episode of a run never ends at its position).
+        """
+        self.episode = position.episode
+        self.reset()
+        for played, action in enumerate(position.actions, start=1):
+            _, _, terminated, truncated, _ = self.step(action)
+            if terminated or truncated:
+                return f"its episode ended after {played} of the {len(position.actions)} actions"
+        if not _same_obs(self.last_obs, position.obs):
+            return f"its observation after the {len(position.actions)} actions differs"
+        return ""
+
+
+def _same_obs(a: Any, b: Any) -> bool:
+    """Whether two observations (arrays, or dicts / tuples of them) are equal, entry by entry."""
+    if isinstance(a, Mapping):
+        return isinstance(b, Mapping) and set(a) == set(b) and all(_same_obs(a[k], b[k]) for k in a)
+    if isinstance(a, tuple):
+        return isinstance(b, tuple) and len(a) == len(b) and all(map(_same_obs, a, b))
+    return np.array_equal(a, b)
 
 
 def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: Any) -> gym.Env[Any, Any]:
@@ -244,26 +302,28 @@ def make_world(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
     return env
 
 
-def make_training_env(config: TrainConfig, env_index: int, first_episode: int = 0) -> gym.Env[Any, Any]:
-    """One training env: the task (:func:`make_task_env`), the episode length, episode seeding."""
+def make_training_env(config: TrainConfig, env_index: int) -> gym.Env[Any, Any]:
+    """One training env: the task (:func:`make_task_env`), the episode length, the episode log
+    (stable-baselines3's ``Monitor``: ep_rew_mean), episode seeding and replay (:class:`EpisodeSeeds`,
+    outside the ``Monitor`` so that a replay rebuilds the return of the episode it replays)."""
+    from stable_baselines3.common.monitor import Monitor
+
     crowd = config.crowd_sizes[env_index % len(config.crowd_sizes)]
     env = make_task_env(config, crowd, max_episode_steps=config.ppo.n_steps)
-    return EpisodeSeeds(env, config.seed, env_index, first_episode)
+    return EpisodeSeeds(Monitor(env), config.seed, env_index)
 
 
-def _env_factory(config: TrainConfig, env_index: int, first_episode: int) -> Callable[[], gym.Env[Any, Any]]:
+def _env_factory(config: TrainConfig, env_index: int) -> Callable[[], gym.Env[Any, Any]]:
     def make() -> gym.Env[Any, Any]:
-        from stable_baselines3.common.monitor import Monitor
-
-        return Monitor(make_training_env(config, env_index, first_episode))
+        return make_training_env(config, env_index)
 
     return make
 
 
-def make_vec_env(config: TrainConfig, first_episode: int = 0) -> Any:
+def make_vec_env(config: TrainConfig) -> Any:
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-    factories = [_env_factory(config, i, first_episode) for i in range(config.n_envs)]
+    factories = [_env_factory(config, i) for i in range(config.n_envs)]
     if config.vec_env == "subproc" and config.n_envs > 1:
         return SubprocVecEnv(factories, start_method="spawn")
     return DummyVecEnv(factories)
@@ -340,6 +400,7 @@ def train(
     """
     check_train_config(config)
     check_run_dir(config, out, resume=resume is not None, overwrite=overwrite)
+    state = None if resume is None else _resume_state(config, resume)
     # A 64x64 MLP is fastest on one thread; the parallelism is in the env processes. More
     # threads only fight the env workers for the cores (measured: 1.8 ms per layer on 2 busy cores).
     import torch
@@ -348,8 +409,8 @@ def train(
     directory = run_dir(config, out)
     (directory / "checkpoints").mkdir(parents=True, exist_ok=True)
     _write_run_json(config, directory)
-    if resume is not None:
-        model, venv = _resumed_model(config, resume)
+    if resume is not None and state is not None:
+        model, venv = _resumed_model(config, resume, state)
     else:
         model, venv = _new_model(config, directory, verbose)
     # PPO runs whole rollouts: round up to them, so the progress bar's total is what runs
@@ -370,18 +431,52 @@ def train(
     return final
 
 
-def _resumed_model(config: TrainConfig, resume: Path) -> tuple[Any, Any]:
-    """The PPO model and its vec env from checkpoint ``resume``, random states included."""
-    from stable_baselines3 import PPO
+def _resume_state(config: TrainConfig, resume: Path) -> dict[str, Any]:
+    """The state file of checkpoint ``resume`` (:func:`save_checkpoint`), checked against ``config``.
 
+    Raises:
+        ConfigError: for a checkpoint without its files, of another number of envs, not at a rollout
+            boundary, or that predates exact resume.
+    """
     state = _load_state(resume)
     done_steps = int(state["num_timesteps"])
     if done_steps % config.rollout_steps:
         raise ConfigError(f"checkpoint {resume} is not at a rollout boundary ({done_steps} steps)")
-    episodes = done_steps // config.rollout_steps  # one episode per env per rollout
-    venv = make_vec_env(config, first_episode=episodes)
-    model = PPO.load(resume, env=venv, device="cpu")
-    _set_random_states(state["random"])
+    if "envs" not in state:
+        raise ConfigError(
+            f"checkpoint {resume} predates exact resume ({resume.with_suffix('.state.pkl').name} has no env positions): "
+            "train the run again (--overwrite)"
+        )
+    if len(state["envs"]) != config.n_envs:
+        raise ConfigError(f"checkpoint {resume} has {len(state['envs'])} envs, the config n_envs={config.n_envs}")
+    return state
+
+
+def _resumed_model(config: TrainConfig, resume: Path, state: Mapping[str, Any]) -> tuple[Any, Any]:
+    """The PPO model and its vec env from checkpoint ``resume``, each env replayed to where the
+    run had it, random states included: ``model.learn`` goes on as if never stopped.
+
+    The model's zip carries what stable-baselines3 holds across a rollout boundary (the last
+    observation and episode starts, the episode log behind ep_rew_mean); ``force_reset=False``
+    keeps the last observation, so that ``learn`` does not reset the envs. Each env checks its
+    replay against the observation it had (its own: stable-baselines3 may transpose images).
+
+    Raises:
+        ConfigError: for a checkpoint whose envs no longer replay to where the run had them.
+    """
+    from stable_baselines3 import PPO
+
+    venv = make_vec_env(config)
+    model = PPO.load(resume, env=venv, device="cpu", force_reset=False)
+    for i, position in enumerate(state["envs"]):
+        problem = venv.env_method("replay", position, indices=[i])[0]  # in its process, through its Monitor
+        if problem:
+            venv.close()
+            raise ConfigError(
+                f"checkpoint {resume}: env {i}, replayed into its episode {position.episode}, does not reach where the run "
+                f"had it ({problem}): the task no longer plays as when the checkpoint was written"
+            )
+    _set_random_states(state["random"])  # last: an env in this process may draw from them while replaying
     return model, venv
 
 
@@ -475,10 +570,12 @@ def _train_task(task: tuple[TrainConfig, Path]) -> Path:
 
 
 def save_checkpoint(model: Any, stem: Path) -> Path:
-    """Write ``stem.zip`` (model + optimizer) and ``stem.state.pkl`` (step count, random states)."""
+    """Write ``stem.zip`` (model + optimizer, the last observation, the episode log) and ``stem.state.pkl``
+    (step count, random states, each env's :class:`EnvPosition`). At a rollout boundary."""
     model.save(stem.with_suffix(".zip"))
+    positions = model.get_env().env_method("position")
     with open(stem.with_suffix(".state.pkl"), "wb") as f:
-        pickle.dump({"num_timesteps": model.num_timesteps, "random": _random_states()}, f)
+        pickle.dump({"num_timesteps": model.num_timesteps, "random": _random_states(), "envs": positions}, f)
     return stem.with_suffix(".zip")
 
 

@@ -2,14 +2,25 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
+from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import torch
 
 from agents.cli import main
-from agents.rl.train import TrainConfig, check_train_config, latest_checkpoint, load_train_config, parse_overrides, train
+from agents.rl.train import (
+    TrainConfig,
+    check_train_config,
+    latest_checkpoint,
+    load_train_config,
+    parse_overrides,
+    run_dir,
+    train,
+)
 from localizers.schema import ConfigError
 
 
@@ -179,3 +190,100 @@ def test_the_step_total_is_rounded_up_to_whole_rollouts(tmp_path: Path) -> None:
     from stable_baselines3 import PPO
 
     assert seen == [128] and PPO.load(path, device="cpu").num_timesteps == 128
+
+
+class EndsEarly(gym.Wrapper):
+    """Terminates each episode after 3 to 20 steps, drawn from its reset seed: episodes end inside the
+    32-step rollouts of :func:`tiny`, as the corridor's and the campus's do when the robot stops at the goal."""
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        assert seed is not None  # EpisodeSeeds gives every episode its seed
+        self.left = 3 + seed % 18
+        return self.env.reset(seed=seed, options=options)
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.left -= 1
+        return obs, float(reward), terminated or self.left == 0, truncated, info
+
+
+@pytest.fixture
+def early_ending_tasks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every training task ends its episodes early (:class:`EndsEarly`); subproc envs fork, so that they see it too."""
+    import stable_baselines3.common.vec_env as vec_env
+
+    import agents.rl.train as train_module
+
+    real = train_module.make_task_env
+    monkeypatch.setattr(train_module, "make_task_env", lambda *args, **kwargs: EndsEarly(real(*args, **kwargs)))
+
+    class ForkedSubprocVecEnv(vec_env.SubprocVecEnv):
+        def __init__(self, env_fns: list[Any], start_method: str | None = None) -> None:
+            super().__init__(env_fns, start_method="fork")
+
+    monkeypatch.setattr(vec_env, "SubprocVecEnv", ForkedSubprocVecEnv)
+
+
+def episodes(path: Path) -> list[tuple[float, int]]:
+    """The (return, length) of the episodes ``model.zip`` logged last (its ``ep_info_buffer``: ep_rew_mean)."""
+    from stable_baselines3 import PPO
+
+    return [(info["r"], info["l"]) for info in PPO.load(path, device="cpu").ep_info_buffer]
+
+
+@pytest.mark.parametrize("vec_env", ["dummy", "subproc"])
+@pytest.mark.usefixtures("early_ending_tasks")
+def test_resume_is_exact_when_episodes_end_inside_rollouts(tmp_path: Path, vec_env: str) -> None:
+    """Envs are mid-episode at every checkpoint, having played more episodes than rollouts: the resumed runs
+    (from a checkpoint written during a run, and from a run's last one) equal the straight run bit for bit."""
+    straight = train(tiny(192, vec_env=vec_env), tmp_path / "straight", progress_bar=False)
+    lengths = [length for _, length in episodes(straight)]
+    assert len(lengths) > 2 * 192 // 32 and len(set(lengths)) > 3  # many episodes, of varied lengths
+    config = tiny(192, vec_env=vec_env)
+    during = run_dir(config, tmp_path / "straight") / "checkpoints" / "step_128.zip"
+    train(tiny(64, vec_env=vec_env), tmp_path / "pieces", progress_bar=False)
+    last = latest_checkpoint(config, tmp_path / "pieces")
+    assert last is not None and last.name == "step_64.zip"
+    for checkpoint, out in ((during, "from_128"), (last, "pieces")):
+        resumed = train(config, tmp_path / out, resume=checkpoint, progress_bar=False)
+        for x, y in zip(weights(straight), weights(resumed), strict=True):
+            torch.testing.assert_close(x, y, rtol=0, atol=0)
+        assert episodes(resumed) == episodes(straight)
+
+
+@pytest.mark.usefixtures("early_ending_tasks")
+def test_a_checkpoint_that_does_not_replay_or_predates_replay_is_refused(tmp_path: Path) -> None:
+    """A checkpoint of another env count or without env positions (written before exact resume) is refused
+    before anything is written; one whose envs do not replay to where the run had them, naming the env."""
+    import dataclasses
+    import pickle
+
+    train(tiny(64), tmp_path, progress_bar=False)
+    checkpoint = latest_checkpoint(tiny(128), tmp_path)
+    assert checkpoint is not None
+    run_json = run_dir(tiny(128), tmp_path) / "run.json"
+    written = run_json.read_text()
+    state_path = checkpoint.with_suffix(".state.pkl")
+    state = pickle.loads(state_path.read_bytes())
+    first = state["envs"][0]
+    assert len(first.actions)  # mid-episode
+    for changed, needle, before_writing in (
+        ({"envs": state["envs"][:1]}, "has 1 envs, the config n_envs=2", True),
+        ({"envs": None}, "predates exact resume", True),
+        (
+            {"envs": [dataclasses.replace(first, actions=np.repeat(first.actions, 20, axis=0)), *state["envs"][1:]]},
+            "ended after",
+            False,
+        ),
+        (
+            {"envs": [dataclasses.replace(first, actions=first.actions[:-1]), *state["envs"][1:]]},
+            "env 0, .*observation after",
+            False,
+        ),
+    ):
+        changed_state = {key: value for key, value in {**state, **changed}.items() if value is not None}
+        state_path.write_bytes(pickle.dumps(changed_state))
+        with pytest.raises(ConfigError, match=f"checkpoint {re.escape(str(checkpoint))}.*{needle}"):
+            train(tiny(128), tmp_path, resume=checkpoint, progress_bar=False)
+        if before_writing:
+            assert run_json.read_text() == written
