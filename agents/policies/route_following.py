@@ -357,10 +357,12 @@ class LookThenRoute(RouteFollower):
 
     The fixed policy for a route driven from an unknown start (the crowded room's task): two turns
     at the turn-rate limit (8.4 s in the room) let a global localizer see the room twice over before
-    the drive. Two: on the room task's seeds 0-11 (``prior: none``, the task's return over 40 s)
-    one, two and three turns scored -47.1, -44.6 and -39.5 at crowd 16 and -142.4, -119.0 and -119.0
-    at crowd 30, against -76.3 and -154.4 for ``route_follower`` and -54.6 and -132.1 for ``spin``
-    (one turn is too few at crowd 30, where people hide parts of the room; a third adds little).
+    the drive. On the room task's seeds 0-11 (``prior: none``, the task's return over 40 s) it
+    scores -51.1 at crowd 16 and -125.0 at crowd 30, against -78.2 and -155.9 for ``route_follower``
+    and -77.7 and -146.8 for ``spin``. Two turns: under the task's earlier reward (a wrong pose by
+    position alone) one, two and three turns scored -47.1, -44.6 and -39.5 at crowd 16 and -142.4,
+    -119.0 and -119.0 at crowd 30 (one is too few at crowd 30, where people hide parts of the room;
+    a third adds little).
     """
 
     def __init__(self, *args: Any, **params: Any) -> None:

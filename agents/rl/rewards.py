@@ -9,7 +9,8 @@ policy never observes. Per step:
         - no_fix                      while there is no valid estimate
         + first_fix_bonus             once, on the first step with a valid estimate
         - collision                   on a step where our robot starts touching something
-        - wrong_pose                  while a valid estimate is at least wrong_pose_m off (confidently wrong)
+        - wrong_pose                  while a valid estimate is at least wrong_pose_m off, or its heading
+                                      at least wrong_pose_rad off (confidently wrong)
         - time                        every step (the sooner the goal, the better)
         + progress * (s_t - s_{t-1})  s: how far along the task's route the true position is (m;
                                       agents.rl.observation.RouteCursor)
@@ -23,6 +24,7 @@ scores best (issue 31), so their tasks weigh time, progress and a confident wron
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -49,6 +51,7 @@ class RewardWeights:
     collision: float = 0.5  # per step in which our robot starts touching anything
     wrong_pose: float = 0.0  # per step with a valid estimate at least wrong_pose_m from the truth
     wrong_pose_m: float = 1.0  # a valid estimate this far off is a confident wrong pose
+    wrong_pose_rad: float = math.inf  # ... and one whose heading is this far off (a twin turned about a room's centre)
     time: float = 0.0  # per step
     progress: float = 0.0  # per metre of true progress along the task's route (needs a route: RouteConfig)
     goal_bonus: float = 0.0  # once, when the world ends the episode at its goal
@@ -57,7 +60,8 @@ class RewardWeights:
         for name in ("position", "position_clip_m", "heading", "no_fix", "first_fix_bonus", "collision", "wrong_pose",
                      "time", "progress", "goal_bonus"):  # fmt: skip
             check(getattr(self, name) >= 0, f"reward weight {name} must be >= 0, got {getattr(self, name)!r}")
-        check(self.wrong_pose_m > 0, f"reward weight wrong_pose_m must be > 0, got {self.wrong_pose_m!r}")
+        for name in ("wrong_pose_m", "wrong_pose_rad"):
+            check(getattr(self, name) > 0, f"reward weight {name} must be > 0, got {getattr(self, name)!r}")
 
 
 class ActiveLocalizationReward(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -112,11 +116,12 @@ class ActiveLocalizationReward(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if est.valid:
             error = float(np.hypot(est.x_m - truth[0], est.y_m - truth[1]))
             terms["position"] = -w.position * min(error, w.position_clip_m)
-            terms["heading"] = -w.heading * abs(float(wrap_angle(est.theta_rad - truth[2])))
+            heading_error = abs(float(wrap_angle(est.theta_rad - truth[2])))
+            terms["heading"] = -w.heading * heading_error
             if not self._had_fix:
                 terms["first_fix"] = w.first_fix_bonus
                 self._had_fix = True
-            if w.wrong_pose and error >= w.wrong_pose_m:
+            if w.wrong_pose and (error >= w.wrong_pose_m or heading_error >= w.wrong_pose_rad):
                 terms["wrong_pose"] = -w.wrong_pose
         else:
             terms["no_fix"] = -w.no_fix

@@ -47,6 +47,27 @@ def test_terms_follow_the_formula() -> None:
     assert lost["no_fix"] == pytest.approx(-1.0) and lost["position"] == 0.0
 
 
+def test_a_wrong_pose_is_one_too_far_off_or_turned_too_far() -> None:
+    weights = {"wrong_pose": 0.1, "wrong_pose_m": 1.0, "wrong_pose_rad": math.pi / 4}
+    env = ActiveLocalizationReward(gym.make("crowdloc/RoboCupCrowded-v0", localizer="mcl_bearing"), weights)
+    env.reset(seed=0)
+
+    def wrong(dx: float, dtheta: float) -> float:
+        est = PoseEstimate(1.0 + dx, 1.0, 0.5 + dtheta, np.eye(3), True)
+        return env.terms({"estimate": est, "true_pose": np.array([1.0, 1.0, 0.5]), "contacts": []})["wrong_pose"]
+
+    assert wrong(0.3, 0.1) == 0.0
+    assert wrong(1.2, 0.0) == pytest.approx(-0.1)  # too far off
+    assert wrong(0.1, math.pi) == pytest.approx(-0.1)  # a twin turned about a room's centre, near it
+    assert wrong(0.1, -0.9) == pytest.approx(-0.1)
+    position_only = ActiveLocalizationReward(gym.make("crowdloc/RoboCupCrowded-v0", localizer="mcl_bearing"), {"wrong_pose": 0.1})
+    position_only.reset(seed=0)
+    turned = PoseEstimate(1.1, 1.0, 0.5 + math.pi, np.eye(3), True)
+    assert position_only.terms({"estimate": turned, "true_pose": np.array([1.0, 1.0, 0.5]), "contacts": []})["wrong_pose"] == 0.0
+    with pytest.raises(ConfigError, match="wrong_pose_rad must be > 0, got 0.0"):
+        RewardWeights(wrong_pose_rad=0.0)
+
+
 def test_the_reward_needs_a_localizer_and_checks_its_weights() -> None:
     with pytest.raises(KeyError, match="localizer"):
         ActiveLocalizationReward(gym.make("crowdloc/RoboCupCrowded-v0")).reset(seed=0)
