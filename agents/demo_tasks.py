@@ -1,7 +1,8 @@
 """The demo's active localization in the other worlds: each world task, briefly (``make demo``).
 
 For each world task (:data:`WORLD_TASKS`: the training configs ``configs/experiments/NAME.yaml`` of
-the room, the corridor and the campus) its world's paper policy and ``random_walk`` play a few test
+the room, the corridor and the campus) its fixed policy to beat (the world's paper policy; in the room,
+where the paper's start was known, ``look_then_route``) and ``random_walk`` play a few test
 seeds at the world's default crowd in the task's conditions, with the task's reward, as
 ``crowdloc eval --conditions NAME`` evaluates them; the task's shipped PPO policy
 (``models/NAME.zip``) plays beside them where the checkout has one. The section gives, per task,
@@ -24,7 +25,7 @@ from agents.evaluate.outputs import EVAL_OUTPUTS
 if TYPE_CHECKING:
     from agents.evaluate import EvalResult
 
-#: the world tasks and the paper policy each is measured against
+#: the world tasks and the fixed policy each is measured against
 WORLD_TASKS = {
     "ppo_room_lidar": "look_then_route",  # turns twice (the start is unknown), then drives the task's square on the estimate
     "ppo_corridor_targets": "corridor_follower",  # the ceiling paper's stop-and-correct drive
@@ -57,7 +58,7 @@ def tasks_section(out_dir: Path, seeds: int = TASK_SEEDS, workers: int | None = 
         "## Active localization in the other worlds",
         "",
         f"Each world task in its training conditions and with its reward (`crowdloc eval --conditions NAME`), at its "
-        f"world's default crowd on {seeds} test seed(s): the world's paper policy, `random_walk` and the task's shipped "
+        f"world's default crowd on {seeds} test seed(s): the task's fixed policy to beat, `random_walk` and the task's shipped "
         "PPO policy where this checkout has one. Mean [95 % bootstrap CI] over the episodes; a few seeds show how a "
         "policy drives, not which is better: the verdict is `crowdloc eval --conditions NAME --verdict "
         "ppo:models/NAME.zip` on 100 seeds at the default and the largest crowd (README).",
