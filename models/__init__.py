@@ -1,8 +1,10 @@
 """crowdloc's shipped PPO policies, installed as the package ``crowdloc_models``.
 
 This folder is package data (``models/`` in the checkout, ``crowdloc_models`` once installed;
-see ``package-dir`` in pyproject.toml): ``ppo_<localizer>.zip`` per localizer, and README.md on
-how they were trained and chosen. Code finds them through :func:`path` and :func:`names`
+see ``package-dir`` in pyproject.toml): ``<config>.zip`` per training config of
+``configs/experiments/`` with a shipped policy (the soccer field's ``ppo_<localizer>.zip``, one per
+localizer; the world tasks' ``ppo_room_lidar.zip`` and the like), and README.md on how they were
+trained and chosen. Code finds them through :func:`path` and :func:`names`
 (``importlib.resources``), never by paths relative to its own source.
 """
 
@@ -26,5 +28,5 @@ def policy_path(localizer: str) -> Path:
 
 
 def names() -> list[str]:
-    """The localizers with a shipped policy, sorted: ``["candidate_sets", "mcl_bearing"]``."""
-    return sorted(p.stem.removeprefix("ppo_") for p in path().glob("ppo_*.zip"))
+    """The training configs with a shipped policy, sorted, e.g. ``["ppo_candidate_sets", "ppo_mcl_bearing"]``."""
+    return sorted(p.stem for p in path().glob("*.zip"))

@@ -132,7 +132,9 @@ def test_shipped_experiments_and_search_spaces_resolve() -> None:
 def test_shipped_models_resolve() -> None:
     from agents.demo import ACTIVE_LOCALIZERS, SHIPPED_CONFIG, SHIPPED_MODELS
 
-    assert crowdloc_models.names() == sorted(ACTIVE_LOCALIZERS) == sorted(SHIPPED_MODELS)
+    assert sorted(ACTIVE_LOCALIZERS) == sorted(SHIPPED_MODELS)
+    assert {f"ppo_{localizer}" for localizer in ACTIVE_LOCALIZERS} <= set(crowdloc_models.names())
+    assert set(crowdloc_models.names()) <= set(crowdloc_configs.names("experiments")), "each model is a config's"
     for localizer, path in SHIPPED_MODELS.items():
         assert path == crowdloc_models.policy_path(localizer)
         assert path.is_file()

@@ -13,6 +13,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+import crowdloc_models
 import envs
 from agents.policies.fixed import FIXED_POLICIES, RouteFollower, make_policy
 from agents.rl.observation import ObservationConfig, RouteConfig, RouteCursor
@@ -212,3 +213,41 @@ def test_ppo_trains_a_task_for_a_few_thousand_steps_and_its_model_drives_the_tas
         obs, _, terminated, truncated, _ = env.step(action)
         done = terminated or truncated
     env.close()
+
+
+#: the task ids whose training config has a shipped policy (models/<config>.zip)
+SHIPPED_TASKS = sorted(task for task, config in envs.TASK_CONFIGS.items() if crowdloc_models.path(f"{config}.zip").is_file())
+
+
+def _play_shipped(task: str, seed: int, steps: int | None) -> tuple[list[list[float]], list[float]]:
+    """The shipped policy of ``task`` on its task id: its deterministic actions and the rewards, for
+    ``steps`` steps or the whole episode (``None``)."""
+    from stable_baselines3 import PPO
+
+    model = PPO.load(crowdloc_models.path(f"{envs.TASK_CONFIGS[task]}.zip"), device="cpu")
+    env = gym.make(task)
+    assert model.observation_space == env.observation_space, "the model observes what its task id gives"
+    obs, _ = env.reset(seed=seed)
+    actions, rewards, done = [], [], False
+    while not done and (steps is None or len(actions) < steps):
+        action, _ = model.predict(obs, deterministic=True)
+        obs, reward, terminated, truncated, _ = env.step(action)
+        actions.append(np.asarray(action).tolist())
+        rewards.append(float(reward))
+        done = terminated or truncated
+    env.close()
+    return actions, rewards
+
+
+@pytest.mark.parametrize("task", SHIPPED_TASKS)
+def test_a_shipped_policy_drives_its_task_id_deterministically(task: str) -> None:
+    first = _play_shipped(task, seed=5, steps=300)
+    assert first == _play_shipped(task, seed=5, steps=300)
+    assert len({tuple(a) for a in first[0]}) > 1, "it acts on what it observes"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("task", SHIPPED_TASKS)
+def test_a_shipped_policy_plays_a_whole_episode_of_its_task_id_deterministically(task: str) -> None:
+    first = _play_shipped(task, seed=6, steps=None)
+    assert first == _play_shipped(task, seed=6, steps=None)
