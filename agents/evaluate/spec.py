@@ -18,7 +18,7 @@ import envs  # registers the crowdloc ids
 from agents.evaluate.goal import GOAL_METRICS
 from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
-from agents.policies import FIXED_POLICIES, RouteFollower
+from agents.policies import FIXED_POLICIES, follows_routes
 from agents.rl.observation import ObservationConfig, RouteConfig
 from agents.rl.rewards import RewardWeights
 from agents.rl.train import EVAL_SEED_BASE, task_wrappers
@@ -221,8 +221,7 @@ class EvalSpec:
         """Whether fixed policy ``policy`` drives :attr:`route`'s points (``route_follower`` and
         ``look_then_route`` when the conditions give the points, as a task's config does) rather
         than the map's route feature."""
-        cls = FIXED_POLICIES.get(policy)
-        return isinstance(cls, type) and issubclass(cls, RouteFollower) and bool(self.route.points_m)
+        return follows_routes(policy) and bool(self.route.points_m)
 
     def world(self) -> WorldConfig:
         """The world evaluated: the id's (or ``env_kwargs["world"]``) with the conditions applied."""

@@ -64,6 +64,7 @@ __all__ = [
     "RouteFollower",
     "SpinInPlace",
     "StopAndGo",
+    "follows_routes",
     "make_policy",
     "read_estimate",
     "register_policy",
@@ -444,7 +445,7 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
             kwargs.setdefault("sonar_cone_rad", sonar.cone_rad)
         lmap = base.landmark_map
         return CorridorFollower(space, ceiling_targets(base.config, lmap.features), lmap.bounds_m, seed, **kwargs)
-    if issubclass(FIXED_POLICIES[name], RouteFollower):
+    if follows_routes(name):
         config = base.config
         kwargs.setdefault("dt_s", config.dt_s)
         kwargs.setdefault("max_speed_mps", config.robot.max_speed_mps)
@@ -460,6 +461,13 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
         route = route_points(config, lmap.features, route) if route is None or isinstance(route, str) else route
         return FIXED_POLICIES[name](space, route, lmap.bounds_m, seed, **kwargs)
     return FIXED_POLICIES[name](space, seed=seed, **kwargs)
+
+
+def follows_routes(name: str) -> bool:
+    """Whether fixed policy ``name`` is a :class:`RouteFollower` (``route_follower``, ``look_then_route``):
+    it drives a route, the map's or the points it is given (``make_policy(..., route=points)``)."""
+    cls = FIXED_POLICIES.get(name)
+    return isinstance(cls, type) and issubclass(cls, RouteFollower)
 
 
 def ceiling_targets(world: Any, features: Mapping[str, Mapping[str, Any]]) -> list[dict[str, Any]]:

@@ -362,7 +362,9 @@ class LookThenRoute(RouteFollower):
     and -77.7 and -146.8 for ``spin``. Two turns: under the task's earlier reward (a wrong pose by
     position alone) one, two and three turns scored -47.1, -44.6 and -39.5 at crowd 16 and -142.4,
     -119.0 and -119.0 at crowd 30 (one is too few at crowd 30, where people hide parts of the room;
-    a third adds little).
+    a third adds little). Its lead over ``spin`` does not hold up on more seeds: on 60 others the
+    paired difference in return is +6.8 [-3.1, 15.0] at crowd 16 and +12.0 [-9.3, 32.4] at 30, within
+    the noise (the first scan decides most of a room episode; ``models/README.md``).
     """
 
     def __init__(self, *args: Any, **params: Any) -> None:

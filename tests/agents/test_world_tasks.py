@@ -15,7 +15,7 @@ import pytest
 
 import crowdloc_models
 import envs
-from agents.policies.fixed import FIXED_POLICIES, RouteFollower, make_policy
+from agents.policies.fixed import follows_routes, make_policy
 from agents.rl.observation import ObservationConfig, RouteConfig, RouteCursor
 from agents.rl.train import load_train_config, make_task_env
 from localizers.schema import ConfigError
@@ -102,8 +102,7 @@ def _episode_return(config_name: str, policy: str, seed: int, steps: int | None 
     obs, _ = env.reset(seed=seed)
     driver: Any = None
     if policy not in ("still", "random"):
-        drives_route = issubclass(FIXED_POLICIES[policy], RouteFollower) and config.route.points_m
-        kwargs = {"route": np.asarray(config.route.points_m)} if drives_route else {}
+        kwargs = {"route": np.asarray(config.route.points_m)} if follows_routes(policy) and config.route.points_m else {}
         driver = make_policy(policy, env, seed=seed, **kwargs)
     rng = np.random.default_rng(seed)
     total, done = 0.0, False
