@@ -275,3 +275,30 @@ def position_votes(
                         votes[h, i, j] += 1
                     rho += 0.5 * cell_m
     return votes
+
+
+@numba.njit(cache=True)
+def top_cells(votes: IntArray, k: int) -> IntArray:
+    """The flat indices of the ``k`` largest of ``votes`` (any shape), largest first, a tie going to the later index:
+    ``np.argsort(votes, axis=None, kind="stable")[::-1][:k]`` in one pass instead of a sort (the search's vote grid at the
+    defaults: 51 headings of 33 x 33 cells, of which it refines three; the sort took 1.2 ms of a 7 ms search)."""
+    flat = votes.ravel()
+    k = max(0, min(k, flat.size))
+    best_v = np.empty(k, dtype=votes.dtype)
+    best_i = np.empty(k, dtype=np.int64)
+    held = 0
+    for idx in range(flat.size if k else 0):
+        v = flat[idx]
+        if held == k and v < best_v[k - 1]:
+            continue
+        p = 0  # ahead of every held value it equals: the later index ranks first among equals
+        while p < held and best_v[p] > v:
+            p += 1
+        last = min(held, k - 1)
+        for q in range(last, p, -1):
+            best_v[q] = best_v[q - 1]
+            best_i[q] = best_i[q - 1]
+        best_v[p] = v
+        best_i[p] = idx
+        held = min(held + 1, k)
+    return best_i

@@ -94,7 +94,7 @@ from localizers.base import (
     within_spread,
 )
 from localizers.contradiction import ContradictionClock
-from localizers.far_landmark_kernels import detection_distances, particle_log_weights, position_votes
+from localizers.far_landmark_kernels import detection_distances, particle_log_weights, position_votes, top_cells
 from localizers.particles import (
     MAX_PARTICLES,
     PARTICLE_MEMORY,
@@ -440,7 +440,7 @@ class FarLandmarkPF:
                                p.match_gate * p.sigma_inv_r)  # fmt: skip
         best, best_ll = mean, -math.inf
         every = np.array([0, order.size], dtype=np.int64)  # one group: every matching detection weighed
-        for flat in np.argsort(votes, axis=None, kind="stable")[::-1][:3]:
+        for flat in top_cells(votes, 3):
             h, i, j = np.unravel_index(flat, votes.shape)
             centre = np.array([mean[0] + (i - half) * p.search_cell_m, mean[1] + (j - half) * p.search_cell_m, headings[h]])
             poses = np.ascontiguousarray(centre[:, None] + self._fine)

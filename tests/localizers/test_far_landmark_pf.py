@@ -28,7 +28,13 @@ from localizers.base import (
     OdometryDelta,
     PoseEstimate,
 )
-from localizers.far_landmark_kernels import detection_distances, detection_log_likelihood, particle_log_weights, position_votes
+from localizers.far_landmark_kernels import (
+    detection_distances,
+    detection_log_likelihood,
+    particle_log_weights,
+    position_votes,
+    top_cells,
+)
 from localizers.far_landmark_pf import SELECTIONS, FarLandmarkParams, FarLandmarkPF, order_detections
 from localizers.scene_map import SceneMap, geometry_fingerprint
 from localizers.schema import ConfigError
@@ -233,6 +239,18 @@ def test_detection_distances_are_those_of_the_plain_kernel(seed: int) -> None:
         got, expected = detection_distances(*args), reference_detection_distances(*args)
         assert np.isfinite(expected).sum() >= 5 and np.isnan(expected).any()  # near ones, far ones, uncovered ones
         np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))
+
+
+def test_top_cells_are_the_stable_sorts_last_cells() -> None:
+    """The search refines its three best cells: the largest votes, a tie to the later cell, as the stable sort read
+    backwards had them (vote grids are full of ties)."""
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        shape = tuple(int(n) for n in rng.integers(1, 7, size=rng.integers(1, 4)))
+        votes = rng.integers(0, rng.integers(1, 5), size=shape)
+        for k in (0, 1, 3, 500):
+            expected = np.argsort(votes, axis=None, kind="stable")[::-1][:k]
+            np.testing.assert_array_equal(top_cells(votes, k), expected)
 
 
 @pytest.mark.parametrize("seed", range(4))
