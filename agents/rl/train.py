@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 import pickle
 import random
 import shutil
@@ -63,6 +64,10 @@ class PPOConfig:
     vf_coef: float = 0.5
     max_grad_norm: float = 0.5
     net_arch: tuple[int, ...] = (64, 64)
+    #: the Gaussian actions' initial log standard deviation (SB3's ``policy_kwargs.log_std_init``): 0, SB3's default,
+    #: explores with an sd of 1, a full-scale action; a task whose localizer is lost by an action's noise (a turn, on
+    #: the campus's free-running webcams) may need less to see a localized episode at all
+    log_std_init: float = 0.0
 
     def __post_init__(self) -> None:
         check(self.learning_rate > 0, f"ppo.learning_rate must be > 0, got {self.learning_rate}")
@@ -71,6 +76,7 @@ class PPOConfig:
         check(self.n_epochs >= 1, f"ppo.n_epochs must be >= 1, got {self.n_epochs}")
         check(0 < self.gamma <= 1, f"ppo.gamma must be in (0, 1], got {self.gamma}")
         check(all(n > 0 for n in self.net_arch), f"ppo.net_arch sizes must be > 0, got {self.net_arch}")
+        check(math.isfinite(self.log_std_init), f"ppo.log_std_init must be finite, got {self.log_std_init}")
 
 
 @dataclass(frozen=True)
@@ -501,7 +507,7 @@ def _new_model(config: TrainConfig, directory: Path, verbose: int) -> tuple[Any,
         ent_coef=p.ent_coef,
         vf_coef=p.vf_coef,
         max_grad_norm=p.max_grad_norm,
-        policy_kwargs={"net_arch": list(p.net_arch)},
+        policy_kwargs={"net_arch": list(p.net_arch), "log_std_init": p.log_std_init},
         tensorboard_log=str(directory / "tb"),
         seed=config.seed,
         device="cpu",

@@ -42,13 +42,14 @@ def test_the_hyperparameter_file_covers_every_task_id_with_a_dict_policy() -> No
 def test_the_hyperparameters_are_the_training_configs(env_id: str, config: str) -> None:
     trained = load_train_config(config)
     params = _hyperparams()[env_id]
-    ppo = {f.name: getattr(trained.ppo, f.name) for f in dataclasses.fields(trained.ppo) if f.name != "net_arch"}
+    in_policy = ("net_arch", "log_std_init")  # SB3 takes these in policy_kwargs
+    ppo = {f.name: getattr(trained.ppo, f.name) for f in dataclasses.fields(trained.ppo) if f.name not in in_policy}
     expected = {
         "policy": "MultiInputPolicy",
         "n_envs": trained.n_envs,
         "n_timesteps": trained.total_timesteps,
         **ppo,
-        "policy_kwargs": {"net_arch": list(trained.ppo.net_arch)},
+        "policy_kwargs": {"net_arch": list(trained.ppo.net_arch), "log_std_init": trained.ppo.log_std_init},
     }
     assert params == expected
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import re
 from pathlib import Path
 from typing import Any
@@ -83,11 +84,29 @@ def test_tiny_run_trains_saves_loads_and_resumes_exactly(tmp_path: Path) -> None
         ({"vec_env": "threads"}, "threads"),
         ({"env_kwargs": {"max_episode_steps": 10}}, "max_episode_steps"),
         ({"ppo.net_arch": [0]}, "net_arch"),
+        ({"ppo.log_std_init": float("nan")}, "log_std_init"),
     ],
 )
 def test_bad_training_configs_name_the_problem(overrides: dict, needle: str) -> None:
     with pytest.raises(ConfigError, match=needle):
         load_train_config("ppo_candidate_sets", overrides)
+
+
+def test_the_initial_action_sd_is_the_configs(tmp_path: Path) -> None:
+    """``ppo.log_std_init`` sets the Gaussian actions' starting log sd; its default is SB3's own (sd 1), so the
+    shipped configs train as before it existed."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    from agents.rl.train import PPOConfig
+
+    default = train(tiny(1), tmp_path / "default", progress_bar=False)
+    narrow = train(tiny(1, **{"ppo.log_std_init": -1.5}), tmp_path / "narrow", progress_bar=False)
+    # one rollout's update (4 Adam steps of 3e-4) moves them by at most about 1e-3
+    assert PPO.load(default, device="cpu").policy.log_std.tolist() == pytest.approx([0.0, 0.0], abs=0.01)
+    assert PPO.load(narrow, device="cpu").policy.log_std.tolist() == pytest.approx([-1.5, -1.5], abs=0.01)
+    sb3_default = inspect.signature(ActorCriticPolicy.__init__).parameters["log_std_init"].default
+    assert PPOConfig().log_std_init == sb3_default
 
 
 def test_multi_seed_training_equals_the_single_runs(tmp_path: Path) -> None:
