@@ -8,6 +8,19 @@ with the envs in subprocesses is measured beside it for reference (the choice be
 is a config key, ``vec_env``; both give the same weights). The other worlds' tasks (issue 31:
 the room, the corridor, the campus) are measured the same way, each its shipped config, against
 issue 31's 500 steps/s on 2 cores.
+
+The campus task misses it (380-410 env steps/s in process on a quiet host). Where its time goes
+(cProfile of 3 rollouts of the shipped config, 18,000 env steps, 2026-12-04): the world and its
+sensors 48 % (the stereo camera's fast mode 25 %, of which the line kernel 11 %; physics and the
+crowd 14 %; the LIDAR 6 %), ``far_landmark_pf`` 33 % (its search of the scene map, run while it is
+lost, 20 %: 1,792 searches of 51 headings x 33 x 33 cells; the rest is the 500 particles' weights and
+the lost test), SB3's policy, buffers and the task's wrappers 13 %, the gradient updates 2 %. The
+policy early in training is lost most of the time (the campus analysis in models/README), so the
+search runs on about one step in ten. The floor with this behaviour is the rate above. To reach 500
+a fifth of the step must go. The search's headings are independent and split across the two cores
+halve it on an idle machine (6.5 to 3.5 ms per search, measured), but they ran three times slower when
+the other core was busy (training runs side by side, as `--workers 2` does), so that was not kept;
+searching less often, or a policy that stays localized, would change what is trained on.
 """
 
 from __future__ import annotations
