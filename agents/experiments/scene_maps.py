@@ -12,8 +12,11 @@ detections of that step.
 :func:`default_scene_map` is the world's default map: made once (seed 0, the crowd size of the
 world's file, whatever crowd the env asking for it runs: the map comes from a normal day's drive,
 and every env of the world gets the same one) and cached under ``$CROWDLOC_CACHE/scene_maps``
-(default ``~/.cache/crowdloc``), keyed by the world's geometry and camera, so ``gym.make(id, localizer="far_landmark_pf")``
-works without a map file (:func:`prepare_far_landmark_pf`, the localizer's preparation hook).
+(default ``~/.cache/crowdloc``), keyed by the world's geometry and camera and by everything the drive depends
+on (:func:`drive_fingerprint`: the world's whole config, its crowds' behaviour, LIDAR sweep and camera timing
+included, the drive's settings and :data:`DRIVE_VERSION`), so ``gym.make(id, localizer="far_landmark_pf")``
+works without a map file (:func:`prepare_far_landmark_pf`, the localizer's preparation hook) and never uses a
+map that a drive in other conditions recorded.
 ``crowdloc map WORLD`` makes one explicitly.
 """
 
@@ -32,7 +35,7 @@ import numpy as np
 from tqdm import tqdm
 
 from envs.config import WorldConfig
-from envs.localization_env import LocalizationEnv
+from envs.localization_env import LocalizationEnv, apply_overrides
 from localizers.mcl_lidar import LARGE_MAP_PARAMS
 from localizers.measurements import edge_measurement, sensor_map
 from localizers.range_table import cache_dir
@@ -45,6 +48,10 @@ _log = logging.getLogger(__name__)
 #: no recovery or lost test: injection drawn over a campus almost never lands near the robot, and
 #: a lost test that fires when people pass would stop a robot that drives on the estimate)
 AMCL_LIKE: dict[str, Any] = dict(LARGE_MAP_PARAMS)  # mcl_lidar's own defaults for a world too large for its beam model
+#: the mapping drive's version: bump it when a change of the code (route_follower, the reference, the crowds)
+#: changes what a drive in the same config records, so that cached default maps are made again
+#: (2: the cache key holds the drive's conditions; maps cached before could come from a world's older defaults)
+DRIVE_VERSION = 2
 #: what of the stereo camera's metadata a map's edges depend on (a map made with another is refused)
 CAMERA_KEYS = (
     "width_px",
@@ -183,11 +190,27 @@ def build_scene_map(
     )
 
 
+def drive_fingerprint(config: WorldConfig, drive: MappingDrive) -> str:
+    """sha256 (hex, 8 characters) of what a mapping drive records depends on besides the geometry: the
+    world's whole config (the crowd the drive meets and how it behaves, the LIDAR the reference reads, the
+    camera's timing), the drive's settings and :data:`DRIVE_VERSION`."""
+    text = json.dumps({"world": asdict(config), "drive": asdict(drive), "version": DRIVE_VERSION}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:8]
+
+
+def default_drive(env: LocalizationEnv) -> tuple[WorldConfig, MappingDrive]:
+    """The world config and drive of ``env``'s default map: its conditions at the crowd of the world's file."""
+    drive = MappingDrive(crowd_size=env.file_crowd_size)
+    return apply_overrides(env.config, crowd_size=drive.crowd_size), drive
+
+
 def default_map_path(env: LocalizationEnv) -> Path:
-    """Where the world's default scene map is cached: named by the world, its geometry and camera."""
+    """Where the world's default scene map is cached: named by the world, its geometry, camera and drive
+    (:func:`drive_fingerprint`; a world whose crowd, LIDAR or camera timing changed gets a new map)."""
     _, meta = _camera(env)
     camera = hashlib.sha256(json.dumps(camera_signature(meta), sort_keys=True).encode()).hexdigest()[:8]
-    return cache_dir() / "scene_maps" / f"{env.config.name}-{world_fingerprint(env)}-{camera}.npz"
+    conditions = drive_fingerprint(*default_drive(env))
+    return cache_dir() / "scene_maps" / f"{env.config.name}-{world_fingerprint(env)}-{camera}-{conditions}.npz"
 
 
 def default_scene_map(env: LocalizationEnv) -> Path:
@@ -202,7 +225,7 @@ def default_scene_map(env: LocalizationEnv) -> Path:
             path.unlink(missing_ok=True)
     if not path.is_file():
         _log.warning("making the default scene map of %s (the route driven once; cached in %s)", env.config.name, path)
-        build_scene_map(env.config, MappingDrive(crowd_size=env.file_crowd_size), progress=True).save(path)
+        build_scene_map(*default_drive(env), progress=True).save(path)
     return path
 
 

@@ -55,6 +55,7 @@ def test_an_unreadable_default_map_is_made_again(
     built: list[object] = []
     monkeypatch.setattr(scene_maps, "default_map_path", lambda env: path)
     monkeypatch.setattr(scene_maps, "build_scene_map", lambda *args, **kwargs: built.append(args) or _map("campus"))
+    monkeypatch.setattr(scene_maps, "default_drive", lambda env: (env.config, scene_maps.MappingDrive(crowd_size=0)))
     env = SimpleNamespace(config=SimpleNamespace(name="campus"), file_crowd_size=0)
     with caplog.at_level(logging.WARNING, logger=scene_maps.__name__):
         assert scene_maps.default_scene_map(env) == path  # type: ignore[arg-type]
@@ -62,3 +63,26 @@ def test_an_unreadable_default_map_is_made_again(
     assert "cannot be read, making it again" in caplog.text and str(path) in caplog.text
     scene_maps.default_scene_map(env)  # type: ignore[arg-type]
     assert len(built) == 1  # a readable map is kept
+
+
+def test_the_default_map_is_keyed_by_the_drives_conditions_not_only_the_geometry(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A map cached by a drive in other conditions must not be used (session 38: a campus map cached before the
+    world's defaults turned on the LIDAR sweep, people who see the robot and free-running webcams kept being
+    used under the same name, and gave numbers a fresh clone could not reproduce)."""
+    from envs.localization_env import LocalizationEnv
+
+    def path(**overrides: object) -> Path:
+        return scene_maps.default_map_path(LocalizationEnv("stereo_campus", **overrides))  # type: ignore[arg-type]
+
+    default = path()
+    assert path(crowd_size=5) == path(crowd_size=0) == default  # every crowd of the world gets the drive at the file's crowd
+    changed = {
+        "camera timing": path(stereo={"synchronised": True}),
+        "LIDAR sweep": path(lidar={"sweep_s": 0.0}),
+        "odometry": path(odometry={"alpha1": 0.02}),
+    }
+    for what, other in changed.items():
+        assert other != default, what
+        assert other.parent == default.parent and other.name.startswith("stereo_campus-"), what
+    monkeypatch.setattr(scene_maps, "DRIVE_VERSION", scene_maps.DRIVE_VERSION + 1)
+    assert path() != default  # a change of the drive's code, announced by its version
