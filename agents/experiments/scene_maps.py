@@ -190,12 +190,16 @@ def build_scene_map(
     )
 
 
+def _short_hash(value: Any) -> str:
+    """sha256 (hex, 8 characters) of ``value``'s JSON with sorted keys: a part of a cached map's name."""
+    return hashlib.sha256(json.dumps(value, sort_keys=True).encode()).hexdigest()[:8]
+
+
 def drive_fingerprint(config: WorldConfig, drive: MappingDrive) -> str:
-    """sha256 (hex, 8 characters) of what a mapping drive records depends on besides the geometry: the
+    """:func:`_short_hash` of what a mapping drive records depends on besides the geometry: the
     world's whole config (the crowd the drive meets and how it behaves, the LIDAR the reference reads, the
     camera's timing), the drive's settings and :data:`DRIVE_VERSION`."""
-    text = json.dumps({"world": asdict(config), "drive": asdict(drive), "version": DRIVE_VERSION}, sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()[:8]
+    return _short_hash({"world": asdict(config), "drive": asdict(drive), "version": DRIVE_VERSION})
 
 
 def default_drive(env: LocalizationEnv) -> tuple[WorldConfig, MappingDrive]:
@@ -208,8 +212,7 @@ def default_map_path(env: LocalizationEnv) -> Path:
     """Where the world's default scene map is cached: named by the world, its geometry, camera and drive
     (:func:`drive_fingerprint`; a world whose crowd, LIDAR or camera timing changed gets a new map)."""
     _, meta = _camera(env)
-    camera = hashlib.sha256(json.dumps(camera_signature(meta), sort_keys=True).encode()).hexdigest()[:8]
-    conditions = drive_fingerprint(*default_drive(env))
+    camera, conditions = _short_hash(camera_signature(meta)), drive_fingerprint(*default_drive(env))
     return cache_dir() / "scene_maps" / f"{env.config.name}-{world_fingerprint(env)}-{camera}-{conditions}.npz"
 
 
