@@ -7,7 +7,9 @@ LIDAR reference's estimate (``mcl_lidar`` in ROS amcl's likelihood-field configu
 :data:`AMCL_LIKE`, on the world's 360 deg LIDAR: the paper's amcl on a flattened VLP-16) and
 records every ``period_s``: the pose is that reference's estimate (``pose="reference"``, the
 default, as on a real robot) or the truth (``pose="truth"``); the landmarks are the camera's
-detections of that step.
+detections of that step. On free-running webcams the drive takes its bends slowly and a scene due
+while it turns waits for the next frame (:attr:`MappingDrive.max_shift_px`, issue 31): a frame taken
+mid-turn has its far landmarks' ranges off, and a map made of such frames contradicts the right pose.
 
 :func:`default_scene_map` is the world's default map: made once (seed 0, the crowd size of the
 world's file, whatever crowd the env asking for it runs: the map comes from a normal day's drive,
@@ -50,8 +52,9 @@ _log = logging.getLogger(__name__)
 AMCL_LIKE: dict[str, Any] = dict(LARGE_MAP_PARAMS)  # mcl_lidar's own defaults for a world too large for its beam model
 #: the mapping drive's version: bump it when a change of the code (route_follower, the reference, the crowds)
 #: changes what a drive in the same config records, so that cached default maps are made again
-#: (2: the cache key holds the drive's conditions; maps cached before could come from a world's older defaults)
-DRIVE_VERSION = 2
+#: (2: the cache key holds the drive's conditions; maps cached before could come from a world's older defaults;
+#: 3: no scene from a frame taken mid-turn, ``MappingDrive.max_shift_px``)
+DRIVE_VERSION = 3
 #: what of the stereo camera's metadata a map's edges depend on (a map made with another is refused)
 CAMERA_KEYS = (
     "width_px",
@@ -77,6 +80,15 @@ class MappingDrive:
         pose: the scenes' poses: ``"reference"`` (the LIDAR reference's estimate) or ``"truth"``.
         period_s: a scene every this many seconds (1 s: about one per metre at the robot's 1 m/s).
         max_steps: stop after this many steps (None: the world's episode length).
+        max_shift_px: a scene is recorded only from a frame whose cameras the robot's turn (the step's
+            odometry) moved by at most this many pixels between their frames (turn rate x the rig's
+            ``frame_gap_s`` x focal length); a scene due mid-turn waits for the first frame after it
+            (ours, issue 31: free-running webcams take their frames up to 1/30 s apart, so a frame taken
+            in a turn has its disparities off by that shift, about 6 px at the campus corner's 0.33 rad/s,
+            and its far landmarks' ranges with them; 1 px is about twice the rig's disparity noise). The drive turns
+            no faster than that (``route_follower``'s ``max_turn``: it slows in bends, the campus corner at
+            0.054 rad/s), so the scenes cover the bends' views too. Synchronised cameras (``frame_gap_s`` 0)
+            drive and record as before.
     """
 
     seed: int = 0
@@ -84,10 +96,15 @@ class MappingDrive:
     pose: Literal["reference", "truth"] = "reference"
     period_s: float = 1.0
     max_steps: int | None = None
+    max_shift_px: float = 1.0
 
     def __post_init__(self) -> None:
         check(self.pose in ("reference", "truth"), f"mapping drive: pose must be 'reference' or 'truth', got {self.pose!r}")
         check(math.isfinite(self.period_s) and self.period_s > 0, f"mapping drive: period_s must be > 0, got {self.period_s!r}")
+        check(
+            isinstance(self.max_shift_px, int | float) and not isinstance(self.max_shift_px, bool) and self.max_shift_px > 0,
+            f"mapping drive: max_shift_px must be a number > 0 (pixels), got {self.max_shift_px!r}",
+        )
 
 
 def reference_env_kwargs(config: WorldConfig) -> dict[str, Any]:
@@ -144,17 +161,27 @@ def build_scene_map(
     key = str(meta["key"])
     env = LocalizationObservation(base, reference["localizer"], reference["localizer_params"], prior=reference["prior"],
                                   sensor=reference["localizer_sensor"])  # fmt: skip
-    policy = make_policy("route_follower", env, seed=drive.seed)
+    # the turn rate (rad/s) above which a frame's cameras moved more than max_shift_px between their frames
+    max_turn_rps = (
+        drive.max_shift_px / (float(meta["frame_gap_s"]) * float(meta["focal_px"])) if meta["frame_gap_s"] else math.inf
+    )
+    policy = make_policy("route_follower", env, seed=drive.seed,
+                         max_turn=min(1.0, max_turn_rps / base.config.robot.max_turn_rate_rps))  # fmt: skip
     obs, info = env.reset(seed=drive.seed)
     every = max(1, round(drive.period_s / base.config.dt_s))
     limit = drive.max_steps or base.config.max_episode_steps
+    odometry = _odometry_key(base)
+    due = False  # a scene is due and waits for a frame taken out of a turn
     poses: list[np.ndarray] = []
     covariances: list[np.ndarray] = []
     types: list[np.ndarray] = []
     rel: list[np.ndarray] = []
     bar = tqdm(total=limit, desc=f"mapping {base.config.name}", unit="step", disable=not progress, leave=False)
     for step in range(limit):
-        if step % every == 0:
+        due = due or step % every == 0
+        turn_rps = abs(float(obs[odometry][2])) / base.config.dt_s  # the step in which this frame was taken
+        if due and turn_rps <= max_turn_rps:
+            due = False
             est = info["estimate"]
             pose = np.asarray(info["true_pose"], dtype=np.float64) if drive.pose == "truth" else est.as_array()
             if np.all(np.isfinite(pose)) and (drive.pose == "truth" or est.valid):
@@ -188,6 +215,13 @@ def build_scene_map(
         },
         pose_covariances=np.asarray(covariances, dtype=np.float64).reshape(-1, 3, 3),
     )
+
+
+def _odometry_key(env: LocalizationEnv) -> str:
+    found = [str(meta["key"]) for meta in env.sensor_metadata.values() if meta["type"] == "odometry"]
+    if len(found) != 1:
+        raise ConfigError(f"a mapping drive needs one odometry sensor; world {env.config.name!r} has {len(found)}")
+    return found[0]
 
 
 def _short_hash(value: Any) -> str:
@@ -234,8 +268,13 @@ def default_scene_map(env: LocalizationEnv) -> Path:
 
 def prepare_far_landmark_pf(env: LocalizationEnv, sensor: str, params: Mapping[str, Any] | None) -> dict[str, Any]:
     """``far_landmark_pf``'s preparation (its registry entry names it): without a ``scene_map``
-    in ``params``, the world's default (:func:`default_scene_map`); the map's camera must be this one's."""
+    in ``params``, the world's default (:func:`default_scene_map`); the map's camera must be this one's.
+    ``frame_gap_s`` and ``baseline_m`` (what a turn can shift between the rig's frames) come from the
+    camera's metadata unless ``params`` gives them."""
     out = dict(params or {})
+    meta = env.sensor_metadata[sensor]
+    out.setdefault("frame_gap_s", float(meta["frame_gap_s"]))
+    out.setdefault("baseline_m", float(meta["baseline_m"]))
     if not out.get("scene_map"):
         out["scene_map"] = str(default_scene_map(env))
     scenes = SceneMap.load(out["scene_map"])

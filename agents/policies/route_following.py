@@ -68,6 +68,9 @@ class RouteParams:
         dt_s: the env's time step (the last step before the end is sized to land on it; timers).
         max_speed_mps, max_turn_rate_rps: the env's limits (commands are computed in m/s and rad/s).
         cruise: forward speed along the route (1.0: the campus robot's 1 m/s; the paper gives none).
+        max_turn: the fastest turn (action units: a fraction of the env's turn-rate limit; 1.0). Below 1
+            the robot slows in bends so that it turns no faster (a scene map's drive on free-running
+            webcams, :class:`agents.experiments.scene_maps.MappingDrive`).
         creep: the slowest forward speed while moving toward the end (0.05).
         lookahead_m: the pure-pursuit look-ahead (1.5 m: 1.5 s at 1 m/s; tracks a 3 m radius turn
             within a few centimetres, and dead-reckoning noise without weaving).
@@ -96,6 +99,7 @@ class RouteParams:
     max_speed_mps: float = 1.0
     max_turn_rate_rps: float = 1.0
     cruise: float = 1.0
+    max_turn: float = 1.0
     creep: float = 0.05
     lookahead_m: float = 1.5
     search_ahead_m: float = 5.0
@@ -130,7 +134,7 @@ class RouteParams:
                     raise ValueError(f"{where} {f.name} must be a number >= 0, got {value!r}")
             elif not (number and value > 0):
                 raise ValueError(f"{where} {f.name} must be a number > 0, got {value!r}")
-        for name in ("cruise", "creep"):
+        for name in ("cruise", "creep", "max_turn"):
             check_command(f"{where} {name}", getattr(self, name))
         if self.creep > self.cruise:
             raise ValueError(f"{where} needs creep ({self.creep}) at most cruise ({self.cruise})")
@@ -217,7 +221,7 @@ class RouteFollower(FixedPolicy):
         super().reset(seed)
         self.progress_m: float | None = None
         p = self.params
-        self._look_steps = math.ceil(p.look_around_turns * 2 * math.pi / (p.max_turn_rate_rps * p.dt_s) - 1e-9)
+        self._look_steps = math.ceil(p.look_around_turns * 2 * math.pi / (self._turn_limit_rps * p.dt_s) - 1e-9)
         self.phase = "look" if self._look_steps else "wait"
         self.blocked_steps = 0
         self._speed_mps = 0.0  # the last forward command
@@ -292,7 +296,7 @@ class RouteFollower(FixedPolicy):
         if self._look_steps:
             self._look_steps -= 1
             self.phase = "look" if self._look_steps else "wait"
-            return self._command(0.0, p.max_turn_rate_rps)
+            return self._command(0.0, self._turn_limit_rps)
         if self.phase == "done":
             return np.zeros(2)
         if pose is None:
@@ -323,7 +327,7 @@ class RouteFollower(FixedPolicy):
         bearing = math.atan2(y, x)
         if abs(bearing) > p.turn_in_place_rad:
             self._speed_mps = 0.0
-            rate = float(np.clip(p.turn_gain * bearing, -p.max_turn_rate_rps, p.max_turn_rate_rps))
+            rate = float(np.clip(p.turn_gain * bearing, -self._turn_limit_rps, self._turn_limit_rps))
             return self._command(0.0, rate)
         curvature = 2.0 * y / (distance * distance) if distance > 1e-9 else 0.0
         # the speed: cruise, toward the end slower and landing on it, within the turn-rate limit
@@ -331,7 +335,7 @@ class RouteFollower(FixedPolicy):
         left = min(remaining, end_gap)
         speed = min(speed, max(p.creep * p.max_speed_mps, speed * min(1.0, left / p.slow_down_m)), left / p.dt_s)
         if abs(curvature) > 1e-9:
-            speed = min(speed, p.max_turn_rate_rps / abs(curvature))
+            speed = min(speed, self._turn_limit_rps / abs(curvature))
         gap = self.gap_ahead(self.obstacle_points(observation), curvature)
         clear = p.stop_m + (p.resume_m if self._blocked else 0.0)
         self._blocked = gap <= clear
@@ -344,6 +348,11 @@ class RouteFollower(FixedPolicy):
         speed = min(speed, self._speed_mps + p.max_accel_mps2 * p.dt_s)
         self._speed_mps = speed
         return self._command(speed, speed * curvature)
+
+    @property
+    def _turn_limit_rps(self) -> float:
+        """The fastest turn it commands, rad/s (``max_turn`` of the env's limit)."""
+        return self.params.max_turn * self.params.max_turn_rate_rps
 
     def _command(self, speed_mps: float, rate_rps: float) -> NDArray[np.float64]:
         p = self.params

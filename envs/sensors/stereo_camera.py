@@ -216,6 +216,18 @@ class StereoCameraConfig(SensorConfig):
         check(0 < lo <= 1 <= hi < math.inf, f"{where}.gain_range must hold 1 and be positive, got {self.gain_range}")
         self._check_webcams(where)
 
+    @property
+    def frame_gap_s(self) -> float:
+        """The longest time between two of the rig's frames: 0 for synchronised cameras, the spread of
+        ``frame_lags_s`` when they are given, else one frame period (the lags are drawn within it). A frame
+        taken while the robot turns at ``w`` rad/s has its bearings off by up to ``w`` times this between
+        the cameras (the metadata carries it, so a localizer can tell a turn from a wrong pose)."""
+        if self.synchronised:
+            return 0.0
+        if self.frame_lags_s is not None:
+            return float(max(self.frame_lags_s) - min(self.frame_lags_s))
+        return float(self.frame_period_s)
+
     def _check_webcams(self, where: str) -> None:
         """The free-running webcams' fields (issue 30)."""
         period = self.frame_period_s
@@ -376,6 +388,7 @@ class StereoCamera(SensorBase):
             "edge_types": EDGE_TYPES,
             "slot_fields": list(SLOT_FIELDS),
             "mode": c.mode,
+            "frame_gap_s": c.frame_gap_s,
         }
 
     # ------------------------------------------------------------------ frames

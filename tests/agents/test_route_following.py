@@ -261,6 +261,24 @@ def test_the_corridor_follows_the_turn_it_drives() -> None:
     assert policy.gap_ahead(ahead, 0.0) == pytest.approx(2.7)  # driving straight
 
 
+def test_with_max_turn_it_turns_no_faster_and_slows_in_the_bend_instead() -> None:
+    """``max_turn`` (a scene map's drive on free-running webcams, issue 31): the whole campus route with no command
+    turning faster than the cap; the corner takes longer at a lower speed, and the route is still driven to its end."""
+    fast = drive(campus(crowd_size=0))
+    env = campus(crowd_size=0)
+    policy = make_policy("route_follower", env, max_turn=0.1)
+    obs, _ = env.reset(seed=0)
+    actions, terminated, truncated = [], False, False
+    while not (terminated or truncated):
+        action, _ = policy.predict(obs, deterministic=True)
+        obs, _, terminated, truncated, _ = env.step(action)
+        actions.append(action)
+    turns = np.abs(np.array(actions)[:, 1])
+    assert terminated and turns.max() <= 0.1 + 1e-6
+    assert np.abs(fast.actions[:, 1]).max() > 0.3  # uncapped, the corner is taken at three times that
+    assert len(actions) > len(fast.actions) + 50  # the slow corner costs more than 5 s
+
+
 def test_without_an_estimate_it_stands_still_or_coasts_for_coast_s() -> None:
     policy = follower()
     assert policy._act(observation((10.0, 50.0), 0.0, valid=False)).tolist() == [0.0, 0.0]
@@ -324,6 +342,8 @@ def test_a_sonar_ring_is_read_when_there_is_no_lidar() -> None:
         ({"look_around_turns": math.nan}, ["look_around_turns", "nan"]),
         ({"lookahed_m": 1.0}, ["'lookahed_m'"]),
         ({"creep": 0.8, "cruise": 0.5}, ["creep (0.8) at most cruise (0.5)"]),
+        ({"max_turn": 0.0}, ["max_turn", "0.0"]),
+        ({"max_turn": 1.5}, ["max_turn", "1.5"]),
     ],
 )
 def test_bad_settings_are_refused_naming_them(params: dict[str, Any], words: list[str]) -> None:

@@ -162,6 +162,15 @@ def test_the_cameras_before_issue_30_draw_nothing_and_the_default_webcams_do() -
     assert sensor(webcams).frame_lags_s is not None and sensor(webcams).camera_gains is not None
 
 
+def test_the_metadata_gives_the_longest_time_between_the_rigs_frames() -> None:
+    """``frame_gap_s`` (issue 31: what ``far_landmark_pf``'s lost test allows a turn to shift between the frames):
+    0 for synchronised cameras, the spread of given lags, else one frame period."""
+    assert box_env().sensor_metadata["stereo"]["frame_gap_s"] == 0.0
+    assert box_env(synchronised=False).sensor_metadata["stereo"]["frame_gap_s"] == pytest.approx(PERIOD_S)
+    given = box_env(synchronised=False, frame_lags_s=(0.01, 0.0, 0.025))
+    assert given.sensor_metadata["stereo"]["frame_gap_s"] == pytest.approx(0.025)
+
+
 # ------------------------------------------------------------------ exposure and white balance
 
 

@@ -444,7 +444,8 @@ def test_without_a_start_pose_or_a_map_it_says_what_it_needs() -> None:
 @pytest.mark.parametrize(
     ("key", "value"),
     [("sigma_inv_r", 0.0), ("match_gate", -1.0), ("selection", "middle"), ("scenes", 0), ("lost_gate", math.nan),
-     ("lost_after_s", 0.0), ("search_radius_m", -1.0), ("search_cell_m", 0.0), ("search_radius_m", 1e4)],
+     ("lost_after_s", 0.0), ("search_radius_m", -1.0), ("search_cell_m", 0.0), ("search_radius_m", 1e4),
+     ("frame_gap_s", -0.01), ("frame_gap_s", math.inf), ("baseline_m", 0.0)],
 )  # fmt: skip
 def test_bad_parameters_are_refused_naming_them(key: str, value: object) -> None:
     with pytest.raises(ConfigError, match=key):
@@ -513,6 +514,51 @@ def test_a_filter_that_stays_put_never_searches() -> None:
     assert pf.searches == 0 and not pf.lost
 
 
+def turning_run(frames: int = 30, rate_rps: float = 0.4, gap_s: float = 0.03, **params: object) -> list[PoseEstimate]:
+    """Ten frames standing at (5, 25) facing +x, then ``frames`` frames turning in place at ``rate_rps`` (the odometry
+    reports the turn exactly) on free-running cameras whose outer pair takes its frames ``gap_s`` apart: every
+    inverse range is off by ``rate gap / (2 b)`` (the outer pair's disparity shift), the pose always right."""
+    pf = FarLandmarkPF(SQUARE, FarLandmarkParams(**params), dt_s=0.1, scenes=TOY_CAMPUS)  # type: ignore[arg-type]
+    rng = np.random.default_rng(5)
+    pf.reset(rng, PoseEstimate(5.0, 25.0, 0.0))
+    out, heading = [], 0.0
+    for n in range(10 + frames):
+        turn = 0.0 if n < 10 else rate_rps * 0.1
+        heading += turn
+        pf.predict(OdometryDelta(0.0, 0.0, turn))
+        seen = seen_from((5.0, 25.0, heading), rng)
+        shift = (turn / 0.1) * gap_s / (2.0 * 0.19)
+        pf.update(EdgeMeasurement(seen.types, seen.inverse_range_m + shift, seen.bearings_rad))
+        out.append(pf.estimate)
+    return out
+
+
+def test_a_turn_on_free_running_cameras_is_no_contradiction_when_the_filter_knows_their_frame_gap() -> None:
+    """Issue 31: a turn shifts the disparity between free-running webcams' frames (here 6 sds of the inverse range);
+    the lost test counts that shift in its sds when the rig's frame gap is known (``gym.make`` passes the camera's),
+    and a filter that assumes synchronised cameras (``frame_gap_s`` 0) calls the same right pose lost."""
+    knowing = turning_run(frame_gap_s=1.0 / 30.0, baseline_m=0.19)
+    assert all(e.valid for e in knowing)
+    assert all(abs(e.theta_rad - 0.04 * max(0, n - 9)) < 0.02 for n, e in enumerate(knowing))  # and it stays right
+    assuming_synchronised = turning_run(frame_gap_s=0.0)
+    assert not any(e.valid for e in assuming_synchronised[15:])  # lost after 0.5 s of contradiction, and stays so
+
+
+def test_a_search_that_finds_the_position_but_another_heading_redraws_the_set() -> None:
+    """The search confirms the estimate only when its best pose agrees in heading too: a robot turned by 0.2 rad where
+    it stands (unseen by odometry) is found with its new heading, not confirmed with the old one and lost again."""
+    pf = FarLandmarkPF(SQUARE, FarLandmarkParams(), dt_s=0.1, scenes=TOY_CAMPUS)
+    rng = np.random.default_rng(5)
+    pf.reset(rng, PoseEstimate(5.0, 25.0, 0.0))
+    estimates = []
+    for n in range(40):
+        pf.predict(OdometryDelta(0.0, 0.0, 0.0))
+        pf.update(seen_from((5.0, 25.0, 0.0 if n < 10 else 0.2), rng))
+        estimates.append(pf.estimate)
+    assert pf.searches >= 1
+    assert all(e.valid and abs(e.theta_rad - 0.2) < 0.02 and math.hypot(e.x_m - 5.0, e.y_m - 25.0) < 0.3 for e in estimates[20:])
+
+
 # ------------------------------------------------------------------ on the campus
 
 
@@ -558,6 +604,49 @@ def test_it_tracks_the_crowd_free_route_from_a_known_start(campus_map: Path) -> 
     assert np.median(err) < 0.25 and err.max() < 0.7, (np.median(err), err.max())
 
 
+def test_on_the_papers_free_running_webcams_it_drives_the_crowd_free_route_round_its_corner() -> None:
+    """Issue 31: with the default map (its drive slows in the corner and records no scene mid-turn) and the camera's
+    frame gap known to the lost test, the filter keeps its pose through the corner on free-running webcams; before,
+    it declared itself lost in the turn at 57 m and route_follower stood there for the rest of the episode."""
+    env = gym.make(CAMPUS, crowd_size=0, localizer="far_landmark_pf")
+    obs, info = env.reset(seed=1)
+    policy = make_policy("route_follower", env, seed=0)
+    valid, err, terminated = [], [], False
+    for _ in range(2000):
+        action, _ = policy.predict(obs)
+        obs, _, terminated, truncated, info = env.step(action)
+        e, truth = info["estimate"], info["true_pose"]
+        valid.append(e.valid)
+        err.append(math.hypot(e.x_m - truth[0], e.y_m - truth[1]))
+        if terminated or truncated:
+            break
+    env.close()
+    assert terminated and policy.progress_m > 95.0  # the goal, at the end of the route
+    assert np.mean(valid) > 0.95 and np.median(err) < 0.3, (np.mean(valid), np.median(err))
+
+
+def test_the_map_drive_takes_the_corner_slowly_on_webcams_and_at_speed_on_synchronised_cameras() -> None:
+    """Issue 31: on free-running webcams the mapping drive turns no faster than a 1 px shift between the cameras'
+    frames allows (0.054 rad/s on the campus) and records no scene mid-turn, so the corner's views are mapped a few
+    degrees apart and true; synchronised cameras drive and record the corner as before (about 18 deg per scene)."""
+
+    def corner_steps_deg(scene_map: SceneMap) -> np.ndarray:
+        headings = np.degrees(scene_map.poses[:, 2]) % 360.0
+        steps = np.abs((np.diff(headings) + 180.0) % 360.0 - 180.0)
+        return steps[(headings[:-1] > 95.0) & (headings[:-1] < 175.0)]  # leaving the first straight (180 deg) for the second (90)
+
+    webcams = corner_steps_deg(build_scene_map("stereo_campus", MappingDrive(seed=0, crowd_size=0)))
+    synchronised = corner_steps_deg(build_scene_map("stereo_campus", MappingDrive(seed=0, crowd_size=0), env_kwargs=SYNCED))
+    assert webcams.size >= 15 and webcams.max() < 8.0, webcams
+    assert synchronised.size <= 6 and synchronised.max() > 10.0, synchronised
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, math.nan, True, "1"])
+def test_a_bad_map_drive_shift_is_refused_naming_it(value: object) -> None:
+    with pytest.raises(ConfigError, match=r"max_shift_px must be a number > 0.*got"):
+        MappingDrive(max_shift_px=value)  # type: ignore[arg-type]
+
+
 def test_same_seed_same_estimates(campus_map: Path) -> None:
     a, _, _ = drive(campus_map, seed=2, steps=150)
     b, _, _ = drive(campus_map, seed=2, steps=150)
@@ -575,7 +664,10 @@ def test_a_map_from_the_reference_keeps_its_pose_covariances_and_one_from_the_tr
 def test_a_seeded_crowded_campus_run_keeps_the_estimates_pinned_before_the_kernels_savings() -> None:
     """200 steps of random actions in a crowd of 100 on the default map: the estimates and the searches (lost, the
     filter searches the scene map) as recorded by the code before :func:`particle_log_weights` and
-    :func:`position_votes` skipped work (commit 73d36e4; a speed-up changes no number: never re-record)."""
+    :func:`position_votes` skipped work (commit 73d36e4; a speed-up changes no number: never re-record for one).
+    Re-recorded once for an intended change of behaviour (issue 31: the default map's drive takes the corner slowly
+    and records no scene mid-turn, the lost test knows the webcams' frame gap, a search confirms the estimate only
+    in its heading too; the kernels did not change): 5 searches instead of 19, a pose on 92 % of the steps, not 68 %."""
     pinned = json.loads((PINNED_DIR / "far_landmark_pf_campus.json").read_text())
     env = gym.make(CAMPUS, crowd_size=100, localizer="far_landmark_pf")
     env.reset(seed=3)
@@ -586,7 +678,7 @@ def test_a_seeded_crowded_campus_run_keeps_the_estimates_pinned_before_the_kerne
         estimates.append([e.x_m, e.y_m, e.theta_rad, e.valid])
     run = {"searches": env.get_wrapper_attr("localizer").searches, "estimates": estimates}
     env.close()
-    assert pinned["searches"] > 10  # the re-localization ran: position_votes and the refinement are covered
+    assert pinned["searches"] >= 3  # the re-localization ran: position_votes and the refinement are covered
     assert_same_numbers(pinned, run, "far_landmark_pf_campus")
 
 
@@ -601,3 +693,15 @@ def test_gym_make_builds_and_caches_the_default_map() -> None:
     obs, _ = again.reset(seed=0)
     assert obs["estimate_valid"][0] == 1.0
     again.close()
+
+
+def test_gym_make_gives_the_filter_its_cameras_frame_gap_and_baseline_unless_given() -> None:
+    def rig(**kwargs: object) -> tuple[float, float]:
+        env = gym.make(CAMPUS, crowd_size=0, localizer="far_landmark_pf", **kwargs)  # type: ignore[arg-type]
+        params = env.get_wrapper_attr("localizer")._params
+        env.close()
+        return params.frame_gap_s, params.baseline_m
+
+    assert rig() == (pytest.approx(1.0 / 30.0), 0.19)  # the campus's free-running webcams
+    assert rig(**SYNCED)[0] == 0.0
+    assert rig(localizer_params={"frame_gap_s": 0.01, "baseline_m": 0.2}) == (0.01, 0.2)
