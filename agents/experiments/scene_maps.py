@@ -127,6 +127,12 @@ def _camera(env: LocalizationEnv) -> tuple[str, dict[str, Any]]:
     return found[0], env.sensor_metadata[found[0]]
 
 
+def rig_timing(metadata: Mapping[str, Any]) -> dict[str, float]:
+    """``far_landmark_pf``'s ``frame_gap_s`` and ``baseline_m`` from a stereo camera's metadata: what a turn can
+    shift between the rig's frames, which its lost test allows for (issue 31)."""
+    return {"frame_gap_s": float(metadata["frame_gap_s"]), "baseline_m": float(metadata["baseline_m"])}
+
+
 def camera_signature(metadata: Mapping[str, Any]) -> dict[str, Any]:
     """The settings of a stereo camera's metadata that its edges depend on (:data:`CAMERA_KEYS`)."""
     return {key: metadata[key] for key in CAMERA_KEYS}
@@ -271,10 +277,7 @@ def prepare_far_landmark_pf(env: LocalizationEnv, sensor: str, params: Mapping[s
     in ``params``, the world's default (:func:`default_scene_map`); the map's camera must be this one's.
     ``frame_gap_s`` and ``baseline_m`` (what a turn can shift between the rig's frames) come from the
     camera's metadata unless ``params`` gives them."""
-    out = dict(params or {})
-    meta = env.sensor_metadata[sensor]
-    out.setdefault("frame_gap_s", float(meta["frame_gap_s"]))
-    out.setdefault("baseline_m", float(meta["baseline_m"]))
+    out = {**rig_timing(env.sensor_metadata[sensor]), **(params or {})}
     if not out.get("scene_map"):
         out["scene_map"] = str(default_scene_map(env))
     scenes = SceneMap.load(out["scene_map"])

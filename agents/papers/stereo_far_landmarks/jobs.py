@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from agents.common.sweep import run_tasks
 from agents.evaluate.consistency import run_nees
 from agents.experiments.replay import Recording, ReplayResult, online_rng, record_policy, replay_into, start_prior
-from agents.experiments.scene_maps import AMCL_LIKE, MappingDrive, build_scene_map, camera_signature
+from agents.experiments.scene_maps import AMCL_LIKE, MappingDrive, build_scene_map, camera_signature, rig_timing
 from agents.policies import make_policy
 from localizers.far_landmark_pf import FarLandmarkPF
 from localizers.measurements import edge_measurement
@@ -187,7 +187,8 @@ def far_landmark_pf(rec: Recording, scenes: SceneMap, selection: str) -> FarLand
     camera = world.camera_name()
     landmarks = rec.localizer_map("stereo_edges", camera)
     scenes.check_world(landmarks, world.WORLD, camera_signature(rec.sensors[camera]))
-    return FarLandmarkPF(landmarks, load_params(world.LOCALIZER, pf_params(selection)), dt_s=rec.dt_s, scenes=scenes)
+    params = {**rig_timing(rec.sensors[camera]), **pf_params(selection)}  # the camera's frame gap, as gym.make gives it
+    return FarLandmarkPF(landmarks, load_params(world.LOCALIZER, params), dt_s=rec.dt_s, scenes=scenes)
 
 
 def detection_counts(rec: Recording, min_range_m: float) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
