@@ -45,7 +45,7 @@ same-type landmark; detections toward which the map holds no landmark say nothin
 localizers' test on another residual). Those standard deviations are the paper's widened by what
 the last step's turn can shift between the rig's frames (issue 31: ``frame_gap_s``, ``baseline_m``;
 the paper's webcams take their frames up to 1/30 s apart, and a turn of 0.4 rad/s then moves the
-outer pair's disparity by 6 sds of the inverse range although the pose is right). Contradicted on
+outer pair's disparity by up to 7 sds of the inverse range although the pose is right). Contradicted on
 every frame for ``lost_after_s``, the filter is lost: it claims no pose (``valid`` false) and
 searches the scene map (sensor resetting): every usable detection votes, at headings around the
 estimate's, for the positions within ``search_radius_m`` where a same-type landmark of the scenes
