@@ -181,3 +181,15 @@ def test_quick_run_writes_report_and_figures(tmp_path: Path, capsys: pytest.Capt
     with pytest.raises(SystemExit):
         main(["reproduce", "stereo-far-landmarks", "--quick", "--out", str(out)])
     assert "--overwrite" in capsys.readouterr().err
+
+
+def test_the_replayed_filter_knows_the_recorded_cameras_frame_gap_as_gym_make_gives_it() -> None:
+    """Issue 31: the reproduction's far_landmark_pf allows for the shift a turn causes between the webcams' frames,
+    as the one ``gym.make`` builds does (one helper, ``rig_timing``, for both)."""
+    rec, _ = jobs.record_run(seed=0, crowd_size=0, max_steps=10)
+    scenes = jobs.make_map(jobs.map_tasks(ex.Plan(seeds=1, densities=(0,), max_steps=20))[0]).scenes
+    pf = jobs.far_landmark_pf(rec, scenes, "farthest")
+    camera = rec.sensors[world.camera_name()]
+    assert pf._params.frame_gap_s == camera["frame_gap_s"] == pytest.approx(1.0 / 30.0)
+    assert pf._params.baseline_m == camera["baseline_m"]
+    assert pf._params.selection == "farthest"
