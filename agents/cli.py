@@ -332,6 +332,13 @@ def _add_map(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     mapping.add_argument(
         "--period-s", type=positive_float, default=1.0, help="a scene every this many seconds (finite, > 0; default 1)"
     )
+    mapping.add_argument(
+        "--max-shift-px",
+        type=positive_float,
+        default=1.0,
+        help="on free-running webcams, the most a turn may shift an image between the cameras' frames: the drive takes "
+        "bends no faster and records no scene while turning faster (finite, > 0; default 1)",
+    )
     mapping.add_argument("--overwrite", action="store_true", help="replace an existing map file")
 
 
@@ -473,7 +480,9 @@ def _run_map(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.experiments.scene_maps import MappingDrive, build_scene_map, default_map_path
     from envs.localization_env import LocalizationEnv
 
-    drive = MappingDrive(seed=args.seed, crowd_size=args.crowd_size, pose=args.pose, period_s=args.period_s)
+    drive = MappingDrive(
+        seed=args.seed, crowd_size=args.crowd_size, pose=args.pose, period_s=args.period_s, max_shift_px=args.max_shift_px
+    )
     out = args.out
     if out is None:
         out = default_map_path(LocalizationEnv(args.world))

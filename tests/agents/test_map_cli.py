@@ -54,7 +54,7 @@ def test_map_writes_a_scene_map_of_the_world(built: tuple[Path, str]) -> None:
     scenes = SceneMap.load(out)
     assert scenes.world == WORLD
     assert scenes.scene_count > 10 and scenes.landmark_count > scenes.scene_count
-    assert scenes.source["crowd_size"] == 0 and scenes.source["period_s"] == 1.0
+    assert scenes.source["crowd_size"] == 0 and scenes.source["period_s"] == 1.0 and scenes.source["max_shift_px"] == 1.0
     # a scene a second of the drive (dt 0.1 s): about one per 10 steps driven
     assert abs(scenes.scene_count - scenes.source["steps"] / 10) <= 1
     said = re.search(r"wrote (.+) \((\d+) scenes, (\d+) landmarks\)", printed)
@@ -89,12 +89,13 @@ def test_an_unknown_world_is_a_clear_error(cache: Path, tmp_path: Path, capsys: 
     assert not (tmp_path / "x.npz").exists()
 
 
+@pytest.mark.parametrize("option", ["--period-s", "--max-shift-px"])
 @pytest.mark.parametrize("value", ["0", "-1", "nan", "inf"])
-def test_a_bad_period_is_refused_naming_the_option(
-    value: str, cache: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+def test_a_bad_period_or_shift_is_refused_naming_the_option(
+    option: str, value: str, cache: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    err = _refused(capsys, WORLD, "--out", str(tmp_path / "x.npz"), "--crowd-size", "0", "--period-s", value)
-    assert "--period-s" in err and f"got {float(value)}" in err
+    err = _refused(capsys, WORLD, "--out", str(tmp_path / "x.npz"), "--crowd-size", "0", option, value)
+    assert option in err and f"got {float(value)}" in err
     assert not (tmp_path / "x.npz").exists()
 
 
