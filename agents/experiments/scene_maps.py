@@ -39,7 +39,7 @@ from tqdm import tqdm
 from envs.config import WorldConfig
 from envs.localization_env import LocalizationEnv, apply_overrides
 from localizers.mcl_lidar import LARGE_MAP_PARAMS
-from localizers.measurements import edge_measurement, sensor_map
+from localizers.measurements import edge_measurement, find_sensor, sensor_map
 from localizers.range_table import cache_dir
 from localizers.scene_map import SceneMap, geometry_fingerprint
 from localizers.schema import ConfigError, check
@@ -176,7 +176,7 @@ def build_scene_map(
     obs, info = env.reset(seed=drive.seed)
     every = max(1, round(drive.period_s / base.config.dt_s))
     limit = drive.max_steps or base.config.max_episode_steps
-    odometry = _odometry_key(base)
+    odometry = str(base.sensor_metadata[find_sensor("odometry", base.sensor_metadata, "a mapping drive")]["key"])
     due = False  # a scene is due and waits for a frame taken out of a turn
     poses: list[np.ndarray] = []
     covariances: list[np.ndarray] = []
@@ -221,13 +221,6 @@ def build_scene_map(
         },
         pose_covariances=np.asarray(covariances, dtype=np.float64).reshape(-1, 3, 3),
     )
-
-
-def _odometry_key(env: LocalizationEnv) -> str:
-    found = [str(meta["key"]) for meta in env.sensor_metadata.values() if meta["type"] == "odometry"]
-    if len(found) != 1:
-        raise ConfigError(f"a mapping drive needs one odometry sensor; world {env.config.name!r} has {len(found)}")
-    return found[0]
 
 
 def _short_hash(value: Any) -> str:
