@@ -214,3 +214,15 @@ def polyline_distance(points_xy: ArrayLike, vertices_xy: ArrayLike, *, closed: b
     nearest = a + np.clip(t, 0.0, 1.0)[..., None] * edge  # (..., S, 2)
     d = np.hypot(p[..., 0] - nearest[..., 0], p[..., 1] - nearest[..., 1])
     return np.asarray(np.min(d, axis=-1), dtype=np.float64)
+
+
+def polyline_point(vertices_xy: NDArray[np.float64], arc_m: NDArray[np.float64], s_m: float) -> NDArray[np.float64]:
+    """``(2,)`` the point at arc length ``s_m`` along the polyline through ``vertices_xy`` ``(V >= 2, 2)``,
+    whose vertices lie at the arc lengths ``arc_m`` ``(V,)`` (0 first, non-decreasing), clamped to its
+    ends; on a zero-length segment, its vertex. The one walk along a route: ``route_follower``'s
+    pure-pursuit point and a task's look-ahead point (``agents.rl.observation``)."""
+    s = min(max(float(s_m), 0.0), float(arc_m[-1]))
+    k = int(np.clip(np.searchsorted(arc_m, s, side="right") - 1, 0, vertices_xy.shape[0] - 2))
+    length = arc_m[k + 1] - arc_m[k]
+    t = (s - arc_m[k]) / length if length > 0.0 else 0.0
+    return np.asarray(vertices_xy[k] + t * (vertices_xy[k + 1] - vertices_xy[k]), dtype=np.float64)

@@ -51,7 +51,7 @@ from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate
-from localizers.geometry import ring_directions
+from localizers.geometry import polyline_point, ring_directions
 
 #: the states of :attr:`RouteFollower.phase`
 PHASES = ("look", "wait", "drive", "done")
@@ -232,10 +232,7 @@ class RouteFollower(FixedPolicy):
     # ------------------------------------------------------------------ the route
     def point_at(self, s: float) -> NDArray[np.float64]:
         """``(2,)`` the route point at arc length ``s`` (clamped to the route)."""
-        s = min(max(s, 0.0), self.length_m)
-        k = int(np.clip(np.searchsorted(self._cum, s, side="right") - 1, 0, self.route.shape[0] - 2))
-        t = (s - self._cum[k]) / (self._cum[k + 1] - self._cum[k])
-        return np.asarray(self.route[k] + t * (self.route[k + 1] - self.route[k]))
+        return polyline_point(self.route, self._cum, s)
 
     def project(self, xy: NDArray[np.float64], low_m: float = 0.0, high_m: float = math.inf) -> float:
         """The arc length, within ``[low_m, high_m]``, of the route point nearest ``xy``."""

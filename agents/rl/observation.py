@@ -16,6 +16,12 @@ observation as the task's training config says (:class:`ObservationConfig`, the 
   ``waypoint_clip_m`` (clipped to 1). The next point is the first more than ``reached_m`` ahead,
   along the route, of the estimate's place on it (:class:`RouteCursor`), the last one at the end.
   All zeros without a valid estimate: the policy only knows where to go from where it believes it is.
+- ``lookahead_m`` > 0 adds ``lookahead`` ``(3,)``: the point on the route ``lookahead_m`` beyond the
+  estimate's place on it (the end of the route at most), in the estimate's frame, as the waypoint is
+  (the distance over ``lookahead_m``, clipped to 1; all zeros without a valid estimate). It is
+  ``route_follower``'s pure-pursuit point: where the next route point is far ahead (the campus's first
+  leg is 57 m long), the waypoint's bearing moves by a few degrees for a metre off the route; this
+  point's moves by tens of degrees, so the policy can see how far it is off the route.
 
 Also here: :class:`RouteConfig` and :class:`RouteCursor`, the task's route, which the reward's
 progress term (from the truth) shares with the waypoint (from the estimate).
@@ -36,6 +42,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from localizers.geometry import polyline_point
 from localizers.schema import ConfigError, check
 
 
@@ -95,6 +102,10 @@ class RouteCursor:
         assert self.progress_m is not None
         return self.length_m - self.progress_m
 
+    def ahead(self, distance_m: float) -> NDArray[np.float64]:
+        """The route's point ``distance_m`` along it beyond the progress (its end at most)."""
+        return polyline_point(self.points_m, self._point_s, (self.progress_m or 0.0) + distance_m)
+
     @property
     def next_point(self) -> NDArray[np.float64]:
         """The first point more than ``reached_m`` ahead of the progress (the last one at the end)."""
@@ -133,17 +144,22 @@ class ObservationConfig:
     lidar_clip_m: float = 5.0  # lidar_summary's ranges are clipped here and divided by it
     waypoint: bool = False  # add waypoint: the route's next point in the estimate's frame
     waypoint_clip_m: float = 10.0  # the waypoint's distance is divided by this, clipped to 1
+    lookahead_m: float = 0.0  # > 0: add lookahead, the route's point this far ahead of the estimate's place on it
 
     def __post_init__(self) -> None:
         check(self.lidar_sectors >= 0, f"observation.lidar_sectors must be >= 0, got {self.lidar_sectors!r}")
         for name in ("lidar_clip_m", "waypoint_clip_m"):
             value = getattr(self, name)
             check(math.isfinite(value) and value > 0, f"observation.{name} must be finite and > 0, got {value!r}")
+        check(
+            math.isfinite(self.lookahead_m) and self.lookahead_m >= 0,
+            f"observation.lookahead_m must be finite and >= 0 (0: none), got {self.lookahead_m!r}",
+        )
         check(len(set(self.drop)) == len(self.drop), f"observation.drop repeats a key: {list(self.drop)}")
 
     @property
     def changes_anything(self) -> bool:
-        return bool(self.drop) or self.lidar_sectors > 0 or self.waypoint
+        return bool(self.drop) or self.lidar_sectors > 0 or self.waypoint or self.lookahead_m > 0
 
 
 def task_route(base: Any, route: RouteConfig) -> NDArray[np.float64] | None:
@@ -214,11 +230,14 @@ class TaskObservation(gym.ObservationWrapper[dict[str, Any], Any, dict[str, Any]
             self._sector_of = (np.arange(beams) * config.lidar_sectors) // beams
             kept["lidar_summary"] = spaces.Box(0.0, 1.0, (config.lidar_sectors,), np.float32)
         self._cursor: RouteCursor | None = None
-        if config.waypoint:
+        for key, wanted in (("waypoint", config.waypoint), ("lookahead", config.lookahead_m > 0)):
+            if not wanted:
+                continue
             if "estimate" not in space.spaces:
-                raise ConfigError("observation.waypoint is in the estimate's frame: make the env with localizer=...")
-            self._cursor = route_cursor(base, route or RouteConfig(), "observation.waypoint")
-            kept["waypoint"] = spaces.Box(-1.0, 1.0, (3,), np.float32)
+                raise ConfigError(f"observation.{key} is in the estimate's frame: make the env with localizer=...")
+            if self._cursor is None:
+                self._cursor = route_cursor(base, route or RouteConfig(), f"observation.{key}")
+            kept[key] = spaces.Box(-1.0, 1.0, (3,), np.float32)
         self.observation_space = spaces.Dict(kept)
 
     def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
@@ -229,7 +248,7 @@ class TaskObservation(gym.ObservationWrapper[dict[str, Any], Any, dict[str, Any]
             np.minimum.at(least, self._sector_of, ranges)
             out["lidar_summary"] = (least / self.config.lidar_clip_m).astype(np.float32)
         if self._cursor is not None:
-            out["waypoint"] = self._waypoint()
+            out.update(self._route_points())
         return out
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -237,15 +256,20 @@ class TaskObservation(gym.ObservationWrapper[dict[str, Any], Any, dict[str, Any]
             self._cursor.reset()
         return super().reset(seed=seed, options=options)
 
-    def _waypoint(self) -> NDArray[np.float32]:
+    def _route_points(self) -> dict[str, NDArray[np.float32]]:
+        """The ``waypoint`` and ``lookahead`` entries the config asks for (module docstring)."""
         assert self._cursor is not None
-        out = np.zeros(3, dtype=np.float32)
+        wanted = {"waypoint": self.config.waypoint_clip_m} if self.config.waypoint else {}
+        if self.config.lookahead_m > 0:
+            wanted["lookahead"] = self.config.lookahead_m
+        out = {key: np.zeros(3, dtype=np.float32) for key in wanted}
         est = self.env.get_wrapper_attr("estimate")
         if not est.valid:
             return out
         self._cursor.update(est.x_m, est.y_m)
-        point = self._cursor.next_point
-        dx, dy = point[0] - est.x_m, point[1] - est.y_m
-        bearing = math.atan2(dy, dx) - est.theta_rad
-        out[:] = (math.cos(bearing), math.sin(bearing), min(math.hypot(dx, dy) / self.config.waypoint_clip_m, 1.0))
+        for key, scale in wanted.items():
+            point = self._cursor.next_point if key == "waypoint" else self._cursor.ahead(self.config.lookahead_m)
+            dx, dy = point[0] - est.x_m, point[1] - est.y_m
+            bearing = math.atan2(dy, dx) - est.theta_rad
+            out[key][:] = (math.cos(bearing), math.sin(bearing), min(math.hypot(dx, dy) / scale, 1.0))
         return out

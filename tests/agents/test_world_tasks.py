@@ -5,6 +5,7 @@ the world's paper policy scores better than standing still, spinning and random 
 from __future__ import annotations
 
 import dataclasses
+import math
 import warnings
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ import envs
 from agents.policies.fixed import follows_routes, make_policy
 from agents.rl.observation import ObservationConfig, RouteConfig, RouteCursor
 from agents.rl.train import load_train_config, make_task_env
+from localizers.geometry import polyline_point
 from localizers.schema import ConfigError
 
 #: task id -> (training config, the world's paper policy, what the policy must not observe)
@@ -163,11 +165,55 @@ def test_the_route_cursor_joins_where_nearest_and_searches_near_the_last_progres
     assert cursor.update(0.1, 0.0) == pytest.approx(7.9)  # first of the equally near: the start
 
 
+def test_the_route_cursor_looks_ahead_along_the_route_and_stops_at_its_end() -> None:
+    square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0], [0.0, 0.0]])
+    cursor = RouteCursor(square, RouteConfig(reached_m=0.3, search_m=1.5))
+    cursor.update(1.9, 1.0)  # progress 3 m, on the right side
+    assert cursor.ahead(0.5) == pytest.approx([2.0, 1.5])
+    assert cursor.ahead(2.0) == pytest.approx([1.0, 2.0])  # round the corner
+    assert cursor.ahead(100.0) == pytest.approx([0.0, 0.0])  # the end at most
+    doubled = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 0.0], [2.0, 2.0]])  # a zero-length segment
+    arc = np.array([0.0, 2.0, 2.0, 4.0])
+    for s_m, point in ((1.0, [1.0, 0.0]), (2.0, [2.0, 0.0]), (3.0, [2.0, 1.0]), (-1.0, [0.0, 0.0])):
+        assert polyline_point(doubled, arc, s_m) == pytest.approx(point)
+
+
+def test_the_lookahead_entry_is_the_route_point_ahead_of_the_estimate_in_its_frame() -> None:
+    """The corridor task with a look-ahead of 2 m: each step's entry, against the route point 2 m beyond the
+    estimate's nearest route point, found here by sampling the route every millimetre."""
+    config = load_train_config("ppo_corridor_targets", {"observation.lookahead_m": 2.0})
+    env = make_task_env(config, 0)
+    assert env.observation_space["lookahead"] == gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+    route = env.get_wrapper_attr("_cursor").points_m
+    dense = np.concatenate([a + np.linspace(0.0, 1.0, int(np.hypot(*(b - a)) * 1000) + 2)[:, None] * (b - a)
+                            for a, b in zip(route[:-1], route[1:], strict=True)])  # fmt: skip
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(dense, axis=0).T))])
+    obs, _ = env.reset(seed=3)
+    checked = 0
+    for _ in range(30):
+        obs, *_ = env.step(np.array([0.8, 0.3], dtype=np.float32))
+        est = env.get_wrapper_attr("estimate")
+        if not est.valid:
+            assert not np.any(obs["lookahead"])
+            continue
+        s = arc[np.argmin(np.hypot(*(dense - [est.x_m, est.y_m]).T))]
+        point = dense[min(np.searchsorted(arc, s + 2.0), len(arc) - 1)]
+        bearing = np.arctan2(point[1] - est.y_m, point[0] - est.x_m) - est.theta_rad
+        distance = min(np.hypot(point[0] - est.x_m, point[1] - est.y_m) / 2.0, 1.0)
+        assert obs["lookahead"] == pytest.approx([np.cos(bearing), np.sin(bearing), distance], abs=2e-3)
+        checked += 1
+    assert checked >= 25
+    env.close()
+
+
 def test_bad_task_settings_name_the_field() -> None:
     with pytest.raises(ConfigError, match="route.reached_m must be finite and > 0, got 0"):
         RouteConfig(reached_m=0)
     with pytest.raises(ConfigError, match="observation.lidar_sectors must be >= 0, got -1"):
         ObservationConfig(lidar_sectors=-1)
+    for bad in (-1.0, math.nan, math.inf):
+        with pytest.raises(ConfigError, match=rf"observation.lookahead_m must be finite and >= 0 \(0: none\), got {bad}"):
+            ObservationConfig(lookahead_m=bad)
     config = load_train_config("ppo_room_lidar")
     with pytest.raises(ConfigError, match=r"observation.drop: \['ceiling_image'\] not in the observation"):
         make_task_env(dataclasses.replace(config, observation=ObservationConfig(drop=("ceiling_image",))), None)
