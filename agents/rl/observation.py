@@ -20,8 +20,8 @@ observation as the task's training config says (:class:`ObservationConfig`, the 
   estimate's place on it (the end of the route at most), in the estimate's frame, as the waypoint is
   (the distance over ``lookahead_m``, clipped to 1; all zeros without a valid estimate). It is
   ``route_follower``'s pure-pursuit point: where the next route point is far ahead (the campus's first
-  leg is 57 m long), the waypoint's bearing moves by a few degrees for a metre off the route; this
-  point's moves by tens of degrees, so the policy can see how far it is off the route.
+  leg is 57 m long), a metre off the route moves the waypoint's bearing by about a degree; it moves
+  this point's by tens of degrees, so the policy can see how far it is off the route.
 
 Also here: :class:`RouteConfig` and :class:`RouteCursor`, the task's route, which the reward's
 progress term (from the truth) shares with the waypoint (from the estimate).
