@@ -230,9 +230,10 @@ class TaskObservation(gym.ObservationWrapper[dict[str, Any], Any, dict[str, Any]
             self._sector_of = (np.arange(beams) * config.lidar_sectors) // beams
             kept["lidar_summary"] = spaces.Box(0.0, 1.0, (config.lidar_sectors,), np.float32)
         self._cursor: RouteCursor | None = None
-        for key, wanted in (("waypoint", config.waypoint), ("lookahead", config.lookahead_m > 0)):
-            if not wanted:
-                continue
+        #: the route entries observed -> the distance their third number is over
+        self._route_scales = {key: scale for key, wanted, scale in (("waypoint", config.waypoint, config.waypoint_clip_m),
+                              ("lookahead", config.lookahead_m > 0, config.lookahead_m)) if wanted}  # fmt: skip
+        for key in self._route_scales:
             if "estimate" not in space.spaces:
                 raise ConfigError(f"observation.{key} is in the estimate's frame: make the env with localizer=...")
             if self._cursor is None:
@@ -259,15 +260,12 @@ class TaskObservation(gym.ObservationWrapper[dict[str, Any], Any, dict[str, Any]
     def _route_points(self) -> dict[str, NDArray[np.float32]]:
         """The ``waypoint`` and ``lookahead`` entries the config asks for (module docstring)."""
         assert self._cursor is not None
-        wanted = {"waypoint": self.config.waypoint_clip_m} if self.config.waypoint else {}
-        if self.config.lookahead_m > 0:
-            wanted["lookahead"] = self.config.lookahead_m
-        out = {key: np.zeros(3, dtype=np.float32) for key in wanted}
+        out = {key: np.zeros(3, dtype=np.float32) for key in self._route_scales}
         est = self.env.get_wrapper_attr("estimate")
         if not est.valid:
             return out
         self._cursor.update(est.x_m, est.y_m)
-        for key, scale in wanted.items():
+        for key, scale in self._route_scales.items():
             point = self._cursor.next_point if key == "waypoint" else self._cursor.ahead(self.config.lookahead_m)
             dx, dy = point[0] - est.x_m, point[1] - est.y_m
             bearing = math.atan2(dy, dx) - est.theta_rad
