@@ -167,8 +167,8 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     ev.add_argument(
         "--conditions",
         metavar="EXPERIMENT",
-        help="evaluate in a training config's conditions: its env id, env_kwargs (camera, prior, ...), reward, route and "
-        "the observation its trained policies see (a path or a name under configs/experiments/); the episode length stays "
+        help="evaluate in a training config's conditions: its env id, env_kwargs (camera, prior, ...), reward, route, "
+        "the observation its trained policies see and what their actions mean (a path or a name under configs/experiments/); the episode length stays "
         "--episode-steps (the config's ppo.n_steps is its training episode's)",
     )
     ev.add_argument(

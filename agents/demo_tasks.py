@@ -51,7 +51,7 @@ def tasks_section(out_dir: Path, seeds: int = TASK_SEEDS, workers: int | None = 
     ``episode_steps``: the episodes' length (default: each task's training episode, ``ppo.n_steps``).
     """
     from agents.evaluate import evaluate, write_tables
-    from agents.evaluate.spec import EvalSpec, world_of
+    from agents.evaluate.spec import EvalSpec, task_conditions, world_of
     from agents.rl.train import load_train_config
 
     lines = [
@@ -70,10 +70,8 @@ def tasks_section(out_dir: Path, seeds: int = TASK_SEEDS, workers: int | None = 
         policies = (paper_policy, "random_walk", *((f"ppo:{model}",) if model.is_file() else ()))
         world = world_of(config.env_id, config.env_kwargs)
         crowd = world.crowd.count if world.crowd is not None else 0
-        spec = EvalSpec(policies=policies, localizers=(config.localizer,), crowd_sizes=(crowd,),
-                        seeds=seeds, episode_steps=episode_steps or config.ppo.n_steps, env_id=config.env_id,
-                        env_kwargs=dict(config.env_kwargs), reward=config.reward, route=config.route,
-                        observation=config.observation)  # fmt: skip
+        spec = EvalSpec(policies=policies, crowd_sizes=(crowd,), seeds=seeds,
+                        episode_steps=episode_steps or config.ppo.n_steps, **task_conditions(config))  # fmt: skip
         result = evaluate(spec, workers=workers, progress=False)
         write_tables(result, out_dir / task)
         lines += [f"### `{task}` ({config.env_id}, {config.localizer})", "", *_table(result), ""]

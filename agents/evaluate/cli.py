@@ -10,7 +10,7 @@ from agents.evaluate.journal import JOURNAL_NAME, EpisodeJournal
 from agents.evaluate.kidnap import Kidnap
 from agents.evaluate.outputs import EVAL_OUTPUTS, summary_markdown, write_outputs
 from agents.evaluate.paired import paired_verdict, verdict_markdown, verdict_policy, write_verdict
-from agents.evaluate.spec import Cell, EvalSpec, check_first_seed
+from agents.evaluate.spec import Cell, EvalSpec, check_first_seed, task_conditions
 from agents.evaluate.stats import EvalResult, evaluate
 from localizers.schema import ConfigError, check
 
@@ -29,7 +29,8 @@ def spec_from_args(args: Any) -> EvalSpec:
     """The :class:`EvalSpec` of the parsed options (``--conditions`` first, ``--env-set`` on top).
 
     ``--conditions`` gives the training config's env, ``env_kwargs``, reward, route, observation
-    (what its trained policies observe) and localizer; the episode length stays ``--episode-steps``
+    (what its trained policies observe), action (what their actions mean) and localizer
+    (:func:`~agents.evaluate.spec.task_conditions`); the episode length stays ``--episode-steps``
     (the config's ``ppo.n_steps`` is its training episode's).
 
     Raises:
@@ -47,8 +48,7 @@ def spec_from_args(args: Any) -> EvalSpec:
         check(args.env_id in (None, trained.env_id),
               f"--env-id {args.env_id} differs from the env of --conditions {args.conditions} ({trained.env_id})")  # fmt: skip
         # the config's conditions include its localizer, unless --localizers names others
-        conditions = {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward,
-                      "route": trained.route, "observation": trained.observation, "localizers": (trained.localizer,)}  # fmt: skip
+        conditions = task_conditions(trained)
     conditions["env_kwargs"] = merge_nested(conditions.get("env_kwargs", {}), nest(parse_overrides(args.env_set)))
     chosen = {k: v for k, v in given.items() if v is not None}
     localizer_params = nest(parse_overrides(getattr(args, "localizer_set", []), "--localizer-set"))

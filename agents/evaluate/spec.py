@@ -20,8 +20,9 @@ from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
 from agents.policies import FIXED_POLICIES, follows_routes
 from agents.rl.observation import ObservationConfig, RouteConfig
+from agents.rl.residual import ActionConfig
 from agents.rl.rewards import RewardWeights
-from agents.rl.train import EVAL_SEED_BASE, task_wrappers
+from agents.rl.train import EVAL_SEED_BASE, TrainConfig, task_wrappers
 from localizers.measurements import find_sensor
 from localizers.schema import ConfigError, check
 
@@ -74,6 +75,9 @@ class EvalSpec:
             (``agents.rl.observation.ObservationConfig``, a training config's ``observation:``):
             its cells' envs are wrapped in ``TaskObservation`` exactly as in training; the fixed
             policies keep the raw observation they read (the LIDAR, the camera, ...).
+        action: what a trained policy's action means (``agents.rl.residual.ActionConfig``, a
+            training config's ``action:``): with ``residual_to``, a correction of that fixed
+            policy's command, as in training; the fixed policies send their own commands.
         bootstrap_resamples: bootstrap resamples per confidence interval.
         bootstrap_seed: seeds the bootstrap's generator.
         kidnap: carry the robot away mid-episode and score the recovery
@@ -103,6 +107,7 @@ class EvalSpec:
     localizer_params: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     route: RouteConfig = field(default_factory=RouteConfig)
     observation: ObservationConfig = field(default_factory=ObservationConfig)
+    action: ActionConfig = field(default_factory=ActionConfig)
 
     def __post_init__(self) -> None:
         for name in ("policies", "localizers", "crowd_sizes"):  # lists from Python callers become tuples
@@ -132,6 +137,7 @@ class EvalSpec:
         reward's route and the observation's build (one env, when either is used)."""
         check(isinstance(self.route, RouteConfig), f"route must be a RouteConfig, got {self.route!r}")
         check(isinstance(self.observation, ObservationConfig), f"observation must be an ObservationConfig, got {self.observation!r}")  # fmt: skip
+        check(isinstance(self.action, ActionConfig), f"action must be an ActionConfig, got {self.action!r}")
         ppo = [policy for policy in self.policies if policy.startswith(PPO_PREFIX)]
         if not ppo and not self.reward.progress:
             return
@@ -160,7 +166,10 @@ class EvalSpec:
             render_mode=render_mode,
             **dict(self.env_kwargs),
         )
-        return task_wrappers(env, self.reward, self.route, self.observation if policy.startswith(PPO_PREFIX) else None)
+        trained = policy.startswith(PPO_PREFIX)
+        return task_wrappers(
+            env, self.reward, self.route, self.observation if trained else None, self.action if trained else None
+        )
 
     @functools.cached_property
     def has_goal(self) -> bool:
@@ -308,11 +317,21 @@ _TRAINING_CONDITIONS = "evaluate it in its training conditions (crowdloc eval --
 
 
 def odometry_key_of(sensors: Mapping[str, Mapping[str, Any]]) -> str:
-    """The observation key of the one odometry sensor among an env's ``sensor_metadata`` (what an episode records)."""
-    keys = [str(meta["key"]) for meta in sensors.values() if meta.get("type") == "odometry"]
-    if len(keys) != 1:
-        raise ValueError(f"an evaluated world needs exactly one odometry sensor, found {len(keys)}")
-    return keys[0]
+    """The observation key of the one odometry sensor among an env's ``sensor_metadata`` (what an episode records).
+
+    Raises:
+        ConfigError: for a world with no odometry sensor or several (naming its sensors).
+    """
+    return str(sensors[find_sensor("odometry", sensors, "an evaluated world (its episode record)")]["key"])
+
+
+def task_conditions(trained: TrainConfig) -> dict[str, Any]:
+    """The :class:`EvalSpec` fields a training config fixes: its env and conditions, reward, route,
+    what its policy observes and what its action means, and its localizer (``crowdloc eval
+    --conditions``, the demo's world tasks)."""
+    return {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward,
+            "route": trained.route, "observation": trained.observation, "action": trained.action,
+            "localizers": (trained.localizer,)}  # fmt: skip
 
 
 def check_observation_space(policy: str, expected: spaces.Space[Any], given: spaces.Space[Any],

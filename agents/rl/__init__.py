@@ -4,8 +4,10 @@
   localizer and the reward, from a training config);
 - :mod:`agents.rl.rewards`: the active-localization reward wrapper;
 - :mod:`agents.rl.observation`: what a task's policy observes, and the task's route;
+- :mod:`agents.rl.residual`: a policy's action as a correction of a fixed policy's command;
 - :mod:`agents.rl.train`: training configs, PPO runs with exact resume, ``EVAL_SEED_BASE``.
 
-May import: ``envs``, ``localizers``, :mod:`agents.common`; never :mod:`agents.policies`,
-:mod:`agents.experiments`, :mod:`agents.evaluate`, :mod:`agents.tune`, :mod:`agents.papers`.
+May import: ``envs``, ``localizers``, :mod:`agents.common`, :mod:`agents.policies` (the fixed
+policy a residual action corrects); never :mod:`agents.experiments`, :mod:`agents.evaluate`,
+:mod:`agents.tune`, :mod:`agents.papers`.
 """

@@ -41,6 +41,7 @@ import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
 from agents.common.util import nest, write_run_record
 from agents.rl.observation import ObservationConfig, RouteConfig, TaskObservation
+from agents.rl.residual import ActionConfig, ResidualAction
 from agents.rl.rewards import ActiveLocalizationReward, RewardWeights
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, merge_nested, parse_yaml, replace_checked
 
@@ -92,6 +93,7 @@ class TrainConfig:
     reward: RewardWeights = field(default_factory=RewardWeights)
     observation: ObservationConfig = field(default_factory=ObservationConfig)  # what the policy sees (agents.rl.observation)
     route: RouteConfig = field(default_factory=RouteConfig)  # the task's route (progress, waypoint); default the map's
+    action: ActionConfig = field(default_factory=ActionConfig)  # what the policy's action means (agents.rl.residual)
     n_envs: int = 4
     vec_env: str = "subproc"  # "subproc" (one process per env) or "dummy" (in-process)
     seed: int = 0
@@ -266,22 +268,30 @@ def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: An
         localizer_params=merge_nested(config.localizer_params, extra) or None,
         **kwargs,
     )
-    env = task_wrappers(world, config.reward, config.route, config.observation)
+    env = task_wrappers(world, config.reward, config.route, config.observation, config.action)
     if max_episode_steps is not None:
         env = gym.wrappers.TimeLimit(env, max_episode_steps)
     return env
 
 
 def task_wrappers(
-    env: gym.Env[Any, Any], reward: RewardWeights, route: RouteConfig, observation: ObservationConfig | None
+    env: gym.Env[Any, Any],
+    reward: RewardWeights,
+    route: RouteConfig,
+    observation: ObservationConfig | None,
+    action: ActionConfig | None = None,
 ) -> gym.Env[Any, Any]:
     """``env`` (a world behind its localizer) as a task's policy meets it: the active-localization
-    reward on the task's route and, when ``observation`` changes anything, the task's observation
-    (:class:`TaskObservation`). Training (:func:`make_task_env`) and ``crowdloc eval`` (a trained
-    policy's cells with the observation; a fixed policy's with ``observation=None``, the raw
-    sensors it reads) build their envs with it.
+    reward on the task's route; when ``action`` changes anything, the policy's action a correction
+    of a fixed policy's command (:class:`~agents.rl.residual.ResidualAction`, on the raw
+    observation the fixed policy reads); and, when ``observation`` changes anything, the task's
+    observation (:class:`TaskObservation`). Training (:func:`make_task_env`) and ``crowdloc eval``
+    (a trained policy's cells with the observation and action; a fixed policy's with neither: the
+    raw sensors it reads, its own commands) build their envs with it.
     """
     env = ActiveLocalizationReward(env, reward, route)
+    if action is not None and action.changes_anything:
+        env = ResidualAction(env, action, route)
     if observation is not None and observation.changes_anything:
         env = TaskObservation(env, observation, route)
     return env

@@ -312,6 +312,17 @@ def test_bad_specs_are_refused_with_the_value(kwargs: dict, message: str) -> Non
         EvalSpec(**kwargs)
 
 
+def test_the_odometry_an_episode_records_is_the_world_s_one_odometry_sensor() -> None:
+    from agents.evaluate.spec import odometry_key_of
+
+    lidar = {"type": "lidar", "key": "lidar"}
+    assert odometry_key_of({"wheels": {"type": "odometry", "key": "odo"}, "lidar": lidar}) == "odo"
+    with pytest.raises(ConfigError, match=r"an evaluated world \(its episode record\) needs a odometry sensor .*lidar \(lidar\)"):
+        odometry_key_of({"lidar": lidar})
+    with pytest.raises(ConfigError, match=r"reads odometry from a odometry sensor, and this world has several: a, b"):
+        odometry_key_of({"a": {"type": "odometry", "key": "a"}, "b": {"type": "odometry", "key": "b"}})
+
+
 def test_conditions_reach_the_episode_and_the_bound() -> None:
     from localizers.geometry import in_field_of_view
 

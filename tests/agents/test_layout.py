@@ -20,7 +20,7 @@ ALLOWED: dict[str, set[str]] = {
     "common": set(),
     "policies": {"common"},
     "experiments": {"common", "policies"},
-    "rl": {"common"},
+    "rl": {"common", "policies"},
     "evaluate": {"common", "policies", "experiments", "rl"},
     "benchmark": {"common", "policies", "experiments", "rl", "evaluate"},
     "papers": {"common", "policies", "experiments", "rl", "evaluate"},

@@ -18,6 +18,7 @@ import crowdloc_models
 import envs
 from agents.policies.fixed import follows_routes, make_policy
 from agents.rl.observation import ObservationConfig, RouteConfig, RouteCursor
+from agents.rl.residual import ActionConfig
 from agents.rl.train import load_train_config, make_task_env
 from localizers.geometry import polyline_point
 from localizers.schema import ConfigError
@@ -96,10 +97,11 @@ def test_random_actions_give_varied_rewards_and_the_observation_holds_no_truth(t
 def _episode_return(config_name: str, policy: str, seed: int, steps: int | None = None) -> float:
     """The task's return of ``policy`` ('still', 'random', or a fixed policy) over one episode.
 
-    The fixed policies read the raw sensors (route_follower the LIDAR), so the task runs with the
-    world's whole observation: the reward does not depend on it."""
+    The fixed policies read the raw sensors (route_follower the LIDAR) and send their own commands,
+    so the task runs with the world's whole observation and plain actions (no residual): the reward
+    depends on neither."""
     config = load_train_config(config_name)
-    env = make_task_env(dataclasses.replace(config, observation=ObservationConfig()), None,
+    env = make_task_env(dataclasses.replace(config, observation=ObservationConfig(), action=ActionConfig()), None,
                         max_episode_steps=steps or config.ppo.n_steps)  # fmt: skip
     obs, _ = env.reset(seed=seed)
     driver: Any = None
