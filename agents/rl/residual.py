@@ -35,7 +35,9 @@ base adds its command (``crowdloc eval`` names the missing entry).
 
 The task is unchanged: its world, crowd, reward and episode are the plain task's, and a fixed
 policy evaluated on it drives the plain task (``crowdloc eval`` gives only trained policies the
-task's observation and action).
+task's observation and action). The scale and the deadband are not in the observation: evaluate a
+residual model with the ``action:`` it trained with (``crowdloc eval --conditions`` its training
+config, or a copy with the same section); with another deadband it runs, but drives otherwise.
 """
 
 from __future__ import annotations
@@ -86,7 +88,7 @@ class ActionConfig:
 
 class ResidualAction(gym.Wrapper[dict[str, Any], NDArray[np.float32], dict[str, Any], NDArray[np.float32]],
                      gym.utils.RecordConstructorArgs):  # fmt: skip
-    """Send ``clip(base + residual_scale * action)``, ``base`` the fixed policy's command (module docstring).
+    """Send ``clip(base + residual_scale * deadband(action))``, ``base`` the fixed policy's command (module docstring).
 
     Args:
         env: a task (a world behind its localizer, with the task's reward), its raw observation.

@@ -149,3 +149,20 @@ def test_eval_gives_the_residual_to_trained_policies_only_and_refuses_a_residual
     with pytest.raises(ConfigError, match=BASE_KEY):
         run_cli(args("ppo_room_lidar", "plain"))
     assert not (tmp_path / "plain").exists() or not any((tmp_path / "plain").iterdir())
+
+
+def test_crowdloc_train_trains_a_residual_policy_and_records_its_action(tmp_path: Path) -> None:
+    import json
+
+    from stable_baselines3 import PPO
+
+    from agents.rl.train import train
+
+    overrides = {"n_envs": 2, "vec_env": "dummy", "ppo.n_steps": 64, "ppo.batch_size": 64, "total_timesteps": 128,
+                 "checkpoint_every": 10**9, "action.residual_to": "route_follower", "action.deadband": 0.1}  # fmt: skip
+    config = load_train_config("ppo_room_lidar", overrides)
+    model = PPO.load(train(config, tmp_path, progress_bar=False), device="cpu")
+    assert BASE_KEY in model.observation_space.spaces  # type: ignore[attr-defined]
+    (record,) = tmp_path.rglob("run.json")
+    assert json.loads(record.read_text())["config"]["action"] == {"residual_to": "route_follower", "residual_scale": 2.0,
+                                                                  "deadband": 0.1}  # fmt: skip
