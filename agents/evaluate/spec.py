@@ -20,7 +20,7 @@ from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
 from agents.policies import FIXED_POLICIES, follows_routes
 from agents.rl.observation import ObservationConfig, RouteConfig
-from agents.rl.residual import ActionConfig
+from agents.rl.residual import ActionConfig, check_trained_action
 from agents.rl.rewards import RewardWeights
 from agents.rl.train import EVAL_SEED_BASE, TrainConfig, task_wrappers
 from localizers.measurements import find_sensor
@@ -149,7 +149,9 @@ class EvalSpec:
             if odometry not in observed.spaces:
                 raise ConfigError(f"observation.drop removes {odometry!r}, the odometry the evaluation records: keep it")
             for policy in ppo:
-                check_observation_space(policy, load_ppo(policy[len(PPO_PREFIX) :]).observation_space, observed)
+                model = load_ppo(policy[len(PPO_PREFIX) :])
+                check_observation_space(policy, model.observation_space, observed)
+                check_trained_action(policy, model, self.action)
         finally:
             env.close()
 

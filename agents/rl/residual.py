@@ -33,11 +33,13 @@ the policy may not see whole, and keeps state: its progress, whether it waits). 
 observation differs from a plain task's, so a residual model cannot be run by mistake where no
 base adds its command (``crowdloc eval`` names the missing entry).
 
+``crowdloc train`` records the section in the model (:data:`MODEL_ACTION_ATTR`), and ``crowdloc
+eval`` refuses a model whose record differs from its conditions' (:func:`check_trained_action`).
+
 The task is unchanged: its world, crowd, reward and episode are the plain task's, and a fixed
 policy evaluated on it drives the plain task (``crowdloc eval`` gives only trained policies the
-task's observation and action). The scale and the deadband are not in the observation: evaluate a
-residual model with the ``action:`` it trained with (``crowdloc eval --conditions`` its training
-config, or a copy with the same section); with another deadband it runs, but drives otherwise.
+task's observation and action). The scale and the deadband are not in the observation, so only
+that record tells a model's: with another deadband a model runs, but drives otherwise.
 """
 
 from __future__ import annotations
@@ -57,6 +59,8 @@ from localizers.schema import ConfigError, check
 
 #: the observation entry with the base policy's command
 BASE_KEY = "base_action"
+#: the attribute of a model trained by ``crowdloc train`` that records its ``action:`` (saved in its .zip)
+MODEL_ACTION_ATTR = "crowdloc_action"
 
 
 @dataclass(frozen=True)
@@ -84,6 +88,25 @@ class ActionConfig:
     @property
     def changes_anything(self) -> bool:
         return self.residual_to is not None
+
+    def as_record(self) -> dict[str, Any]:
+        """The settings as plain data, as a trained model records them (:data:`MODEL_ACTION_ATTR`)."""
+        return {"residual_to": self.residual_to, "residual_scale": float(self.residual_scale), "deadband": float(self.deadband)}
+
+
+def check_trained_action(policy: str, model: Any, given: ActionConfig) -> None:
+    """Refuse to run ``model`` with another ``action:`` than it trained with, where it records one
+    (models trained before the record existed do not: nothing to compare).
+
+    Raises:
+        ConfigError: naming the policy, what it trained with and what it was given.
+    """
+    trained = getattr(model, MODEL_ACTION_ATTR, None)
+    if trained is not None and dict(trained) != given.as_record():
+        raise ConfigError(
+            f"policy {policy!r} was trained with action {dict(trained)} and these conditions give {given.as_record()}: "
+            "evaluate it in the conditions it trained in (crowdloc eval --conditions its training config)"
+        )
 
 
 class ResidualAction(gym.Wrapper[dict[str, Any], NDArray[np.float32], dict[str, Any], NDArray[np.float32]],

@@ -41,7 +41,7 @@ import crowdloc_configs
 import envs  # noqa: F401  (registers the ids)
 from agents.common.util import nest, write_run_record
 from agents.rl.observation import ObservationConfig, RouteConfig, TaskObservation
-from agents.rl.residual import ActionConfig, ResidualAction
+from agents.rl.residual import MODEL_ACTION_ATTR, ActionConfig, ResidualAction
 from agents.rl.rewards import ActiveLocalizationReward, RewardWeights
 from localizers.schema import ConfigError, check, from_mapping, load_yaml, merge_nested, parse_yaml, replace_checked
 
@@ -523,6 +523,7 @@ def _new_model(config: TrainConfig, directory: Path, verbose: int) -> tuple[Any,
         device="cpu",
         verbose=verbose,
     )
+    setattr(model, MODEL_ACTION_ATTR, config.action.as_record())  # saved with the model: eval checks it
     return model, venv
 
 

@@ -16,10 +16,11 @@ import pytest
 import yaml
 
 from agents.cli import build_parser
-from agents.evaluate import run_cli
+from agents.evaluate import EvalSpec, run_cli
+from agents.evaluate.spec import task_conditions
 from agents.policies.fixed import follows_routes, make_policy
 from agents.rl.observation import ObservationConfig
-from agents.rl.residual import BASE_KEY, ActionConfig, ResidualAction
+from agents.rl.residual import BASE_KEY, MODEL_ACTION_ATTR, ActionConfig, ResidualAction, check_trained_action
 from agents.rl.train import EXPERIMENT_DIR, load_train_config, make_task_env
 from localizers.schema import ConfigError
 
@@ -161,8 +162,19 @@ def test_crowdloc_train_trains_a_residual_policy_and_records_its_action(tmp_path
     overrides = {"n_envs": 2, "vec_env": "dummy", "ppo.n_steps": 64, "ppo.batch_size": 64, "total_timesteps": 128,
                  "checkpoint_every": 10**9, "action.residual_to": "route_follower", "action.deadband": 0.1}  # fmt: skip
     config = load_train_config("ppo_room_lidar", overrides)
-    model = PPO.load(train(config, tmp_path, progress_bar=False), device="cpu")
+    path = train(config, tmp_path, progress_bar=False)
+    model = PPO.load(path, device="cpu")
     assert BASE_KEY in model.observation_space.spaces  # type: ignore[attr-defined]
+    trained = {"residual_to": "route_follower", "residual_scale": 2.0, "deadband": 0.1}
     (record,) = tmp_path.rglob("run.json")
-    assert json.loads(record.read_text())["config"]["action"] == {"residual_to": "route_follower", "residual_scale": 2.0,
-                                                                  "deadband": 0.1}  # fmt: skip
+    assert json.loads(record.read_text())["config"]["action"] == trained
+    # the model itself records its action, and eval refuses it under another one (which nothing else would tell)
+    assert getattr(model, MODEL_ACTION_ATTR) == trained
+    other = dataclasses.replace(config, action=ActionConfig(residual_to="route_follower", deadband=0.2))
+    grid = {"policies": (f"ppo:{path}",), "crowd_sizes": (8,), "seeds": 1, "episode_steps": 5}
+    with pytest.raises(
+        ConfigError, match=r"was trained with action .*'deadband': 0.1.* and these conditions give .*'deadband': 0.2"
+    ):
+        EvalSpec(**grid, **task_conditions(other))
+    assert EvalSpec(**grid, **task_conditions(config)).action == config.action
+    check_trained_action("ppo:old", object(), ActionConfig())  # a model without the record (trained before it): no check
