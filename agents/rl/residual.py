@@ -77,11 +77,11 @@ class ActionConfig:
             f"action.residual_to must be a fixed policy ({', '.join(sorted(FIXED_POLICIES))}) or null, got {self.residual_to!r}",
         )
         check(
-            isinstance(self.residual_scale, (int, float)) and math.isfinite(self.residual_scale) and self.residual_scale > 0,
+            _is_number(self.residual_scale) and math.isfinite(self.residual_scale) and self.residual_scale > 0,
             f"action.residual_scale must be finite and > 0, got {self.residual_scale!r}",
         )
         check(
-            isinstance(self.deadband, (int, float)) and 0 <= self.deadband < 1,
+            _is_number(self.deadband) and 0 <= self.deadband < 1,
             f"action.deadband must be in [0, 1), got {self.deadband!r}",
         )
 
@@ -92,6 +92,11 @@ class ActionConfig:
     def as_record(self) -> dict[str, Any]:
         """The settings as plain data, as a trained model records them (:data:`MODEL_ACTION_ATTR`)."""
         return {"residual_to": self.residual_to, "residual_scale": float(self.residual_scale), "deadband": float(self.deadband)}
+
+
+def _is_number(value: Any) -> bool:
+    """An int or a float, not a bool (YAML's ``true`` is no scale)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def check_trained_action(policy: str, model: Any, given: ActionConfig) -> None:

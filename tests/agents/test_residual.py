@@ -98,10 +98,10 @@ def test_the_command_sent_is_the_base_plus_the_scaled_correction_clipped(band: f
 def test_bad_action_settings_name_the_field_and_the_value() -> None:
     with pytest.raises(ConfigError, match=r"action.residual_to must be a fixed policy .*route_follower.*got 'nope'"):
         load_train_config("ppo_campus_stereo", {"action.residual_to": "nope"})
-    for bad in (0, -1.0, float("nan"), float("inf"), "2"):
+    for bad in (0, -1.0, float("nan"), float("inf"), "2", True):
         with pytest.raises(ConfigError, match=r"action.residual_scale must be finite and > 0, got"):
             ActionConfig(residual_to="route_follower", residual_scale=bad)  # type: ignore[arg-type]
-    for bad in (-0.1, 1.0, float("nan"), "0.1"):
+    for bad in (-0.1, 1.0, float("nan"), "0.1", False):
         with pytest.raises(ConfigError, match=r"action.deadband must be in \[0, 1\), got"):
             ActionConfig(residual_to="route_follower", deadband=bad)  # type: ignore[arg-type]
     room = make_task_env(_plain("ppo_room_lidar"), None)
