@@ -109,10 +109,9 @@ class _PPOPolicy:
 def _make_policy(spec: EvalSpec, cell: Cell, env: gym.Env[Any, Any]) -> Callable[[Any], NDArray[np.float32]]:
     if cell.policy.startswith(PPO_PREFIX):
         return _PPOPolicy(cell.policy[len(PPO_PREFIX) :]).predict
-    from agents.policies import make_policy
+    from agents.policies import make_policy, task_route_kwargs
 
-    kwargs = {"route": np.asarray(spec.route.points_m, dtype=np.float64)} if spec.drives_task_route(cell.policy) else {}
-    fixed = make_policy(cell.policy, env, seed=policy_seed(cell.seed), **kwargs)
+    fixed = make_policy(cell.policy, env, seed=policy_seed(cell.seed), **task_route_kwargs(cell.policy, spec.route.points_m))
     return lambda obs: fixed.predict(obs, deterministic=True)[0]
 
 

@@ -18,7 +18,7 @@ import envs  # registers the crowdloc ids
 from agents.evaluate.goal import GOAL_METRICS
 from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
-from agents.policies import FIXED_POLICIES, follows_routes
+from agents.policies import FIXED_POLICIES, task_route_kwargs
 from agents.rl.observation import ObservationConfig, RouteConfig
 from agents.rl.residual import ActionConfig, check_trained_action
 from agents.rl.rewards import RewardWeights
@@ -232,7 +232,7 @@ class EvalSpec:
         """Whether fixed policy ``policy`` drives :attr:`route`'s points (``route_follower`` and
         ``look_then_route`` when the conditions give the points, as a task's config does) rather
         than the map's route feature."""
-        return follows_routes(policy) and bool(self.route.points_m)
+        return "route" in task_route_kwargs(policy, self.route.points_m)
 
     def world(self) -> WorldConfig:
         """The world evaluated: the id's (or ``env_kwargs["world"]``) with the conditions applied."""

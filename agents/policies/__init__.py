@@ -34,6 +34,7 @@ from agents.policies.fixed import (
     read_estimate,
     register_policy,
     sonar_cones,
+    task_route_kwargs,
 )
 
 __all__ = [
@@ -53,6 +54,7 @@ __all__ = [
     "ceiling_targets",
     "check_command",
     "follows_routes",
+    "task_route_kwargs",
     "make_policy",
     "read_estimate",
     "register_policy",

@@ -470,6 +470,13 @@ def follows_routes(name: str) -> bool:
     return isinstance(cls, type) and issubclass(cls, RouteFollower)
 
 
+def task_route_kwargs(name: str, points_m: Sequence[Sequence[float]]) -> dict[str, Any]:
+    """:func:`make_policy`'s keywords for fixed policy ``name`` on a task whose route is ``points_m``:
+    a route-following policy drives those points (``route=``) when there are any, else the map's
+    route; the other policies take none (``{}``)."""
+    return {"route": np.asarray(points_m, dtype=np.float64)} if follows_routes(name) and len(points_m) else {}
+
+
 def ceiling_targets(world: Any, features: Mapping[str, Mapping[str, Any]]) -> list[dict[str, Any]]:
     """The targets of the ceiling a world's ceiling camera looks at (or of its one ceiling feature), from the map.
 

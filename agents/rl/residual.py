@@ -53,7 +53,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from agents.policies.fixed import FIXED_POLICIES, follows_routes, make_policy
+from agents.policies.fixed import FIXED_POLICIES, make_policy, task_route_kwargs
 from agents.rl.observation import RouteConfig
 from localizers.schema import ConfigError, check
 
@@ -147,9 +147,7 @@ class ResidualAction(gym.Wrapper[dict[str, Any], NDArray[np.float32], dict[str, 
         assert isinstance(action_space, spaces.Box)
         self.config = config
         self._low, self._high = action_space.low.astype(np.float64), action_space.high.astype(np.float64)
-        kwargs: dict[str, Any] = {}
-        if route is not None and route.points_m and follows_routes(config.residual_to):
-            kwargs["route"] = np.asarray(route.points_m, dtype=np.float64)
+        kwargs = task_route_kwargs(config.residual_to, route.points_m if route is not None else ())
         try:
             self.base = make_policy(config.residual_to, env, seed=None, **kwargs)
         except (ValueError, KeyError) as exc:

@@ -18,7 +18,7 @@ import yaml
 from agents.cli import build_parser
 from agents.evaluate import EvalSpec, run_cli
 from agents.evaluate.spec import task_conditions
-from agents.policies.fixed import follows_routes, make_policy
+from agents.policies.fixed import make_policy, task_route_kwargs
 from agents.rl.observation import ObservationConfig
 from agents.rl.residual import BASE_KEY, MODEL_ACTION_ATTR, ActionConfig, ResidualAction, check_trained_action
 from agents.rl.train import EXPERIMENT_DIR, load_train_config, make_task_env
@@ -53,8 +53,7 @@ def test_a_zero_correction_drives_exactly_as_the_base_policy_on_the_plain_task(n
     residual = make_task_env(dataclasses.replace(config, action=ActionConfig(residual_to=base)), None)
     assert isinstance(residual, ResidualAction) and set(residual.observation_space.spaces) == {  # type: ignore[union-attr]
         *plain.observation_space.spaces, BASE_KEY}  # type: ignore[union-attr]  # fmt: skip
-    kwargs = {"route": np.asarray(config.route.points_m)} if follows_routes(base) and config.route.points_m else {}
-    driver = make_policy(base, plain, seed=0, **kwargs)
+    driver = make_policy(base, plain, seed=0, **task_route_kwargs(base, config.route.points_m))
     obs_p, _ = plain.reset(seed=4)
     obs_r, _ = residual.reset(seed=4)
     commands = []

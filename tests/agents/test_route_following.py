@@ -353,3 +353,15 @@ def test_bad_settings_are_refused_naming_them(params: dict[str, Any], words: lis
         assert word in str(error.value), (word, str(error.value))
     with pytest.raises(ValueError, match="at least two finite points"):
         RouteFollower(gym.spaces.Box(-1.0, 1.0, (2,), np.float32), [(0.0, 0.0)], (0.0, 0.0, 1.0, 1.0))
+
+
+def test_a_route_following_policy_is_given_the_task_s_route_and_the_others_nothing() -> None:
+    from agents.policies import task_route_kwargs
+
+    points = ((2.25, 2.25), (4.75, 2.25))
+    for name in ("route_follower", "look_then_route"):
+        kwargs = task_route_kwargs(name, points)
+        assert set(kwargs) == {"route"} and kwargs["route"].dtype == np.float64
+        np.testing.assert_array_equal(kwargs["route"], points)
+        assert task_route_kwargs(name, ()) == {}  # no points: the map's route
+    assert task_route_kwargs("spin", points) == {} and task_route_kwargs("corridor_follower", points) == {}

@@ -16,7 +16,7 @@ import pytest
 
 import crowdloc_models
 import envs
-from agents.policies.fixed import follows_routes, make_policy
+from agents.policies.fixed import make_policy, task_route_kwargs
 from agents.rl.observation import ObservationConfig, RouteConfig, RouteCursor
 from agents.rl.residual import ActionConfig
 from agents.rl.train import load_train_config, make_task_env
@@ -106,8 +106,7 @@ def _episode_return(config_name: str, policy: str, seed: int, steps: int | None 
     obs, _ = env.reset(seed=seed)
     driver: Any = None
     if policy not in ("still", "random"):
-        kwargs = {"route": np.asarray(config.route.points_m)} if follows_routes(policy) and config.route.points_m else {}
-        driver = make_policy(policy, env, seed=seed, **kwargs)
+        driver = make_policy(policy, env, seed=seed, **task_route_kwargs(policy, config.route.points_m))
     rng = np.random.default_rng(seed)
     total, done = 0.0, False
     while not done:
