@@ -400,7 +400,8 @@ def _run_demo(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 
 def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from agents.rl.train import latest_checkpoint, load_train_config, parse_overrides, train
+    from agents.rl.config import load_train_config, parse_overrides
+    from agents.rl.train import latest_checkpoint, train
     from localizers.schema import ConfigError
 
     if args.seeds and args.resume:

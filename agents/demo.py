@@ -331,7 +331,7 @@ def _active_table(
     """Evaluate the fixed and the trained policies on ``seeds`` test seeds; write the outputs; the table's lines."""
     from agents.evaluate import Cell, EvalSpec, evaluate, summary_markdown, write_outputs
     from agents.evaluate.spec import runnable_policies, world_of
-    from agents.rl.train import load_train_config
+    from agents.rl.config import load_train_config
 
     trained = load_train_config(SHIPPED_CONFIG)
     policies = runnable_policies(world_of(trained.env_id, trained.env_kwargs))  # not those planning on another world's map
@@ -376,7 +376,7 @@ def _active_verdict(
 ) -> list[str]:
     """The trained policies against the best fixed ones of ``result`` (on ``verdict_seeds`` fresh seeds; 0: the table's)."""
     from agents.evaluate import evaluate, write_tables
-    from agents.rl.train import EVAL_SEED_BASE
+    from agents.rl.config import EVAL_SEED_BASE
 
     spec, seeds = result.spec, result.spec.seeds
     judged = result

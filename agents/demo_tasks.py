@@ -52,7 +52,7 @@ def tasks_section(out_dir: Path, seeds: int = TASK_SEEDS, workers: int | None = 
     """
     from agents.evaluate import evaluate, write_tables
     from agents.evaluate.spec import EvalSpec, task_conditions, world_of
-    from agents.rl.train import load_train_config
+    from agents.rl.config import load_train_config
 
     lines = [
         "## Active localization in the other worlds",

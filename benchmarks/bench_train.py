@@ -39,15 +39,16 @@ WORLD_TASK_TARGET = 500  # env steps/s on 2 cores (issue 31)
 
 def run_all(quick: bool = False) -> list[Result]:
     from agents.rl import train as training
+    from agents.rl.config import load_train_config
 
     rollouts = 3 if quick else 6
-    shipped = training.load_train_config("ppo_candidate_sets")
+    shipped = load_train_config("ppo_candidate_sets")
     variants: list[tuple[dict[str, Any], bool]] = [({}, True)]  # (overrides, is the shipped config)
     other = "subproc" if shipped.vec_env == "dummy" else "dummy"
     variants.append(({"vec_env": other}, False))
     results = []
     for overrides, is_shipped in variants:
-        config = training.load_train_config(
+        config = load_train_config(
             "ppo_candidate_sets",
             {**overrides, "total_timesteps": shipped.rollout_steps * rollouts, "checkpoint_every": 10**9},
         )
@@ -66,11 +67,9 @@ def run_all(quick: bool = False) -> list[Result]:
             )  # fmt: skip
         )
     for name in WORLD_TASKS:
-        shipped = training.load_train_config(name)
+        shipped = load_train_config(name)
         timed = 1 if quick else 2
-        config = training.load_train_config(
-            name, {"total_timesteps": shipped.rollout_steps * (timed + 1), "checkpoint_every": 10**9}
-        )
+        config = load_train_config(name, {"total_timesteps": shipped.rollout_steps * (timed + 1), "checkpoint_every": 10**9})
         rate = _steps_per_second(training, config)
         label = f"PPO, {name} ({config.localizer}), {config.n_envs} envs in-process, shipped config"
         target = f">= {WORLD_TASK_TARGET:,}"

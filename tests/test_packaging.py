@@ -114,7 +114,7 @@ def test_shipped_localizer_params_resolve() -> None:
 
 
 def test_shipped_experiments_and_search_spaces_resolve() -> None:
-    from agents.rl.train import load_train_config
+    from agents.rl.config import load_train_config
     from agents.tune import load_search_space, space_path
 
     experiments = crowdloc_configs.names("experiments")

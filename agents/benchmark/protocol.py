@@ -23,7 +23,7 @@ from typing import Literal
 import crowdloc_configs
 from agents.evaluate.spec import FIRST_SEED_MAX, crowdloc_ids, runnable_policies, world_of
 from agents.policies import FIXED_POLICIES
-from agents.rl.train import EVAL_SEED_BASE
+from agents.rl.config import EVAL_SEED_BASE
 from localizers.registry import BUILTIN_LOCALIZERS
 from localizers.schema import ConfigError, check, from_mapping, load_yaml
 

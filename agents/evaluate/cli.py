@@ -37,7 +37,7 @@ def spec_from_args(args: Any) -> EvalSpec:
         ConfigError: for a bad option value.
     """
     from agents.common.util import nest
-    from agents.rl.train import load_train_config, parse_overrides
+    from agents.rl.config import load_train_config, parse_overrides
     from localizers.schema import merge_nested
 
     check_first_seed(args.first_seed, "--first-seed")

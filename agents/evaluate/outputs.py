@@ -28,7 +28,7 @@ from agents.evaluate.goal import GOAL_NOTE
 from agents.evaluate.plugins import Array, MetricInfo, localizer_kind, plugins_for
 from agents.evaluate.spec import Cell, EvalSpec
 from agents.evaluate.stats import EvalResult, Stat
-from agents.rl.train import EVAL_SEED_BASE
+from agents.rl.config import EVAL_SEED_BASE
 
 
 # --------------------------------------------------------------------------- TUM trajectories

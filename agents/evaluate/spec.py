@@ -19,10 +19,11 @@ from agents.evaluate.goal import GOAL_METRICS
 from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
 from agents.policies import FIXED_POLICIES, task_route_kwargs
+from agents.rl.config import EVAL_SEED_BASE, TrainConfig
 from agents.rl.observation import ObservationConfig, RouteConfig
 from agents.rl.residual import ActionConfig, check_trained_action
 from agents.rl.rewards import RewardWeights
-from agents.rl.train import EVAL_SEED_BASE, TrainConfig, task_wrappers
+from agents.rl.train import task_wrappers
 from localizers.measurements import find_sensor
 from localizers.schema import ConfigError, check
 

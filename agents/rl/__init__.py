@@ -5,7 +5,9 @@
 - :mod:`agents.rl.rewards`: the active-localization reward wrapper;
 - :mod:`agents.rl.observation`: what a task's policy observes, and the task's route;
 - :mod:`agents.rl.residual`: a policy's action as a correction of a fixed policy's command;
-- :mod:`agents.rl.train`: training configs, PPO runs with exact resume, ``EVAL_SEED_BASE``.
+- :mod:`agents.rl.config`: a training run's config (the YAML file and its ``--set`` / ``--replace``
+  changes), ``EVAL_SEED_BASE``;
+- :mod:`agents.rl.train`: PPO runs on a config, with checkpoints and exact resume.
 
 May import: ``envs``, ``localizers``, :mod:`agents.common`, :mod:`agents.policies` (the fixed
 policy a residual action corrects); never :mod:`agents.experiments`, :mod:`agents.evaluate`,

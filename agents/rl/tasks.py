@@ -18,7 +18,8 @@ from typing import Any
 
 import gymnasium as gym
 
-from agents.rl.train import load_train_config, make_task_env
+from agents.rl.config import load_train_config
+from agents.rl.train import make_task_env
 
 
 def make_task(config: str, crowd_size: int | None = None, render_mode: str | None = None, **overrides: Any) -> gym.Env[Any, Any]:

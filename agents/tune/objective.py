@@ -22,7 +22,7 @@ from agents.common.util import nest
 from agents.evaluate import metrics
 from agents.experiments.replay import Recording, record, replay
 from agents.experiments.scenarios import SoccerDriver
-from agents.rl.train import EVAL_SEED_BASE
+from agents.rl.config import EVAL_SEED_BASE
 from agents.tune.space import SearchSpace
 from localizers.registry import load_params, prepared_params, spec
 from localizers.schema import ConfigError

@@ -20,7 +20,7 @@ import optuna
 
 from agents.common.util import nest
 from agents.evaluate import METRICS, MetricInfo, bootstrap_ci, metrics
-from agents.rl.train import EVAL_SEED_BASE
+from agents.rl.config import EVAL_SEED_BASE
 from agents.tune.objective import EpisodeScore, seed_base_text
 from agents.tune.plan import StudyPlan, TuneConfig
 from agents.tune.space import SearchSpace

@@ -324,7 +324,7 @@ def add_arguments(parser: Any) -> None:
 
 def run_cli(args: Any) -> TuneResult:
     """``crowdloc tune`` from parsed arguments (raises ConfigError for bad values)."""
-    from agents.rl.train import parse_overrides
+    from agents.rl.config import parse_overrides
 
     check_tunable(args.localizer, args.space)
     config = TuneConfig(

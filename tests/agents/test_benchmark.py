@@ -216,7 +216,7 @@ def test_the_test_seeds_are_no_other_commands_seeds() -> None:
     from agents.papers.ceiling_target import DEFAULT_SEEDS as CEILING_SEEDS
     from agents.papers.lidar_far_point.experiment import DEFAULT_SEEDS as LIDAR_SEEDS
     from agents.papers.lidar_far_point.experiment import PILOT_SEEDS
-    from agents.rl.train import EVAL_SEED_BASE
+    from agents.rl.config import EVAL_SEED_BASE
     from agents.tune.objective import eval_seeds, tuning_seeds
 
     mine = set(load_protocol().seeds.seeds)

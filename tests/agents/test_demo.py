@@ -48,7 +48,7 @@ def test_active_part_evaluates_every_policy_and_judges_only_with_enough_seeds(tm
 def test_the_verdict_judges_the_table_s_best_fixed_policies_on_fresh_seeds(tmp_path: Path) -> None:
     from agents.demo import ACTIVE_DENSITIES, ACTIVE_LOCALIZERS, MIN_VERDICT_SEEDS, verdict_groups
     from agents.evaluate import EvalResult, EvalSpec, summarize
-    from agents.rl.train import EVAL_SEED_BASE
+    from agents.rl.config import EVAL_SEED_BASE
 
     seeds = MIN_VERDICT_SEEDS
     section = run_active(tmp_path, seeds=seeds, models={"candidate_sets": SHIPPED_MODELS["candidate_sets"]}, workers=1,
@@ -188,7 +188,7 @@ def test_every_shipped_policy_was_trained_in_the_conditions_the_demo_evaluates()
     from stable_baselines3 import PPO
 
     from agents.demo import SHIPPED_CONFIG, SHIPPED_MODELS
-    from agents.rl.train import load_train_config
+    from agents.rl.config import load_train_config
 
     conditions = load_train_config(SHIPPED_CONFIG).env_kwargs
     for localizer, path in SHIPPED_MODELS.items():
@@ -267,7 +267,8 @@ def test_the_world_tasks_part_plays_each_task_s_policies_and_its_shipped_policy_
     from stable_baselines3 import PPO
 
     import agents.demo_tasks as demo_tasks
-    from agents.rl.train import load_train_config, make_task_env
+    from agents.rl.config import load_train_config
+    from agents.rl.train import make_task_env
 
     env = make_task_env(load_train_config("ppo_corridor_targets"), 0)
     corridor_model = tmp_path / "ppo_corridor_targets.zip"

@@ -17,7 +17,8 @@ from agents.evaluate.paired import paired_difference, paired_verdict, verdict_me
 from agents.evaluate.plugins import Track
 from agents.evaluate.spec import Cell
 from agents.evaluate.stats import EvalResult
-from agents.rl.train import load_train_config, make_task_env
+from agents.rl.config import load_train_config
+from agents.rl.train import make_task_env
 from localizers.schema import ConfigError
 
 

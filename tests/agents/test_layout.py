@@ -71,7 +71,7 @@ def test_the_old_import_statements_give_the_same_objects(monkeypatch: pytest.Mon
         monkeypatch.delitem(sys.modules, old, raising=False)
         monkeypatch.delattr(agents, old.rpartition(".")[2], raising=False)
     from agents.evaluate.metrics import position_errors
-    from agents.rl.train import load_train_config
+    from agents.rl.config import load_train_config
 
     with pytest.warns(DeprecationWarning, match="agents.rl.train"):
         import agents.train as old_train

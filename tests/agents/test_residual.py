@@ -19,9 +19,10 @@ from agents.cli import build_parser
 from agents.evaluate import EvalSpec, run_cli
 from agents.evaluate.spec import task_conditions
 from agents.policies.fixed import make_policy, task_route_kwargs
+from agents.rl.config import EXPERIMENT_DIR, load_train_config
 from agents.rl.observation import ObservationConfig
 from agents.rl.residual import BASE_KEY, MODEL_ACTION_ATTR, ActionConfig, ResidualAction, check_trained_action
-from agents.rl.train import EXPERIMENT_DIR, load_train_config, make_task_env
+from agents.rl.train import make_task_env
 from localizers.schema import ConfigError
 
 #: training config -> the fixed policy a residual corrects there

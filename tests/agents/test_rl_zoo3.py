@@ -16,7 +16,7 @@ import yaml
 
 import crowdloc_configs
 import envs
-from agents.rl.train import load_train_config
+from agents.rl.config import load_train_config
 
 ROOT = Path(__file__).resolve().parents[2]
 HYPERPARAMS = crowdloc_configs.path("rl_zoo3", "ppo.yaml")

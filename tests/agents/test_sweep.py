@@ -79,7 +79,8 @@ def test_ray_cluster_runs_the_tasks_a_multi_seed_training_and_the_benchmark(tmp_
         results = run_tasks(square_and_pid, list(range(5)), ray_address=f"127.0.0.1:{port}", progress=False)
         assert [r[0] for r in results] == [0, 1, 4, 9, 16]
         assert os.getpid() not in {r[1] for r in results}
-        from agents.rl.train import load_train_config, train_seeds
+        from agents.rl.config import load_train_config
+        from agents.rl.train import train_seeds
 
         config = load_train_config("ppo_candidate_sets", {
             "total_timesteps": 64, "n_envs": 2, "vec_env": "dummy", "crowd_sizes": [3], "ppo.n_steps": 32,

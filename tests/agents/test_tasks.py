@@ -11,7 +11,7 @@ import pytest
 from stable_baselines3.common.monitor import Monitor
 
 import envs
-from agents.rl.train import load_train_config
+from agents.rl.config import load_train_config
 from localizers.schema import ConfigError
 
 SOCCER_TASKS = {"crowdloc/ActiveCandidateSets-v0": "ppo_candidate_sets", "crowdloc/ActiveMCLBearing-v0": "ppo_mcl_bearing"}

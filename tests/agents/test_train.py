@@ -13,15 +13,8 @@ import pytest
 import torch
 
 from agents.cli import main
-from agents.rl.train import (
-    TrainConfig,
-    check_train_config,
-    latest_checkpoint,
-    load_train_config,
-    parse_overrides,
-    run_dir,
-    train,
-)
+from agents.rl.config import TrainConfig, load_train_config, parse_overrides
+from agents.rl.train import check_train_config, latest_checkpoint, run_dir, train
 from localizers.schema import ConfigError
 
 
@@ -98,7 +91,7 @@ def test_the_initial_action_sd_is_the_configs(tmp_path: Path) -> None:
     from stable_baselines3 import PPO
     from stable_baselines3.common.policies import ActorCriticPolicy
 
-    from agents.rl.train import PPOConfig
+    from agents.rl.config import PPOConfig
 
     default = train(tiny(1), tmp_path / "default", progress_bar=False)
     narrow = train(tiny(1, **{"ppo.log_std_init": -1.5}), tmp_path / "narrow", progress_bar=False)

@@ -11,7 +11,7 @@ import pytest
 from agents import tune
 from agents.cli import main
 from agents.evaluate import metrics
-from agents.rl.train import EVAL_SEED_BASE
+from agents.rl.config import EVAL_SEED_BASE
 from localizers.registry import load_params
 from localizers.schema import ConfigError, load_yaml
 

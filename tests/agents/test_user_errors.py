@@ -136,7 +136,8 @@ def test_a_bad_training_config_fails_before_anything_is_written(
 def test_a_run_folder_that_holds_a_run_is_not_overwritten_unless_asked(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    from agents.rl.train import check_run_dir, load_train_config, run_dir
+    from agents.rl.config import load_train_config
+    from agents.rl.train import check_run_dir, run_dir
 
     config = load_train_config("ppo_candidate_sets")
     folder = run_dir(config, tmp_path)

@@ -17,9 +17,10 @@ import pytest
 import crowdloc_models
 import envs
 from agents.policies.fixed import make_policy, task_route_kwargs
+from agents.rl.config import load_train_config
 from agents.rl.observation import ObservationConfig, RouteConfig, RouteCursor
 from agents.rl.residual import ActionConfig
-from agents.rl.train import load_train_config, make_task_env
+from agents.rl.train import make_task_env
 from localizers.geometry import polyline_point
 from localizers.schema import ConfigError
 
