@@ -42,7 +42,7 @@ from envs.view import (
     drawn_bounds,
     fit,
 )
-from localizers.schema import ConfigError, check, check_ranges, from_mapping, load_yaml
+from localizers.schema import ConfigError, check, check_ranges, from_mapping, is_real, load_yaml
 
 #: the first this-many rows of :meth:`WorldConfig.wall_segments` are the arena boundary
 BOUNDARY_SEGMENTS = 4
@@ -412,7 +412,7 @@ class WorldConfig:
         if view is None:
             return
         pair = isinstance(view, (tuple, list)) and len(view) == 2
-        pair = pair and all(isinstance(v, Real) and not isinstance(v, bool) for v in view)
+        pair = pair and all(is_real(v) for v in view)
         check(
             pair and all(math.isfinite(v) and v > 0 for v in view),
             f"world {self.name!r}: view_m must be two finite numbers > 0 (the top view's width and height in metres) "

@@ -10,7 +10,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -19,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from localizers.geometry import spanning
-from localizers.schema import check
+from localizers.schema import check, is_real
 
 
 class MeasurementError(ValueError):
@@ -129,7 +128,7 @@ class OdometryDelta:
             return  # the usual case, every step: nothing more to look at
         for name in ("dx_m", "dy_m", "dtheta_rad"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            if not is_real(value):
                 raise MeasurementError(f"OdometryDelta.{name} must be a number, got {type(value).__name__} {value!r}")
 
     def as_array(self) -> NDArray[np.float64]:

@@ -85,20 +85,21 @@ def find_sensor(kind: str, sensors: Mapping[str, Mapping[str, Any]], needed_by: 
 
     ``name`` picks one of several (a second LIDAR); it must be a sensor of the right type."""
     want = measurement_kind(kind).sensor_type
+    a_want = f"{'an' if want[:1] in 'aeiou' else 'a'} {want}"  # "a lidar", "an odometry"
     names = [n for n, meta in sensors.items() if meta.get("type") == want]
     if name is not None:
         if name not in names:
             have = ", ".join(f"{n} ({m.get('type')})" for n, m in sensors.items()) or "none"
             raise ConfigError(
-                f"{needed_by}: sensor {name!r} is not a {want} sensor of this world ({kind} measurements); it has {have}"
+                f"{needed_by}: sensor {name!r} is not {a_want} sensor of this world ({kind} measurements); it has {have}"
             )
         return name
     if not names:
         have = ", ".join(f"{n} ({m.get('type')})" for n, m in sensors.items()) or "none"
-        raise ConfigError(f"{needed_by} needs a {want} sensor ({kind} measurements); this world has {have}")
+        raise ConfigError(f"{needed_by} needs {a_want} sensor ({kind} measurements); this world has {have}")
     if len(names) > 1:
         raise ConfigError(
-            f"{needed_by} reads {kind} from a {want} sensor, and this world has several: {', '.join(names)}; name one "
+            f"{needed_by} reads {kind} from {a_want} sensor, and this world has several: {', '.join(names)}; name one "
             "(gym.make(..., localizer_sensor=NAME))"
         )
     return names[0]

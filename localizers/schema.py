@@ -197,7 +197,7 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
             raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}: {value!r}")
         return tuple(_convert(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
     if tp is float:  # any real number, numpy's included (np.float32(0.5), np.int64(2)); never a bool
-        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        if not is_real(value):
             raise ConfigError(f"{where}: expected a number, got {type(value).__name__} {value!r}")
         try:
             return float(value)
@@ -216,6 +216,18 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
             raise ConfigError(f"{where}: expected a string, got {type(value).__name__} {value!r}")
         return value
     raise TypeError(f"{where}: unsupported annotation {tp!r}")
+
+
+def is_real(value: Any, *, finite: bool = False) -> bool:
+    """Whether ``value`` is a real number: a Python or numpy integer or float (any ``numbers.Real``),
+    never a bool (YAML's ``true`` is no number, though Python counts it as 1); with ``finite``, not
+    NaN or infinite either.
+
+    The one test of "a number" for config and argument checks; each caller adds its range and names
+    the value in its own message."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return False
+    return math.isfinite(value) if finite else True
 
 
 def check(condition: bool, message: str) -> None:
@@ -250,9 +262,8 @@ def check_ranges(
     for names, finite, holds, bound in rules:
         for name in names:
             value = getattr(obj, name)
-            number = isinstance(value, numbers.Real) and not isinstance(value, bool) and not math.isnan(value)
             check(
-                number and (math.isfinite(value) or not finite) and holds(value),
+                is_real(value, finite=finite) and holds(value),  # NaN fails holds
                 f"{where}.{name} must be {bound}, got {value!r}",
             )
 

@@ -44,7 +44,7 @@ from localizers.base import EDGE_CHANNELS as CHANNELS  # R, G, B
 from localizers.base import EDGE_LEVELS as LEVELS  # detection rows; level 0 is the topmost
 from localizers.base import EDGE_POLARITIES as POLARITIES  # rising, falling
 from localizers.base import EDGE_TYPES, MeasurementError
-from localizers.schema import check
+from localizers.schema import check, is_real
 
 # The paper's filter at its cameras' 640 x 480.
 PAPER_FILTER_ROWS = 101
@@ -435,7 +435,7 @@ def detect_edges(response: ArrayLike, threshold: float, *, border_px: int = 0) -
     r = np.ascontiguousarray(r, dtype=np.float32)
     if not np.isfinite(r).all():
         raise ValueError(f"detect_edges: response must be finite, got {shown(r[~np.isfinite(r)][0])!r}")
-    if isinstance(threshold, bool) or not isinstance(threshold, int | float | np.integer | np.floating):
+    if not is_real(threshold):
         raise ValueError(f"detect_edges: threshold must be a number, got {shown(threshold)!r}")
     if not (math.isfinite(threshold) and threshold > 0):
         raise ValueError(f"detect_edges: threshold must be finite and > 0, got {shown(threshold)!r}")
@@ -490,7 +490,7 @@ class EdgeDetector:
                 f"EdgeDetector.{name} must be an odd integer >= 3, got {shown(value)!r}",
             )
         check(
-            not isinstance(self.threshold, bool) and isinstance(self.threshold, int | float) and 0 < self.threshold < math.inf,
+            is_real(self.threshold, finite=True) and self.threshold > 0,
             f"EdgeDetector.threshold must be finite and > 0, got {shown(self.threshold)!r}",
         )
 

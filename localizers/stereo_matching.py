@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.geometry import wrap_angle
-from localizers.schema import check
+from localizers.schema import check, is_real
 from localizers.stereo_edges import EdgeList, check_edges, finite_array, shown
 
 # ---------------------------------------------------------------------------------------
@@ -62,7 +62,7 @@ def empty_matches() -> Matches:
 
 
 def _positive(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+    if not is_real(value):
         raise ValueError(f"{name} must be a number, got {shown(value)!r}")
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"{name} must be finite and > 0, got {shown(value)!r}")
@@ -70,7 +70,7 @@ def _positive(value: Any, name: str) -> float:
 
 
 def _finite(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating) or not math.isfinite(value):
+    if not is_real(value, finite=True):
         raise ValueError(f"{name} must be a finite number, got {shown(value)!r}")
     return float(value)
 
@@ -358,13 +358,13 @@ class TrinocularRig:
         for name in ("focal_px", "neighbour_baseline_m", "min_range_m", "max_range_m", "tolerance_px"):
             value = getattr(self, name)
             check(
-                not isinstance(value, bool) and isinstance(value, int | float) and 0 < value < math.inf,
+                is_real(value, finite=True) and value > 0,
                 f"TrinocularRig.{name} must be finite and > 0, got {shown(value)!r}",
             )
         for name in ("cx_px", "rig_forward_m", "rig_left_m"):
             value = getattr(self, name)
             check(
-                not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value),
+                is_real(value, finite=True),
                 f"TrinocularRig.{name} must be finite, got {shown(value)!r}",
             )
         check(

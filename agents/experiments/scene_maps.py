@@ -42,7 +42,7 @@ from localizers.mcl_lidar import LARGE_MAP_PARAMS
 from localizers.measurements import edge_measurement, find_sensor, sensor_map
 from localizers.range_table import cache_dir
 from localizers.scene_map import SceneMap, geometry_fingerprint
-from localizers.schema import ConfigError, check
+from localizers.schema import ConfigError, check, is_real
 
 _log = logging.getLogger(__name__)
 
@@ -102,7 +102,7 @@ class MappingDrive:
         check(self.pose in ("reference", "truth"), f"mapping drive: pose must be 'reference' or 'truth', got {self.pose!r}")
         check(math.isfinite(self.period_s) and self.period_s > 0, f"mapping drive: period_s must be > 0, got {self.period_s!r}")
         check(
-            isinstance(self.max_shift_px, int | float) and not isinstance(self.max_shift_px, bool) and self.max_shift_px > 0,
+            is_real(self.max_shift_px) and self.max_shift_px > 0,
             f"mapping drive: max_shift_px must be a number > 0 (pixels), got {self.max_shift_px!r}",
         )
 

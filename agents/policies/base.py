@@ -14,6 +14,7 @@ from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.geometry import ring_directions, wrap_angle
+from localizers.schema import is_real
 from localizers.wrappers import decode_estimate
 
 if TYPE_CHECKING:
@@ -98,5 +99,5 @@ def sonar_cones(count: int, directions_rad: ArrayLike, halfwidth_rad: float) -> 
 
 
 def check_command(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and -1.0 <= value <= 1.0):
+    if not (is_real(value) and -1.0 <= value <= 1.0):
         raise ValueError(f"{name} must be a number in [-1, 1] (action units), got {value!r}")

@@ -92,6 +92,7 @@ from numpy.typing import NDArray
 
 from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
 from localizers.geometry import ring_directions, wrap_angle
+from localizers.schema import is_real
 
 #: the heading along the corridor (+y)
 ALONG_RAD = math.pi / 2
@@ -231,7 +232,7 @@ class CorridorParams:
         where = "CorridorFollower"
         for f in fields(self):
             value = getattr(self, f.name)
-            number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            number = is_real(value, finite=True)
             if f.name == "max_remeasures":
                 if not (number and isinstance(value, int) and value >= 0):
                     raise ValueError(f"{where} max_remeasures must be a whole number >= 0, got {value!r}")

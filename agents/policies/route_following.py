@@ -52,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate
 from localizers.geometry import polyline_point, ring_directions
+from localizers.schema import is_real
 
 #: the states of :attr:`RouteFollower.phase`
 PHASES = ("look", "wait", "drive", "done")
@@ -125,7 +126,7 @@ class RouteParams:
         where = "RouteFollower"
         for f in fields(self):
             value = getattr(self, f.name)
-            number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            number = is_real(value, finite=True)
             if f.name == "sonar_rays":
                 if not (number and isinstance(value, int) and value >= 1):
                     raise ValueError(f"{where} sonar_rays must be a whole number >= 1, got {value!r}")

@@ -44,7 +44,6 @@ that record tells a model's: with another deadband a model runs, but drives othe
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,7 +54,7 @@ from numpy.typing import NDArray
 
 from agents.policies.fixed import FIXED_POLICIES, make_policy, task_route_kwargs
 from agents.rl.observation import RouteConfig
-from localizers.schema import ConfigError, check
+from localizers.schema import ConfigError, check, is_real
 
 #: the observation entry with the base policy's command
 BASE_KEY = "base_action"
@@ -77,11 +76,11 @@ class ActionConfig:
             f"action.residual_to must be a fixed policy ({', '.join(sorted(FIXED_POLICIES))}) or null, got {self.residual_to!r}",
         )
         check(
-            _is_number(self.residual_scale) and math.isfinite(self.residual_scale) and self.residual_scale > 0,
+            is_real(self.residual_scale, finite=True) and self.residual_scale > 0,
             f"action.residual_scale must be finite and > 0, got {self.residual_scale!r}",
         )
         check(
-            _is_number(self.deadband) and 0 <= self.deadband < 1,
+            is_real(self.deadband) and 0 <= self.deadband < 1,
             f"action.deadband must be in [0, 1), got {self.deadband!r}",
         )
 
@@ -92,11 +91,6 @@ class ActionConfig:
     def as_record(self) -> dict[str, Any]:
         """The settings as plain data, as a trained model records them (:data:`MODEL_ACTION_ATTR`)."""
         return {"residual_to": self.residual_to, "residual_scale": float(self.residual_scale), "deadband": float(self.deadband)}
-
-
-def _is_number(value: Any) -> bool:
-    """An int or a float, not a bool (YAML's ``true`` is no scale)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def check_trained_action(policy: str, model: Any, given: ActionConfig) -> None:

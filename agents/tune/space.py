@@ -27,7 +27,7 @@ import optuna
 import crowdloc_configs
 from agents.common.util import nest
 from localizers.registry import LOCALIZERS, load_params, spec
-from localizers.schema import ConfigError, load_yaml
+from localizers.schema import ConfigError, is_real, load_yaml
 
 TUNING_CONFIG_DIR = crowdloc_configs.path("tuning")  # package data (configs/ in the checkout)
 _SPEC_KEYS = ("low", "high", "log", "step", "choices")
@@ -172,9 +172,9 @@ def _field_type(params_cls: type, name: str, where: str, localizer: str) -> Any:
 
 
 def _number(value: Any, integer: bool) -> bool:
-    if isinstance(value, bool):
-        return False
-    return isinstance(value, int) if integer else isinstance(value, (int, float)) and math.isfinite(value)
+    if integer:
+        return isinstance(value, int) and not isinstance(value, bool)
+    return is_real(value, finite=True)
 
 
 def _parse_range(name: str, entry: Any, tp: Any, where: str) -> ParamRange:

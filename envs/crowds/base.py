@@ -28,7 +28,7 @@ from envs.bodies import CarConfig, PersonConfig
 from envs.crowds.steering import draw_seers, see_robot
 from envs.plugins import Entry, Registry
 from envs.state import Rows, WorldState
-from localizers.schema import check
+from localizers.schema import check, is_real
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -117,9 +117,8 @@ class PeopleConfig(CrowdConfig):
     def __post_init__(self) -> None:
         super().__post_init__()
         value = self.sees_robot
-        number = isinstance(value, (int, float)) and not isinstance(value, bool)
         check(
-            number and 0.0 <= value <= 1.0,
+            is_real(value) and 0.0 <= value <= 1.0,
             f"{self.type_name or 'crowd'}.sees_robot must be a share in [0, 1] (0: nobody sees the robot, 1: everyone), got {value!r}",
         )
 

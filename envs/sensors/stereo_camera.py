@@ -73,7 +73,7 @@ from envs.stereo.geometric import camera_edges, lines, row_response
 from envs.stereo.render import ColumnRenderer, Moving
 from envs.stereo.scene import Rig, static_scene
 from localizers.geometry import poses_along_step
-from localizers.schema import ConfigError, check, check_ranges
+from localizers.schema import ConfigError, check, check_ranges, is_real
 from localizers.stereo_edges import find_edges
 from localizers.stereo_vision import (
     CHANNEL_COLOURS,
@@ -239,7 +239,7 @@ class StereoCameraConfig(SensorConfig):
             )
             lags = tuple(self.frame_lags_s)
             check(
-                len(lags) == 3 and all(isinstance(v, int | float) and 0 <= v <= period for v in lags),
+                len(lags) == 3 and all(is_real(v) and 0 <= v <= period for v in lags),
                 f"{where}.frame_lags_s must be three lags (left, middle, right) in [0, frame_period_s = {period:g}] s, got "
                 f"{self.frame_lags_s}",
             )

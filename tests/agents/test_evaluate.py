@@ -30,7 +30,8 @@ from agents.evaluate import (
     write_outputs,
     write_tum,
 )
-from agents.rl.train import EVAL_SEED_BASE, load_train_config, train
+from agents.rl.config import EVAL_SEED_BASE, load_train_config
+from agents.rl.train import train
 from localizers.schema import ConfigError
 
 
@@ -317,9 +318,11 @@ def test_the_odometry_an_episode_records_is_the_world_s_one_odometry_sensor() ->
 
     lidar = {"type": "lidar", "key": "lidar"}
     assert odometry_key_of({"wheels": {"type": "odometry", "key": "odo"}, "lidar": lidar}) == "odo"
-    with pytest.raises(ConfigError, match=r"an evaluated world \(its episode record\) needs a odometry sensor .*lidar \(lidar\)"):
+    with pytest.raises(
+        ConfigError, match=r"an evaluated world \(its episode record\) needs an odometry sensor .*lidar \(lidar\)"
+    ):
         odometry_key_of({"lidar": lidar})
-    with pytest.raises(ConfigError, match=r"reads odometry from a odometry sensor, and this world has several: a, b"):
+    with pytest.raises(ConfigError, match=r"reads odometry from an odometry sensor, and this world has several: a, b"):
         odometry_key_of({"a": {"type": "odometry", "key": "a"}, "b": {"type": "odometry", "key": "b"}})
 
 

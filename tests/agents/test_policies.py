@@ -79,6 +79,8 @@ def test_unknown_policy_and_bad_settings_name_the_value() -> None:
         make_policy("wander", env)
     with pytest.raises(ValueError, match="1.5"):
         make_policy("random_walk", env, speed=1.5)
+    with pytest.raises(ValueError, match="SpinInPlace turn must be a number in .* got True"):
+        make_policy("spin", env, turn=True)  # a bool is no command, though True == 1
     with pytest.raises(ValueError, match="segment 1"):
         PatrolPath.from_segments(env.action_space, [(0.5, 0.0, 10), (0.0, 0.2, 0)])
     with pytest.raises(ValueError, match="action 1"):

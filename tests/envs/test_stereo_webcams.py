@@ -239,6 +239,7 @@ def test_gains_are_drawn_per_camera_and_episode_within_their_ranges() -> None:
         ("frame_period_s", 0.0, "frame_period_s must be finite and > 0"),
         ("frame_lags_s", (0.0, 0.01, 0.05), "frame_lags_s must be three lags"),
         ("frame_lags_s", (0.0, 0.01), "frame_lags_s must be three lags"),
+        ("frame_lags_s", (0.0, False, 0.01), "frame_lags_s must be three lags"),  # a bool is no lag, though False == 0
         ("exposure_range", (1.2, 0.8), "exposure_range must be (low, high)"),
         ("exposure_range", (0.0, 1.0), "exposure_range must be (low, high)"),
         ("white_balance_k", (500.0, 6500.0), "white_balance_k must be (0, 0) (none) or (low, high) within"),

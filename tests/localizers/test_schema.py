@@ -13,7 +13,16 @@ from typing import Any, Literal
 import numpy as np
 import pytest
 
-from localizers.schema import ConfigError, check, check_ranges, from_mapping, load_yaml, merge_nested, replace_checked
+from localizers.schema import (
+    ConfigError,
+    check,
+    check_ranges,
+    from_mapping,
+    is_real,
+    load_yaml,
+    merge_nested,
+    replace_checked,
+)
 
 
 @dataclass(frozen=True)
@@ -237,3 +246,26 @@ def test_check_ranges_positive_or_inf_refuses_all_but_numbers_above_zero(bad: An
 def test_check_ranges_positive_or_inf_takes_inf_as_no_limit() -> None:
     check_ranges(_Ranged(math.inf, 0.0), "box", positive_or_inf=("gain",))
     check_ranges(_Ranged(np.float64(0.5), 0.0), "box", positive_or_inf=("gain",))
+
+
+@pytest.mark.parametrize(
+    ("value", "real", "finite"),
+    [
+        (1, True, True),
+        (-2.5, True, True),
+        (np.float32(0.5), True, True),
+        (np.int64(3), True, True),
+        (math.inf, True, False),
+        (math.nan, True, False),
+        (np.float64("nan"), True, False),
+        (True, False, False),  # Python counts a bool as 1; a config's true is no number
+        (np.bool_(False), False, False),
+        ("1.0", False, False),
+        (None, False, False),
+        (1 + 0j, False, False),
+        ([1.0], False, False),
+    ],
+)
+def test_is_real_is_a_number_and_never_a_bool(value: Any, real: bool, finite: bool) -> None:
+    assert is_real(value) is real
+    assert is_real(value, finite=True) is finite
