@@ -204,7 +204,7 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
         except OverflowError:  # an integer beyond any float (10**400)
             raise ConfigError(f"{where}: {value!r} is too large for a number") from None
     if tp is int:  # any integer, numpy's included (np.int64(5): a count taken from an array); never a bool
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        if not is_int(value):
             raise ConfigError(f"{where}: expected an integer, got {type(value).__name__} {value!r}")
         return int(value)
     if tp is bool:
@@ -228,6 +228,12 @@ def is_real(value: Any, *, finite: bool = False) -> bool:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         return False
     return math.isfinite(value) if finite else True
+
+
+def is_int(value: Any) -> bool:
+    """Whether ``value`` is a Python or numpy integer (any ``numbers.Integral``), never a bool: the
+    integer counterpart of :func:`is_real`."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
 def check(condition: bool, message: str) -> None:
@@ -271,9 +277,7 @@ def check_ranges(
 def check_rgb(value: Any, where: str) -> None:
     """Raise :class:`ConfigError` unless ``value`` is an RGB colour: three integers 0-255 (``where`` names it)."""
     check(
-        isinstance(value, (tuple, list))
-        and len(value) == 3
-        and all(isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 255 for c in value),
+        isinstance(value, (tuple, list)) and len(value) == 3 and all(is_int(c) and 0 <= c <= 255 for c in value),
         f"{where} must be three integers 0-255, got {value!r}",
     )
 

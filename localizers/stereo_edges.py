@@ -44,7 +44,7 @@ from localizers.base import EDGE_CHANNELS as CHANNELS  # R, G, B
 from localizers.base import EDGE_LEVELS as LEVELS  # detection rows; level 0 is the topmost
 from localizers.base import EDGE_POLARITIES as POLARITIES  # rising, falling
 from localizers.base import EDGE_TYPES, MeasurementError
-from localizers.schema import check, is_real
+from localizers.schema import check, is_int, is_real
 
 # The paper's filter at its cameras' 640 x 480.
 PAPER_FILTER_ROWS = 101
@@ -63,11 +63,6 @@ CHANNEL_COLOURS = ((255, 0, 0), (0, 255, 0), (0, 0, 255))
 def shown(value: Any) -> Any:
     """A value as error messages show it: numpy scalars as Python numbers (``nan``, not ``np.float64(nan)``)."""
     return value.item() if isinstance(value, np.generic) else value
-
-
-def is_int(value: Any) -> bool:
-    """Whether ``value`` is a Python or numpy integer (a bool is not)."""
-    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
 
 
 def finite_array(values: ArrayLike, name: str) -> NDArray[np.float64]:

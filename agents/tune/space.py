@@ -27,7 +27,7 @@ import optuna
 import crowdloc_configs
 from agents.common.util import nest
 from localizers.registry import LOCALIZERS, load_params, spec
-from localizers.schema import ConfigError, is_real, load_yaml
+from localizers.schema import ConfigError, is_int, is_real, load_yaml
 
 TUNING_CONFIG_DIR = crowdloc_configs.path("tuning")  # package data (configs/ in the checkout)
 _SPEC_KEYS = ("low", "high", "log", "step", "choices")
@@ -173,7 +173,7 @@ def _field_type(params_cls: type, name: str, where: str, localizer: str) -> Any:
 
 def _number(value: Any, integer: bool) -> bool:
     if integer:
-        return isinstance(value, int) and not isinstance(value, bool)
+        return is_int(value)
     return is_real(value, finite=True)
 
 

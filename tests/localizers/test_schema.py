@@ -18,6 +18,7 @@ from localizers.schema import (
     check,
     check_ranges,
     from_mapping,
+    is_int,
     is_real,
     load_yaml,
     merge_nested,
@@ -269,3 +270,20 @@ def test_check_ranges_positive_or_inf_takes_inf_as_no_limit() -> None:
 def test_is_real_is_a_number_and_never_a_bool(value: Any, real: bool, finite: bool) -> None:
     assert is_real(value) is real
     assert is_real(value, finite=True) is finite
+
+
+@pytest.mark.parametrize(
+    ("value", "integer"),
+    [
+        (3, True),
+        (np.int64(3), True),
+        (-1, True),
+        (True, False),
+        (np.bool_(True), False),
+        (3.0, False),
+        (np.float32(3), False),
+        ("3", False),
+    ],
+)
+def test_is_int_is_an_integer_and_never_a_bool(value: Any, integer: bool) -> None:
+    assert is_int(value) is integer
