@@ -72,7 +72,7 @@ from localizers.base import (
 from localizers.dead_reckoning import drift_covariance
 from localizers.geometry import wrap_angle
 from localizers.resection import DEFAULT_MIN_CONDITIONING, fix_covariance, resect_all_triples
-from localizers.schema import check, check_ranges
+from localizers.schema import check, check_ranges, is_int
 
 Array = NDArray[np.float64]
 
@@ -260,7 +260,7 @@ class KalmanParams:
             self.innovation_gate > 0.0, f"KalmanParams.innovation_gate must be > 0 (inf: no gate), got {self.innovation_gate!r}"
         )
         check(
-            isinstance(self.reset_after_rejections, int) and self.reset_after_rejections >= 0,
+            is_int(self.reset_after_rejections) and self.reset_after_rejections >= 0,
             f"KalmanParams.reset_after_rejections must be an integer >= 0 (0: never restart), got {self.reset_after_rejections!r}",
         )
         check_max_spread("KalmanParams", self.max_spread_m)

@@ -25,7 +25,7 @@ from agents.rl.residual import ActionConfig, check_trained_action
 from agents.rl.rewards import RewardWeights
 from agents.rl.train import task_wrappers
 from localizers.measurements import find_sensor
-from localizers.schema import ConfigError, check
+from localizers.schema import ConfigError, check, is_int
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -38,13 +38,13 @@ _GRID_KEYS = ("crowd_size", "max_episode_steps", "localizer", "localizer_params"
 FIRST_SEED_MAX = 2**30
 
 
-def check_first_seed(value: object, name: str = "first_seed") -> None:
+def check_first_seed(value: Any, name: str = "first_seed") -> None:
     """``value`` is an evaluation seed offset, an integer from 0 to :data:`FIRST_SEED_MAX`.
 
     Raises:
         ConfigError: naming the value ``name`` (the keyword argument; ``crowdloc eval`` gives its flag).
     """
-    check(isinstance(value, int) and 0 <= value <= FIRST_SEED_MAX,
+    check(is_int(value) and 0 <= value <= FIRST_SEED_MAX,
           f"{name} must be an integer from 0 to {FIRST_SEED_MAX}, got {value!r}")  # fmt: skip
 
 
@@ -114,6 +114,8 @@ class EvalSpec:
         for name in ("policies", "localizers", "crowd_sizes"):  # lists from Python callers become tuples
             object.__setattr__(self, name, tuple(getattr(self, name)))
         self._check_grid()
+        for name in ("seeds", "first_seed", "episode_steps", "bootstrap_resamples", "bootstrap_seed"):
+            object.__setattr__(self, name, int(getattr(self, name)))  # a numpy integer, checked, stored as Python's
         self._check_localizer_params()
         world = self.world()
         given = self.env_kwargs.get("world")
@@ -129,8 +131,8 @@ class EvalSpec:
         self._check_task()
         limit = world.crowd.max_count if world.crowd is not None else 0
         for size in self.crowd_sizes:
-            check(isinstance(size, (int, np.integer)) and 0 <= size <= limit,
-                  f"crowd size {size!r} out of range 0..{limit} for {where}")  # fmt: skip
+            check(is_int(size) and 0 <= size <= limit, f"crowd size {size!r} out of range 0..{limit} for {where}")
+        object.__setattr__(self, "crowd_sizes", tuple(int(size) for size in self.crowd_sizes))
 
     def _check_task(self) -> None:
         """Each trained policy was trained on the observation its cells give (the task's, when
@@ -192,11 +194,14 @@ class EvalSpec:
 
     def _check_grid(self) -> None:
         """The counts, the axes of the grid, the env id and the conditions' own values."""
-        check(isinstance(self.seeds, int) and self.seeds >= 1, f"seeds must be an integer >= 1, got {self.seeds!r}")
+        check(is_int(self.seeds) and self.seeds >= 1, f"seeds must be an integer >= 1, got {self.seeds!r}")
         check_first_seed(self.first_seed)
-        check(isinstance(self.episode_steps, int) and self.episode_steps >= 1,
+        check(is_int(self.episode_steps) and self.episode_steps >= 1,
               f"episode_steps must be an integer >= 1, got {self.episode_steps!r}")  # fmt: skip
-        check(self.bootstrap_resamples >= 1, f"bootstrap_resamples must be >= 1, got {self.bootstrap_resamples}")
+        check(is_int(self.bootstrap_resamples) and self.bootstrap_resamples >= 1,
+              f"bootstrap_resamples must be an integer >= 1, got {self.bootstrap_resamples!r}")  # fmt: skip
+        check(is_int(self.bootstrap_seed) and self.bootstrap_seed >= 0,
+              f"bootstrap_seed must be an integer >= 0, got {self.bootstrap_seed!r}")  # fmt: skip
         for name in ("policies", "localizers", "crowd_sizes"):
             values = getattr(self, name)
             check(len(values) >= 1, f"{name} needs at least one value")

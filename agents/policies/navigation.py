@@ -92,7 +92,7 @@ from numpy.typing import NDArray
 
 from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
 from localizers.geometry import ring_directions, wrap_angle
-from localizers.schema import is_real
+from localizers.schema import is_int, is_real
 
 #: the heading along the corridor (+y)
 ALONG_RAD = math.pi / 2
@@ -234,7 +234,7 @@ class CorridorParams:
             value = getattr(self, f.name)
             number = is_real(value, finite=True)
             if f.name == "max_remeasures":
-                if not (number and isinstance(value, int) and value >= 0):
+                if not (is_int(value) and value >= 0):
                     raise ValueError(f"{where} max_remeasures must be a whole number >= 0, got {value!r}")
             elif f.name in self._MAY_BE_ZERO:
                 if not (number and value >= 0):

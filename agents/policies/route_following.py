@@ -52,7 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate
 from localizers.geometry import polyline_point, ring_directions
-from localizers.schema import is_real
+from localizers.schema import is_int, is_real
 
 #: the states of :attr:`RouteFollower.phase`
 PHASES = ("look", "wait", "drive", "done")
@@ -128,7 +128,7 @@ class RouteParams:
             value = getattr(self, f.name)
             number = is_real(value, finite=True)
             if f.name == "sonar_rays":
-                if not (number and isinstance(value, int) and value >= 1):
+                if not (is_int(value) and value >= 1):
                     raise ValueError(f"{where} sonar_rays must be a whole number >= 1, got {value!r}")
             elif f.name in self._MAY_BE_ZERO:
                 if not (number and value >= 0):

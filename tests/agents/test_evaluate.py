@@ -276,6 +276,14 @@ def test_evaluate_runs_only_the_groups_asked_for_on_all_seeds() -> None:
         ({"crowd_sizes": (-1,)}, "crowd size -1 out of range 0..14"),
         ({"seeds": 0}, "seeds must be an integer >= 1, got 0"),
         ({"first_seed": -5}, "first_seed must be an integer from 0 to 1073741824, got -5"),
+        # a bool is not a count (True passed as 1 before)
+        ({"seeds": True}, "seeds must be an integer >= 1, got True"),
+        ({"first_seed": True}, "first_seed must be an integer from 0 to 1073741824, got True"),
+        ({"episode_steps": True}, "episode_steps must be an integer >= 1, got True"),
+        ({"crowd_sizes": (True,)}, "crowd size True out of range 0..14"),
+        ({"bootstrap_resamples": "5"}, "bootstrap_resamples must be an integer >= 1, got '5'"),
+        ({"bootstrap_resamples": 2.5}, "bootstrap_resamples must be an integer >= 1, got 2.5"),
+        ({"bootstrap_seed": -1}, "bootstrap_seed must be an integer >= 0, got -1"),
         ({"env_kwargs": {"prior": "maybe"}}, "prior must be 'start' or 'none', got 'maybe'"),
         ({"env_kwargs": {"belief_spread": "yes"}}, "belief_spread must be true or false, got 'yes'"),
         ({"env_kwargs": {"crowd_size": 3}}, "env_kwargs may not set 'crowd_size'"),
@@ -311,6 +319,14 @@ def test_evaluate_runs_only_the_groups_asked_for_on_all_seeds() -> None:
 def test_bad_specs_are_refused_with_the_value(kwargs: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=re.escape(message)):
         EvalSpec(**kwargs)
+
+
+def test_numpy_integers_are_taken_and_kept_as_python_integers() -> None:
+    spec = EvalSpec(seeds=np.int64(2), first_seed=np.int32(3), episode_steps=np.int64(5), crowd_sizes=[np.int64(2)],
+                    bootstrap_resamples=np.int64(10), bootstrap_seed=np.uint8(1))  # fmt: skip
+    values = (spec.seeds, spec.first_seed, spec.episode_steps, *spec.crowd_sizes, spec.bootstrap_resamples, spec.bootstrap_seed)
+    assert values == (2, 3, 5, 2, 10, 1)
+    assert all(type(v) is int for v in values)  # what the run's files record as JSON
 
 
 def test_the_odometry_an_episode_records_is_the_world_s_one_odometry_sensor() -> None:

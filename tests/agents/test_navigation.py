@@ -286,6 +286,10 @@ def test_what_is_missing_is_named() -> None:
         _policy(patience_s=-1)
     with pytest.raises(ValueError, match="no setting 'speed'"):
         _policy(speed=0.5)
+    for count in (True, 1.0, -1):
+        with pytest.raises(ValueError, match=rf"max_remeasures must be a whole number >= 0, got {count!r}$"):
+            _policy(max_remeasures=count)
+    assert _policy(max_remeasures=np.int64(2)).params.max_remeasures == 2
     with pytest.raises(ValueError, match="target 0 needs a name, x_m and y_m"):
         CorridorFollower(spaces.Box(-1, 1, (2,), np.float32), [{"name": "T"}], (0, 0, 1, 1))
     with pytest.raises(ValueError, match="heading_tolerance_rad .* below rotation_threshold_rad"):

@@ -344,6 +344,8 @@ def test_a_sonar_ring_is_read_when_there_is_no_lidar() -> None:
         ({"creep": 0.8, "cruise": 0.5}, ["creep (0.8) at most cruise (0.5)"]),
         ({"max_turn": 0.0}, ["max_turn", "0.0"]),
         ({"max_turn": 1.5}, ["max_turn", "1.5"]),
+        ({"sonar_rays": True}, ["sonar_rays", "True"]),
+        ({"sonar_rays": 2.0}, ["sonar_rays", "2.0"]),
     ],
 )
 def test_bad_settings_are_refused_naming_them(params: dict[str, Any], words: list[str]) -> None:
@@ -353,6 +355,10 @@ def test_bad_settings_are_refused_naming_them(params: dict[str, Any], words: lis
         assert word in str(error.value), (word, str(error.value))
     with pytest.raises(ValueError, match="at least two finite points"):
         RouteFollower(gym.spaces.Box(-1.0, 1.0, (2,), np.float32), [(0.0, 0.0)], (0.0, 0.0, 1.0, 1.0))
+
+
+def test_a_numpy_integer_is_a_whole_number_of_sonar_rays() -> None:
+    assert follower(sonar_rays=np.int64(3)).params.sonar_rays == 3
 
 
 def test_a_route_following_policy_is_given_the_task_s_route_and_the_others_nothing() -> None:

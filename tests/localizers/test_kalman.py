@@ -290,6 +290,13 @@ def test_yaml_holds_every_default() -> None:
     assert from_mapping(KalmanParams, data, str(CONFIG)) == KalmanParams()
 
 
+def test_reset_after_rejections_is_a_whole_number_never_a_bool() -> None:
+    assert KalmanParams(reset_after_rejections=np.int64(3)).reset_after_rejections == 3
+    for value in (True, 2.5, -1):
+        with pytest.raises(ConfigError, match=rf"reset_after_rejections must be an integer >= 0 .*got {value!r}$"):
+            KalmanParams(reset_after_rejections=value)
+
+
 @pytest.mark.parametrize("key, value", [("vision_position_std_m", 0.0), ("jerk_psd_xy_m2_per_s5", -1.0)])
 def test_params_reject_out_of_range(key: str, value: float) -> None:
     with pytest.raises(ConfigError, match=key):
