@@ -477,7 +477,7 @@ def _run_fit(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 
 def _run_map(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from agents.common.util import refuse_to_overwrite
+    from agents.common.util import check_output_file
     from agents.experiments.scene_maps import MappingDrive, build_scene_map, default_map_path
     from envs.localization_env import LocalizationEnv
 
@@ -489,7 +489,7 @@ def _run_map(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         out = default_map_path(LocalizationEnv(args.world))
     elif out.suffix != ".npz":
         parser.error(f"--out {out}: a scene map is an .npz file")
-    refuse_to_overwrite(out, args.overwrite)
+    check_output_file(out, args.overwrite)  # before the drive, not after it
     scenes = build_scene_map(args.world, drive, progress=True)
     scenes.save(out)
     print(f"wrote {out} ({scenes.scene_count} scenes, {scenes.landmark_count} landmarks)")

@@ -236,7 +236,7 @@ MIN_VERDICT_SEEDS = 5
 VERDICT_SEEDS = 100
 
 
-#: what ``crowdloc demo`` writes in its output folder (glob patterns): ``--overwrite`` deletes these and nothing else.
+#: what ``crowdloc demo`` writes in its output folder (glob patterns; what its manifest may record).
 #: The frames of part 1 are named after every registered world's id, the active part is an eval's outputs with the
 #: verdict's tables beside them.
 DEMO_OUTPUTS: tuple[str, ...] = (
@@ -268,28 +268,32 @@ def run_demo(
     test seeds each; 0 skips them); writes ``out_dir/report.md`` and prints it.
 
     ``models``: the PPO policy per localizer (default :data:`SHIPPED_MODELS`). ``out_dir`` must be
-    empty or missing unless ``overwrite``, which first deletes what an earlier demo wrote there
-    (:data:`DEMO_OUTPUTS`) and nothing else.
+    empty or missing unless ``overwrite``, which first deletes what an earlier demo recorded writing
+    there (its manifest, :mod:`agents.common.output_folder`) and nothing else.
 
     Raises:
-        ConfigError: before any run, for an ``out_dir`` that is not empty (without ``overwrite``)
-            or cannot be created.
+        ConfigError: before any run, for an ``out_dir`` that is not empty (without ``overwrite``),
+            holds another command's results or files at the demo's paths it has no record of, or
+            cannot be created.
     """
-    from agents.common.util import prepare_out_dir
-
-    prepare_out_dir(out_dir, DEMO_OUTPUTS, command="crowdloc demo", overwrite=overwrite)
-    report = run_worlds(out_dir, steps=steps, seed=seed, densities=densities)
+    from agents.common.output_folder import open_output_folder
     from agents.papers.ceiling_target.demo import corridor_section
     from agents.papers.stereo_far_landmarks.demo import campus_section
 
-    report.write_text(report.read_text() + "\n" + corridor_section(out_dir / "corridor", seed))
-    report.write_text(report.read_text() + "\n" + campus_section(out_dir / "campus", seed))
-    if active_seeds > 0:
-        active = run_active(out_dir / "active", seeds=active_seeds, models=models, workers=workers,
-                            verdict_seeds=verdict_seeds)  # fmt: skip
-        report.write_text(report.read_text() + "\n" + active)
-    if task_seeds > 0:
-        report.write_text(report.read_text() + "\n" + tasks_section(out_dir / "tasks", seeds=task_seeds, workers=workers))
+    with open_output_folder(out_dir, DEMO_OUTPUTS, command="crowdloc demo", overwrite=overwrite) as folder:
+        report = run_worlds(out_dir, steps=steps, seed=seed, densities=densities)
+        folder.record_written()  # after each part: a demo killed later leaves the earlier parts on record
+        report.write_text(report.read_text() + "\n" + corridor_section(out_dir / "corridor", seed))
+        report.write_text(report.read_text() + "\n" + campus_section(out_dir / "campus", seed))
+        folder.record_written()
+        if active_seeds > 0:
+            active = run_active(out_dir / "active", seeds=active_seeds, models=models, workers=workers,
+                                verdict_seeds=verdict_seeds)  # fmt: skip
+            report.write_text(report.read_text() + "\n" + active)
+            folder.record_written()
+        if task_seeds > 0:
+            tasks = tasks_section(out_dir / "tasks", seeds=task_seeds, workers=workers)
+            report.write_text(report.read_text() + "\n" + tasks)
     print(report.read_text())
     return report
 

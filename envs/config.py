@@ -661,6 +661,11 @@ def load_world(name_or_path: str | Path) -> WorldConfig:
     Raises:
         ConfigError: naming the unknown world, or the bad key and the file.
     """
+    if not isinstance(name_or_path, (str, Path)):
+        raise ConfigError(
+            f"world must be a shipped world's name, a YAML path or a WorldConfig, got "
+            f"{type(name_or_path).__name__} {name_or_path!r}"
+        )
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml"):
         path = world_path(str(name_or_path))

@@ -185,6 +185,13 @@ def _field_one(x: float, y: float, heading: float, field: NDArray[np.float32], g
 # one contiguous block of particles per thread (a prange over single particles costs more in scheduling)
 
 
+def _blocks(parallel: bool) -> int:
+    """The particle blocks of a kernel: one per thread of numba's pool, or one for the serial kernel.
+    Only a parallel kernel asks numba for its thread count: asking starts the pool (OpenMP, where TBB
+    is not installed), which a serial filter has no use for."""
+    return numba.get_num_threads() if parallel else 1
+
+
 @numba.njit(fastmath=True, cache=True)
 def _beam_serial(blocks, particles, table, grid, beam_dir, beams, norms, gauss, consts, out):  # type: ignore[no-untyped-def]
     for i in range(particles.shape[1]):
@@ -257,7 +264,7 @@ class BeamModel:
         consts = np.array([self._inv_dz, self._gauss_scale, outside])
         kernel = _beam_parallel if parallel else _beam_serial
         t = self.table
-        kernel(numba.get_num_threads(), particles, t.ranges_m, self._grid, beam_dir, beams, self._norms, self._gauss, consts, out)
+        kernel(_blocks(parallel), particles, t.ranges_m, self._grid, beam_dir, beams, self._norms, self._gauss, consts, out)
 
 
 class LikelihoodFieldModel:
@@ -311,4 +318,4 @@ class LikelihoodFieldModel:
         outside = math.log(max(p.z_rand / max_range_m, _P_FLOOR))
         grid = np.array([*self.origin_xy_m, inv_res])
         kernel = _field_parallel if parallel else _field_serial
-        kernel(numba.get_num_threads(), particles, self.log_field(max_range_m), grid, ends, outside, out)
+        kernel(_blocks(parallel), particles, self.log_field(max_range_m), grid, ends, outside, out)

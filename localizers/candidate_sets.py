@@ -217,6 +217,12 @@ class CandidateSetParams:
             positive=("prune_error_rad", "abort_error_rad", "fusion_median_m", "min_conditioning"),
             non_negative=("bounds_margin_m", "position_floor_m", "heading_floor_rad", "coast_growth_per_m"),
         )
+        check(
+            self.abort_error_rad <= self.prune_error_rad,
+            f"CandidateSetParams.abort_error_rad {self.abort_error_rad!r} must not be above prune_error_rad "
+            f"{self.prune_error_rad!r}: above it, it has no effect (a set whose least Error exceeds prune_error_rad "
+            "has lost all its candidates)",
+        )
         tau = self.error_time_constant_s
         check(
             tau > 0.0,  # false for NaN

@@ -281,9 +281,20 @@ def large_map_mcl(
     """The LIDAR MCL parameters ``params`` (which resolve to ``resolved``) for the world of ``env``:
     :data:`LARGE_MAP_PARAMS` under ``params`` where the beam model's table would exceed
     ``max_table_mb`` and ``params`` names no ``model``, logged as ``who``'s choice; else ``params``
-    itself (the same object). Shared by ``mcl_lidar`` and ``far_point_mcl`` (its ``mcl`` section)."""
+    itself (the same object). Shared by ``mcl_lidar`` and ``far_point_mcl`` (its ``mcl`` section).
+
+    Raises:
+        ConfigError: if a beam stride is not below the sensor's beam count (a scan would be
+            weighed by its first beam alone).
+    """
     from localizers.measurements import sensor_map
 
+    beams = len(env.sensor_metadata[sensor].get("beam_angles_rad", ()))
+    for name in ("beam_stride", "recovery_beam_stride"):
+        stride = getattr(resolved, name)
+        check(beams <= 1 or stride < beams,
+              f"{who}.{name} {stride} is not below the {beams} beams of sensor {sensor!r}: every scan would be "
+              f"weighed by its first beam alone; use fewer than {beams}")  # fmt: skip
     if "model" in (params or {}) or resolved.model != "beam":
         return params
     bounds = sensor_map(env.landmark_map, env.sensor_metadata[sensor]).bounds_m

@@ -203,16 +203,26 @@ def load_params(name: str, overrides: Mapping[str, Any] | None = None) -> Any:
     path = params_path(name)
     data = load_yaml(path) if path.is_file() else {}
     where = str(path)
+    check_overrides(name, overrides)
     if overrides:
-        if not isinstance(overrides, Mapping):
-            raise ConfigError(f"localizer_params for {name!r} must be a mapping, got {type(overrides).__name__} {overrides!r}")
         data = merge_nested(data, overrides)
         where = f"{path} with localizer_params {dict(overrides)!r}"
     return from_mapping(_attr(s.module, s.params_cls), data, where=where)
 
 
+def check_overrides(name: str, overrides: Any, *, ready: bool = False) -> None:
+    """Raise a ConfigError unless ``overrides`` (localizer ``name``'s ``localizer_params``) is None
+    or a mapping (with ``ready``, or a ready params object of the localizer)."""
+    if overrides is None or isinstance(overrides, Mapping):
+        return
+    if ready and isinstance(overrides, _attr(spec(name).module, spec(name).params_cls)):
+        return
+    raise ConfigError(f"localizer_params for {name!r} must be a mapping, got {type(overrides).__name__} {overrides!r}")
+
+
 def prepared_params(name: str, env: Any, sensor: str, params: Mapping[str, Any] | None) -> Mapping[str, Any] | None:
     """``params`` after the localizer's preparation hook (:attr:`LocalizerSpec.prepare`), if it has one."""
+    check_overrides(name, params, ready=True)
     hook = spec(name).prepare
     if not hook:
         return params

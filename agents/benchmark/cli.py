@@ -10,8 +10,8 @@ from agents.benchmark.journal import JOURNAL_NAME, ScoreJournal
 from agents.benchmark.protocol import DEFAULT_PROTOCOL, load_protocol
 from agents.benchmark.results import BENCHMARK_OUTPUTS, write_results
 from agents.benchmark.run import BenchmarkPlan, EpisodeScore, load_plugins, plan_benchmark, score_task
+from agents.common.output_folder import open_output_folder
 from agents.common.sweep import run_tasks
-from agents.common.util import prepare_out_dir
 from localizers.schema import check
 
 
@@ -32,24 +32,25 @@ def run_cli(args: Any) -> BenchmarkPlan:
     resume, overwrite = bool(getattr(args, "resume", False)), bool(args.overwrite)
     check(not (resume and overwrite), "--resume continues a run and --overwrite starts it again: give one")
     out = Path(args.out)
-    prepare_out_dir(out, BENCHMARK_OUTPUTS, command="crowdloc benchmark", overwrite=overwrite, resume=resume)
-    journal_path = out / JOURNAL_NAME
-    journal = ScoreJournal.resume(journal_path, plan) if resume else ScoreJournal.start(journal_path, plan)
-    for line in plan.left_out:
-        print(line)
-    tasks = plan.tasks()
-    # seed by seed (the plan's order within a seed), so that a run stopped early holds whole seeds
-    order = {seed: i for i, seed in enumerate(plan.seeds)}
-    todo = sorted((t for t in tasks if t.key not in journal.done), key=lambda t: order[t.cell.seed])
-    if resume:
-        print(f"--resume: {len(tasks) - len(todo)} of the {len(tasks)} episodes are in {journal_path}")
-    start = time.perf_counter()
-    ran = run_tasks(score_task, todo, workers=args.workers, ray_address=getattr(args, "ray_address", None),
-                    desc="benchmark", progress=not args.no_progress, on_result=lambda _, score: journal.append(score))  # fmt: skip
-    wall_s = time.perf_counter() - start
-    by_key: dict[Any, EpisodeScore] = {**journal.done, **{t.key: score for t, score in zip(todo, ran)}}
-    scores = [by_key[t.key] for t in tasks]  # the plan's order, however the episodes finished or runs were split
-    written = write_results(out, plan, scores, wall_s)
+    with open_output_folder(out, BENCHMARK_OUTPUTS, command="crowdloc benchmark", overwrite=overwrite, resume=resume) as folder:
+        journal_path = out / JOURNAL_NAME
+        journal = ScoreJournal.resume(journal_path, plan) if resume else ScoreJournal.start(journal_path, plan)
+        folder.record(journal_path)
+        for line in plan.left_out:
+            print(line)
+        tasks = plan.tasks()
+        # seed by seed (the plan's order within a seed), so that a run stopped early holds whole seeds
+        order = {seed: i for i, seed in enumerate(plan.seeds)}
+        todo = sorted((t for t in tasks if t.key not in journal.done), key=lambda t: order[t.cell.seed])
+        if resume:
+            print(f"--resume: {len(tasks) - len(todo)} of the {len(tasks)} episodes are in {journal_path}")
+        start = time.perf_counter()
+        ran = run_tasks(score_task, todo, workers=args.workers, ray_address=getattr(args, "ray_address", None),
+                        desc="benchmark", progress=not args.no_progress, on_result=lambda _, score: journal.append(score))  # fmt: skip
+        wall_s = time.perf_counter() - start
+        by_key: dict[Any, EpisodeScore] = {**journal.done, **{t.key: score for t, score in zip(todo, ran)}}
+        scores = [by_key[t.key] for t in tasks]  # the plan's order, however the episodes finished or runs were split
+        written = write_results(out, plan, scores, wall_s)
     quick = " (quick: not comparable with a full run)" if plan.quick else ""
     print(f"{protocol.name}{quick}: {len(todo)} episodes in {wall_s:.0f} s ({len(tasks)} in all); wrote {out}/ "
           f"({', '.join(p.name for p in written.values())})")  # fmt: skip

@@ -3,11 +3,22 @@
 Evaluation grids, multi-seed training and tuning workers all go through :func:`run_tasks`,
 so moving a sweep from a laptop to a cluster is one flag (``--ray-address``). Ray is an
 optional extra (``pip install crowdloc[distributed]``).
+
+Local workers never start as a fork of the calling process (:func:`worker_context`): a fork copies
+whatever that process had started, and some of it cannot live in a child. numba's ``parallel=True``
+kernels run on an OpenMP thread pool (its ``omp`` layer, where TBB is not installed); once GNU
+OpenMP has run in a process, a forked child that runs a parallel kernel (a LIDAR range table built
+on a cold cache, say) is killed at once (``fork() called from a process already using GNU
+OpenMP``). The workers start from a fork server instead, a clean process started for the purpose,
+and each exits when the process that started the pool is gone (:func:`_exit_with_parent`), even
+when it was killed with no time to stop them.
 """
 
 from __future__ import annotations
 
+import multiprocessing
 import os
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, TypeVar
@@ -21,6 +32,40 @@ R = TypeVar("R")
 def default_workers() -> int:
     """All cores but none more (the tasks are CPU-bound)."""
     return max(1, os.cpu_count() or 1)
+
+
+def worker_context() -> multiprocessing.context.BaseContext:
+    """How local worker processes start: from the fork server where the platform has one
+    (Linux, macOS), else as fresh interpreters (spawn); never as a fork of this process."""
+    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+    return multiprocessing.get_context(method)
+
+
+def _exit_with_parent() -> None:
+    """Exit this worker as soon as the process that started its pool is gone, however it ended.
+
+    A worker's parent in the fork server's sense is the server, which lives on while workers
+    hold its descriptors; what tells of the pool's owner is the pipe it keeps open to each
+    worker (multiprocessing's parent sentinel), which reads as closed once the owner exits. A
+    daemon thread waits on it (the wait holds no lock) and ends the process."""
+    parent = multiprocessing.parent_process()
+    if parent is None:  # not a worker: nothing to watch
+        return
+
+    def watch() -> None:
+        parent.join()
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+def _start_worker(environment: dict[str, str]) -> None:
+    """A pool worker's initializer: it exits with its parent and sees the environment of the
+    process that started the pool as it was then (a fork server keeps the one it started with;
+    ``CROWDLOC_CACHE`` set later must still reach the workers)."""
+    _exit_with_parent()
+    os.environ.clear()
+    os.environ.update(environment)
 
 
 def run_tasks(
@@ -65,7 +110,13 @@ def run_tasks(
                     on_result(i, results[-1])
                 bar.update()
             return results
-        with ProcessPoolExecutor(max_workers=n) as pool:
+        context = worker_context()
+        if isinstance(context, multiprocessing.context.ForkServerContext):
+            # the fork server imports the task's module once; every worker forks from it ready to run
+            context.set_forkserver_preload(["__main__", fn.__module__])
+        with ProcessPoolExecutor(
+            max_workers=n, mp_context=context, initializer=_start_worker, initargs=(dict(os.environ),)
+        ) as pool:
             futures = {pool.submit(fn, task): i for i, task in enumerate(tasks)}
             for future in as_completed(futures):
                 if on_result is not None:

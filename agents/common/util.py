@@ -116,13 +116,31 @@ def refuse_to_overwrite(report: Path, overwrite: bool) -> None:
         raise ConfigError(f"{report} exists; give --overwrite to replace it (or another --out)")
 
 
+def check_output_file(path: Path, overwrite: bool, flag: str = "--out") -> Path:
+    """Make ready to write the file ``path``, before any work: refused when a folder is in its
+    place, or when it exists and the user did not ask to replace it (``overwrite``); its folder is
+    created and must be writable (:func:`make_out_dir`).
+
+    Raises:
+        ConfigError: naming ``flag`` and ``path``.
+    """
+    if path.is_dir():
+        raise ConfigError(f"{flag} {path} is a folder; give the path of the file to write")
+    if path.exists() and not overwrite:
+        raise ConfigError(f"{flag} {path} exists; give --overwrite to replace it (or another {flag})")
+    make_out_dir(path.parent, flag=f"{flag} {path}: its folder")
+    return path
+
+
 def make_out_dir(out: Path, flag: str = "--out") -> Path:
     """Create the output folder ``out`` (and its parents) and check that it is writable, before any
     work: a run that cannot save its results must fail at its start, not after its last episode.
 
     Raises:
-        ConfigError: naming ``flag`` and ``out`` when it cannot be created or written.
+        ConfigError: naming ``flag`` and ``out`` when it is a file, or cannot be created or written.
     """
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{flag} {out} is a file, not a folder")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -130,50 +148,6 @@ def make_out_dir(out: Path, flag: str = "--out") -> Path:
     if not os.access(out, os.W_OK | os.X_OK):
         raise ConfigError(f"{flag} {out}: the output folder is not writable")
     return out
-
-
-def prepare_out_dir(out: Path, outputs: Sequence[str], *, command: str, overwrite: bool, resume: bool = False) -> Path:
-    """Make ``out`` ready for a command that writes ``outputs`` there, before any work.
-
-    A command never mixes its results with an earlier run's: a folder that is not empty is
-    refused unless ``overwrite``, which deletes what the command writes (the files matching the
-    glob patterns ``outputs``, relative to ``out``, and the sub-folders of those patterns once
-    empty) and nothing else. ``resume`` keeps the folder as it is (the command continues the run
-    that is there). Then :func:`make_out_dir`.
-
-    Raises:
-        ConfigError: a folder that is not empty (without ``overwrite`` or ``resume``), a file in
-            the folder's place, or a folder that cannot be created or written.
-    """
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {out} is a file, not a folder")
-    held = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
-    if held and not resume:
-        if not overwrite:
-            shown = ", ".join(held[:5]) + (f" and {len(held) - 5} more" if len(held) > 5 else "")
-            raise ConfigError(
-                f"--out {out} is not empty ({shown}); give --overwrite to replace what {command} writes there "
-                "(other files stay), or another --out"
-            )
-        clear_outputs(out, outputs)
-    return make_out_dir(out)
-
-
-def clear_outputs(out: Path, outputs: Sequence[str]) -> None:
-    """Delete the files under ``out`` that match the glob patterns ``outputs``, then the
-    sub-folders named by those patterns if that left them empty (deepest first); nothing else."""
-    folders: set[Path] = set()
-    for pattern in outputs:
-        for path in out.glob(pattern):
-            if path.is_file() or path.is_symlink():
-                path.unlink()
-        parent = Path(pattern).parent
-        while parent != Path("."):
-            folders.add(out / parent)
-            parent = parent.parent
-    for folder in sorted(folders, key=lambda f: len(f.parts), reverse=True):
-        if folder.is_dir() and not any(folder.iterdir()):
-            folder.rmdir()
 
 
 def text_table(header: Sequence[str], rows: Iterable[Sequence[str]], align: str | None = None) -> str:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from agents.common.util import prepare_out_dir
+from agents.common.output_folder import open_output_folder
 from agents.evaluate.journal import JOURNAL_NAME, EpisodeJournal
 from agents.evaluate.kidnap import Kidnap
 from agents.evaluate.outputs import EVAL_OUTPUTS, summary_markdown, write_outputs
@@ -100,16 +100,18 @@ def run_cli(args: Any) -> EvalResult:
     resume, overwrite = bool(getattr(args, "resume", False)), bool(getattr(args, "overwrite", False))
     check(not (resume and overwrite), "--resume continues a run and --overwrite starts it again: give one")
     out = Path(args.out)
-    prepare_out_dir(out, EVAL_OUTPUTS, command="crowdloc eval", overwrite=overwrite, resume=resume)
-    journal_path = out / JOURNAL_NAME
-    journal = EpisodeJournal.resume(journal_path, spec) if resume else EpisodeJournal.start(journal_path, spec)
-    result = evaluate(spec, workers=args.workers, ray_address=args.ray_address, progress=not args.no_progress, journal=journal)
-    written = write_outputs(result, out, gif_cell=gif_cell, gif=not args.no_gif)
-    print(summary_markdown(result))
-    if judged is not None:
-        rows = paired_verdict(result, judged)
-        written.update(write_verdict(rows, spec, out))
-        print("\n" + verdict_markdown(rows, spec))
+    with open_output_folder(out, EVAL_OUTPUTS, command="crowdloc eval", overwrite=overwrite, resume=resume) as folder:
+        journal_path = out / JOURNAL_NAME
+        journal = EpisodeJournal.resume(journal_path, spec) if resume else EpisodeJournal.start(journal_path, spec)
+        folder.record(journal_path)
+        result = evaluate(spec, workers=args.workers, ray_address=args.ray_address, progress=not args.no_progress,
+                          journal=journal)  # fmt: skip
+        written = write_outputs(result, out, gif_cell=gif_cell, gif=not args.no_gif)
+        print(summary_markdown(result))
+        if judged is not None:
+            rows = paired_verdict(result, judged)
+            written.update(write_verdict(rows, spec, out))
+            print("\n" + verdict_markdown(rows, spec))
     names = ", ".join(p.name for p in written.values())
     print(f"\n{len(result.episodes)} episodes in {result.wall_s:.0f} s; wrote {args.out}/ ({names})")
     return result

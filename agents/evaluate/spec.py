@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import math
 import re
+import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -128,6 +129,12 @@ class EvalSpec:
                   f"an episode of {self.episode_steps} steps ({length_s:g} s) ends before the kidnap's recovery window "
                   f"does (at_s {self.kidnap.at_s:g} + window_s {self.kidnap.window_s:g} = {self.kidnap.ends_s:g} s): "
                   f"raise episode_steps to at least {math.ceil(self.kidnap.ends_s / world.dt_s - 1e-9)}")  # fmt: skip
+            xmin, ymin, xmax, ymax = world.arena_m
+            reach = 0.5 * math.hypot(xmax - xmin, ymax - ymin)  # from the arena's middle no pose lies farther
+            check(self.kidnap.min_distance_m < reach,
+                  f"kidnap.min_distance_m {self.kidnap.min_distance_m:g} cannot be placed in {where}: a robot in the "
+                  f"middle of its {xmax - xmin:g} x {ymax - ymin:g} m arena has no free pose that far; "
+                  f"use less than {reach:.2f} m")  # fmt: skip
         self._check_task()
         limit = world.crowd.max_count if world.crowd is not None else 0
         for size in self.crowd_sizes:
@@ -362,16 +369,26 @@ def check_policy(policy: str) -> None:
     if policy.startswith(PPO_PREFIX):
         path = Path(policy[len(PPO_PREFIX) :])
         check(path.is_file(), f"PPO model file {str(path)!r} does not exist (policy {policy!r})")
+        check(zipfile.is_zipfile(path),
+              f"PPO model file {str(path)!r} is not a zip archive saved by stable-baselines3 (policy {policy!r})")  # fmt: skip
     elif policy not in FIXED_POLICIES:
         raise ConfigError(f"unknown policy {policy!r}; use one of {', '.join(FIXED_POLICIES)} or ppo:PATH/model.zip")
 
 
 @functools.lru_cache(maxsize=4)
 def load_ppo(path: str) -> Any:
-    """The stable-baselines3 PPO model at ``path`` (on the CPU; the last few are cached)."""
+    """The stable-baselines3 PPO model at ``path`` (on the CPU; the last few are cached).
+
+    Raises:
+        ConfigError: if the file is not a model stable-baselines3 can load.
+    """
     from stable_baselines3 import PPO
 
-    return PPO.load(path, device="cpu")
+    try:
+        return PPO.load(path, device="cpu")
+    except (AssertionError, ValueError, KeyError, EOFError, OSError, RuntimeError, zipfile.BadZipFile) as exc:  # noqa: B014
+        # stable-baselines3 reports a zip without its data by an assert
+        raise ConfigError(f"PPO model file {path!r} cannot be loaded by stable-baselines3: {exc}") from None
 
 
 @functools.lru_cache(maxsize=64)

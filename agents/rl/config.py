@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 import crowdloc_configs
 from agents.common.util import nest
 from agents.rl.observation import ObservationConfig, RouteConfig
@@ -140,5 +142,9 @@ def parse_overrides(items: Sequence[str], flag: str = "override") -> dict[str, A
         key, sep, text = item.partition("=")
         if not sep or not key:
             raise ConfigError(f"{flag} {item!r} is not KEY=VALUE")
-        out[key.strip()] = parse_yaml(text)
+        try:
+            out[key.strip()] = parse_yaml(text)
+        except yaml.YAMLError as exc:
+            reason = getattr(exc, "problem", None) or str(exc).splitlines()[0]  # without YAML's pointer lines
+            raise ConfigError(f"{flag} {item!r}: the value is not valid YAML ({reason})") from None
     return out

@@ -26,7 +26,6 @@ import copy
 import dataclasses
 import pickle
 import random
-import shutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -36,6 +35,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
+from agents.common.output_folder import OutputFolder, open_output_folder
 from agents.common.util import write_run_record
 from agents.rl.config import EVAL_SEED_BASE, TrainConfig
 
@@ -262,11 +262,18 @@ def check_train_config(config: TrainConfig) -> None:
         env.close()
 
 
-def check_run_dir(config: TrainConfig, out: Path, *, resume: bool, overwrite: bool) -> None:
-    """Refuse to start a new run where one already is, unless told to resume it or overwrite it.
+#: what a run writes in its folder (glob patterns; what its manifest may record, :mod:`agents.common.output_folder`)
+TRAIN_OUTPUTS = ("run.json", "model.zip", "checkpoints/step_*", "tb/**/*")
+
+
+def open_run_dir(config: TrainConfig, out: Path, *, resume: bool, overwrite: bool) -> OutputFolder:
+    """The run's folder, ready before any work: a new run never starts where one already is,
+    unless told to resume it or overwrite it; ``overwrite`` deletes what the earlier run there
+    recorded writing (its manifest) and nothing else.
 
     Raises:
-        ConfigError: naming the folder and the two ways on.
+        ConfigError: naming the folder and the two ways on, or anything
+            :func:`~agents.common.output_folder.open_output_folder` refuses.
     """
     directory = run_dir(config, out)
     held = (directory / "model.zip").exists() or any((directory / "checkpoints").glob("step_*"))
@@ -275,8 +282,7 @@ def check_run_dir(config: TrainConfig, out: Path, *, resume: bool, overwrite: bo
             f"{directory} already holds a run (model.zip or checkpoints): give --resume latest to continue it "
             "or --overwrite to start it again"
         )
-    if held and overwrite and not resume:
-        shutil.rmtree(directory)
+    return open_output_folder(directory, TRAIN_OUTPUTS, command="crowdloc train", overwrite=overwrite, resume=resume)
 
 
 def train(
@@ -297,35 +303,37 @@ def train(
             run folder that already holds a run (unless ``resume`` or ``overwrite``).
     """
     check_train_config(config)
-    check_run_dir(config, out, resume=resume is not None, overwrite=overwrite)
+    folder = open_run_dir(config, out, resume=resume is not None, overwrite=overwrite)
     state = None if resume is None else _resume_state(config, resume)
     # A 64x64 MLP is fastest on one thread; the parallelism is in the env processes. More
     # threads only fight the env workers for the cores (measured: 1.8 ms per layer on 2 busy cores).
     import torch
 
     torch.set_num_threads(1)
-    directory = run_dir(config, out)
-    (directory / "checkpoints").mkdir(parents=True, exist_ok=True)
-    _write_run_json(config, directory)
-    if resume is not None and state is not None:
-        model, venv = _resumed_model(config, resume, state)
-    else:
-        model, venv = _new_model(config, directory, verbose)
-    # PPO runs whole rollouts: round up to them, so the progress bar's total is what runs
-    # (the same iterations either way: stable-baselines3 stops at the first rollout past the total)
-    remaining = -(-(config.total_timesteps - model.num_timesteps) // config.rollout_steps) * config.rollout_steps
-    if remaining > 0:
-        model.learn(
-            total_timesteps=remaining,
-            callback=[_checkpoints(model, config, directory), *extra_callbacks],
-            reset_num_timesteps=resume is None,
-            progress_bar=progress_bar,
-            tb_log_name="ppo",
-        )
-    final = directory / "model.zip"
-    model.save(final)
-    save_checkpoint(model, directory / "checkpoints" / f"step_{model.num_timesteps}")
-    venv.close()
+    directory = folder.path
+    with folder:
+        (directory / "checkpoints").mkdir(parents=True, exist_ok=True)
+        _write_run_json(config, directory)
+        folder.record_written()
+        if resume is not None and state is not None:
+            model, venv = _resumed_model(config, resume, state)
+        else:
+            model, venv = _new_model(config, directory, verbose)
+        # PPO runs whole rollouts: round up to them, so the progress bar's total is what runs
+        # (the same iterations either way: stable-baselines3 stops at the first rollout past the total)
+        remaining = -(-(config.total_timesteps - model.num_timesteps) // config.rollout_steps) * config.rollout_steps
+        if remaining > 0:
+            model.learn(
+                total_timesteps=remaining,
+                callback=[_checkpoints(model, config, folder), *extra_callbacks],
+                reset_num_timesteps=resume is None,
+                progress_bar=progress_bar,
+                tb_log_name="ppo",
+            )
+        final = directory / "model.zip"
+        model.save(final)
+        save_checkpoint(model, directory / "checkpoints" / f"step_{model.num_timesteps}")
+        venv.close()
     return final
 
 
@@ -409,8 +417,9 @@ def _new_model(config: TrainConfig, directory: Path, verbose: int) -> tuple[Any,
     return model, venv
 
 
-def _checkpoints(model: Any, config: TrainConfig, directory: Path) -> Any:
-    """A callback that saves ``model`` every ``config.checkpoint_every`` steps, at rollout boundaries."""
+def _checkpoints(model: Any, config: TrainConfig, folder: OutputFolder) -> Any:
+    """A callback that saves ``model`` every ``config.checkpoint_every`` steps, at rollout boundaries,
+    and records in the run's manifest what the run has written so far."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     every_rollouts = max(1, round(config.checkpoint_every / config.rollout_steps))
@@ -429,7 +438,8 @@ def _checkpoints(model: Any, config: TrainConfig, directory: Path) -> Any:
         def _on_rollout_start(self) -> None:
             # called before each rollout after the previous update: a rollout boundary
             if model.num_timesteps and model.num_timesteps // config.rollout_steps % every_rollouts == 0:
-                save_checkpoint(model, directory / "checkpoints" / f"step_{model.num_timesteps}")
+                save_checkpoint(model, folder.path / "checkpoints" / f"step_{model.num_timesteps}")
+                folder.record_written()
 
     return Checkpoints()
 
@@ -457,8 +467,8 @@ def train_seeds(
     check(len(set(seeds)) == len(seeds), f"seeds repeat: {list(seeds)}")
     runs = [dataclasses.replace(config, seed=int(seed)) for seed in seeds]
     check_train_config(config)  # here, before any run starts: not once per worker
-    for run in runs:
-        check_run_dir(run, Path(out), resume=False, overwrite=overwrite)
+    for run in runs:  # each run's folder ready (an earlier run's files deleted where asked) before any starts
+        open_run_dir(run, Path(out), resume=False, overwrite=overwrite)
     tasks = [(run, Path(out)) for run in runs]
     return run_tasks(_train_task, tasks, workers=workers, ray_address=ray_address, desc="training runs", progress=progress)
 

@@ -99,8 +99,10 @@ def param_importances(study: optuna.Study) -> tuple[dict[str, float], list[str]]
         return {}, [f"importances need >= 2 completed trials, the study has {len(complete)}"]
     with warnings.catch_warnings(record=True) as caught:
         # with few or tied trials PED-ANOVA warns that its quantiles coincide and returns
-        # equal importances; keep that warning for the report instead of failing
+        # equal importances, and a capped range (at_most) that a value range holds too few
+        # trials; keep those warnings for the report instead of failing
         warnings.filterwarnings("always", message="Target and region quantiles", category=UserWarning)
+        warnings.filterwarnings("always", message="Some regimes for parameter", category=UserWarning)
         values = optuna.importance.get_param_importances(study)
     return {k: float(v) for k, v in values.items()}, [str(w.message) for w in caught]
 

@@ -4,7 +4,9 @@ Per parameter ``{low, high[, log][, step]}`` or ``{choices: [...]}``; dotted nam
 parameters (``mcl.hit_std_m``). Parameters not in the space keep their YAML defaults. A
 ``sum_to_one:`` list names groups of searched weights that must sum to 1 (the LIDAR beam
 model's mixture weights): each member is drawn as a raw weight in its range and the group is
-divided by its sum before it reaches the localizer (:meth:`SearchSpace.applied`).
+divided by its sum before it reaches the localizer (:meth:`SearchSpace.applied`). A range's
+``at_most: OTHER`` caps it by the value drawn for another searched parameter of the file (the
+candidate sets' ``abort_error_rad`` is at most their ``prune_error_rad``: above it, it has no effect).
 
 A localizer is *tunable* when it has a search-space file; the shipped localizers without one
 are in :data:`UNTUNED` with the reason, and ``crowdloc tune`` refuses them with it.
@@ -30,7 +32,7 @@ from localizers.registry import LOCALIZERS, load_params, spec
 from localizers.schema import ConfigError, is_int, is_real, load_yaml
 
 TUNING_CONFIG_DIR = crowdloc_configs.path("tuning")  # package data (configs/ in the checkout)
-_SPEC_KEYS = ("low", "high", "log", "step", "choices")
+_SPEC_KEYS = ("low", "high", "log", "step", "choices", "at_most")
 _TOP_KEYS = ("parameters", "sum_to_one")
 #: a group that already sums to 1 within this is applied unchanged (the params' own check allows 1e-6)
 _SUM_TOL = 1e-12
@@ -56,6 +58,7 @@ class ParamRange:
         log: sample on a log scale.
         step: discretization step (optional, not with ``log``).
         choices: the values of a categorical parameter.
+        at_most: another searched parameter whose drawn value caps ``high`` (None: no cap).
     """
 
     name: str
@@ -65,22 +68,29 @@ class ParamRange:
     log: bool = False
     step: float | None = None
     choices: tuple[Any, ...] = ()
+    at_most: str | None = None
 
-    def suggest(self, trial: optuna.Trial) -> Any:
-        """Draw this parameter for ``trial``."""
+    def top(self, drawn: Mapping[str, Any]) -> Any:
+        """The upper bound given the values ``drawn`` so far: ``high``, capped by ``at_most``'s value."""
+        assert self.high is not None
+        return self.high if self.at_most is None else min(self.high, drawn[self.at_most])
+
+    def suggest(self, trial: optuna.Trial, drawn: Mapping[str, Any]) -> Any:
+        """Draw this parameter for ``trial`` (``drawn``: the values drawn before it)."""
         if self.kind == "categorical":
             return trial.suggest_categorical(self.name, list(self.choices))
-        assert self.low is not None and self.high is not None
+        assert self.low is not None
+        high = self.top(drawn)
         if self.kind == "int":
-            return trial.suggest_int(self.name, int(self.low), int(self.high), step=int(self.step or 1), log=self.log)
-        return trial.suggest_float(self.name, self.low, self.high, step=self.step, log=self.log)
+            return trial.suggest_int(self.name, int(self.low), int(high), step=int(self.step or 1), log=self.log)
+        return trial.suggest_float(self.name, self.low, high, step=self.step, log=self.log)
 
-    def contains(self, value: Any) -> bool:
-        """Whether ``value`` is a point of this range (for enqueueing the defaults)."""
+    def contains(self, value: Any, drawn: Mapping[str, Any]) -> bool:
+        """Whether ``value`` is a point of this range beside the values ``drawn`` (for enqueueing the defaults)."""
         if self.kind == "categorical":
             return value in self.choices
-        assert self.low is not None and self.high is not None
-        if not self.low <= value <= self.high:
+        assert self.low is not None
+        if not self.low <= value <= self.top(drawn):
             return False
         if self.step is not None:
             k = (value - self.low) / self.step
@@ -96,6 +106,8 @@ class ParamRange:
             text += " log"
         if self.step is not None:
             text += f" step {self.step:g}"
+        if self.at_most is not None:
+            text += f", at most {self.at_most}"
         return text
 
 
@@ -113,8 +125,18 @@ class SearchSpace:
         return tuple(p.name for p in self.params)
 
     def suggest(self, trial: optuna.Trial) -> dict[str, Any]:
-        """Draw every parameter: ``{dotted name: raw value}`` (Optuna's ``trial.params``; see :meth:`applied`)."""
-        return {p.name: p.suggest(trial) for p in self.params}
+        """Draw every parameter: ``{dotted name: raw value}`` (Optuna's ``trial.params``; see :meth:`applied`).
+
+        A capped parameter (``at_most``) is drawn after the one that caps it, which comes earlier in the file.
+        """
+        drawn: dict[str, Any] = {}
+        for p in self.params:
+            drawn[p.name] = p.suggest(trial, drawn)
+        return drawn
+
+    def contains(self, values: Mapping[str, Any]) -> bool:
+        """Whether ``values`` (``{dotted name: value}``, every searched parameter) is a point of the space."""
+        return all(p.contains(values[p.name], values) for p in self.params)
 
     def applied(self, raw: Mapping[str, Any]) -> dict[str, Any]:
         """The values a localizer gets for drawn values ``raw``: each ``sum_to_one`` group divided by its sum.
@@ -199,6 +221,9 @@ def _parse_range(name: str, entry: Any, tp: Any, where: str) -> ParamRange:
         return ParamRange(name, "categorical", choices=tuple(choices))
     if tp not in (int, float):
         raise ConfigError(f"{here}: a {getattr(tp, '__name__', tp)} parameter needs choices: [...], not low/high")
+    at_most = entry.get("at_most")
+    if at_most is not None and not isinstance(at_most, str):
+        raise ConfigError(f"{here}: at_most must name another searched parameter, got {at_most!r}")
     missing = [k for k in ("low", "high") if k not in entry]
     if missing:
         raise ConfigError(f"{here}: missing {missing[0]!r}")
@@ -222,7 +247,7 @@ def _parse_range(name: str, entry: Any, tp: Any, where: str) -> ParamRange:
         if log:
             raise ConfigError(f"{here}: step and log cannot be combined")
     return ParamRange(name, kind, float(low) if not integer else low, float(high) if not integer else high, log,
-                      None if step is None else (step if integer else float(step)))  # fmt: skip
+                      None if step is None else (step if integer else float(step)), at_most=at_most)  # fmt: skip
 
 
 def space_path(localizer: str) -> Path:
@@ -256,16 +281,34 @@ def _parse_groups(p: Path, value: Any, ranges: Mapping[str, ParamRange]) -> tupl
     return tuple(groups)
 
 
+def _check_caps(p: Path, ranges: list[ParamRange]) -> None:
+    """Each ``at_most`` names a numeric parameter searched earlier in the file, of the same kind,
+    whose lowest value is above this range's ``low`` (so the capped range is never empty)."""
+    earlier: dict[str, ParamRange] = {}
+    for r in ranges:
+        cap = earlier.get(r.at_most) if r.at_most is not None else None
+        if r.at_most is not None:
+            if cap is None:
+                raise ConfigError(f"{p}: {r.name}: at_most {r.at_most!r} must name a parameter searched before it in the file")
+            assert cap.low is not None and r.low is not None
+            if cap.kind != r.kind or cap.low <= r.low:
+                raise ConfigError(f"{p}: {r.name}: at_most {r.at_most!r} must be a {r.kind} range whose low is above "
+                                  f"{r.name}'s low {r.low!r}, got {cap.describe()}")  # fmt: skip
+        earlier[r.name] = r
+
+
 def _check_bounds(localizer: str, p: Path, space: SearchSpace) -> None:
     """Every bound and choice is a valid value of its parameter, the others at their defaults
     (a ``sum_to_one`` member with the rest of its group at their defaults, the group normalized)."""
     defaults = space.defaults()
     grouped = {name: g for g in space.sum_to_one for name in g}
     for r in space.params:
-        points = r.choices if r.kind == "categorical" else (r.low, r.high)
+        points = r.choices if r.kind == "categorical" else (r.low, r.top(defaults))
         for value in points:
             group = grouped.get(r.name, (r.name,))
             raw = {**{n: defaults[n] for n in group}, r.name: value}
+            # a parameter capped by this one, at its default clipped to the cap
+            raw |= {c.name: min(defaults[c.name], value) for c in space.params if c.at_most == r.name}
             try:
                 applied = space.applied(raw) if len(group) > 1 else raw
                 load_params(localizer, nest(applied))
@@ -310,6 +353,7 @@ def load_search_space(localizer: str, path: str | Path | None = None) -> SearchS
         if not isinstance(name, str):
             raise ConfigError(f"{p}: parameter names must be strings, got {name!r}")
         ranges.append(_parse_range(name, entry, _field_type(params_cls, name, str(p), localizer), str(p)))
+    _check_caps(p, ranges)
     groups = _parse_groups(p, data["sum_to_one"], {r.name: r for r in ranges}) if "sum_to_one" in data else ()
     space = SearchSpace(localizer, p, tuple(ranges), groups)
     _check_bounds(localizer, p, space)

@@ -18,7 +18,7 @@ import numpy as np
 import optuna
 
 from agents.common.sweep import run_tasks
-from agents.common.util import at_least, nest, refuse_to_overwrite, seed_int
+from agents.common.util import at_least, make_out_dir, nest, refuse_to_overwrite, seed_int
 from agents.tune.objective import (
     DEFAULT_EPISODE_STEPS,
     DEFAULT_FAIL_M,
@@ -184,7 +184,7 @@ def _open_study(config: TuneConfig, plan: StudyPlan) -> optuna.Study:
             study.set_user_attr(k, v)
     if not study.trials:
         defaults = space.defaults()
-        if all(r.contains(defaults[r.name]) for r in space.params):
+        if space.contains(defaults):
             study.enqueue_trial(defaults, user_attrs={"defaults": True})
     return study
 
@@ -249,6 +249,7 @@ def tune(config: TuneConfig) -> TuneResult:
     plan = plan_study(config)
     setup = plan.setup
     refuse_to_overwrite(plan.out / "report.md", config.overwrite)
+    make_out_dir(plan.out)  # before the study: a report that cannot be written fails now, not after the last trial
     _set_log_level(config.verbose)
     study = _open_study(config, plan)
     first_new = len(study.trials)

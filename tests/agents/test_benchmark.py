@@ -258,13 +258,19 @@ def test_an_installed_packages_entry_point_enters_like_a_plugin(
     its localizer named like a built-in, without --plugins."""
     from agents.benchmark import run
 
+    real = importlib.metadata.entry_points
     found = {"crowdloc.localizers": [importlib.metadata.EntryPoint("start_pose", PLUGIN, "crowdloc.localizers")]}
-    monkeypatch.setattr(run.importlib.metadata, "entry_points", lambda group: found.get(group, []))
+
+    def entry_points(group: str | None = None) -> Any:  # crowdloc's groups from ``found``, the rest (numba's) real
+        return real() if group is None else found.get(group, [])
+
+    monkeypatch.setattr(run.importlib.metadata, "entry_points", entry_points)
     monkeypatch.setattr(run, "_installed_loaded", False)
-    doc = _bench(tmp_path, *SMALL, "--localizers", "start_pose", "--policies", "random_walk")
+    # in this process: a pool's workers start fresh (forkserver) and read the real entry points,
+    # which the patch above does not reach; they load them by the same load_plugins
+    doc = _bench(tmp_path, *SMALL, "--localizers", "start_pose", "--policies", "random_walk", "--workers", "1")
     assert {r["localizer"] for r in doc["rows"]} == {"start_pose"}
-    broken = {"crowdloc.policies": [importlib.metadata.EntryPoint("oops", "no_such_module_here", "crowdloc.policies")]}
-    monkeypatch.setattr(run.importlib.metadata, "entry_points", lambda group: broken.get(group, []))
+    found = {"crowdloc.policies": [importlib.metadata.EntryPoint("oops", "no_such_module_here", "crowdloc.policies")]}
     monkeypatch.setattr(run, "_installed_loaded", False)
     with pytest.raises(ConfigError, match=r"entry point oops = no_such_module_here \(crowdloc.policies, .*ModuleNotFoundError"):
         run.load_plugins(())

@@ -225,12 +225,14 @@ def test_demo_refuses_a_folder_that_is_not_empty_and_overwrite_clears_only_the_d
 ) -> None:
     import agents.demo as demo
     from agents.cli import main
+    from agents.common.output_folder import open_output_folder
 
     old = [tmp_path / "report.md", tmp_path / "active" / "episode.gif", tmp_path / "active" / "tum" / "x__seed1_estimate.tum",
            tmp_path / "corridor" / "corridor_top.png", tmp_path / "RoboCupStatic-v0.png"]  # fmt: skip
-    for path in old:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text("an earlier demo's")
+    with open_output_folder(tmp_path, demo.DEMO_OUTPUTS, command="crowdloc demo", overwrite=False):  # an earlier demo
+        for path in old:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text("an earlier demo's")
     mine = tmp_path / "active" / "my_notes.md"
     mine.write_text("the user's own")
 

@@ -480,16 +480,16 @@ def test_eval_refuses_a_folder_that_is_not_empty_and_overwrite_clears_only_its_o
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "eval"
-    (out / "tum").mkdir(parents=True)
-    stale = out / "tum" / "old__candidate_sets__crowd9__seed1_estimate.tum"  # an earlier run's trajectory
-    stale.write_text("# old\n")
+    assert main([*TINY_EVAL, "--crowd-sizes", "1", "--out", str(out)]) == 0  # an earlier run, at another crowd
+    stale = out / "tum" / f"spin__candidate_sets__crowd1__seed{EVAL_SEED_BASE}_estimate.tum"
+    assert stale.is_file()
     mine = out / "notes.txt"  # the user's own file
     mine.write_text("keep me")
+    capsys.readouterr()
     with pytest.raises(SystemExit):
         main([*TINY_EVAL, "--out", str(out)])
     err = capsys.readouterr().err
-    assert f"--out {out} is not empty (notes.txt, tum); give --overwrite" in err
-    assert not (out / "episodes.csv").exists() and stale.exists()
+    assert f"--out {out} is not empty (episodes.csv, episodes.jsonl," in err and "give --overwrite" in err
     assert main([*TINY_EVAL, "--out", str(out), "--overwrite"]) == 0
     assert not stale.exists() and mine.read_text() == "keep me"
     assert len(list((out / "tum").glob("*.tum"))) == 4 and (out / "episodes.csv").is_file()

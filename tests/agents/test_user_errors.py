@@ -136,13 +136,23 @@ def test_a_bad_training_config_fails_before_anything_is_written(
 def test_a_run_folder_that_holds_a_run_is_not_overwritten_unless_asked(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
+    from agents.common.output_folder import open_output_folder
     from agents.rl.config import load_train_config
-    from agents.rl.train import check_run_dir, run_dir
+    from agents.rl.train import TRAIN_OUTPUTS, open_run_dir, run_dir
 
     config = load_train_config("ppo_candidate_sets")
     folder = run_dir(config, tmp_path)
     (folder / "checkpoints").mkdir(parents=True)
-    (folder / "model.zip").write_text("an earlier run")
+    (folder / "model.zip").write_text("not a run's: no manifest lists it")
+    with pytest.raises(SystemExit):
+        main(["train", "ppo_candidate_sets", "--out", str(tmp_path), "--no-progress", "--overwrite"])
+    assert "model.zip would be replaced, but crowdloc train has no record of writing it" in capsys.readouterr().err
+    assert (folder / "model.zip").is_file()  # nothing deleted
+    (folder / "model.zip").unlink()
+    with open_output_folder(folder, TRAIN_OUTPUTS, command="crowdloc train", overwrite=True):  # an earlier run's
+        (folder / "model.zip").write_text("an earlier run")
+        (folder / "checkpoints" / "step_8.zip").write_text("an earlier run")
+    (folder / "checkpoints" / "notes.txt").write_text("the user's")
     with pytest.raises(SystemExit):
         main(["train", "ppo_candidate_sets", "--out", str(tmp_path), "--no-progress"])
     err = capsys.readouterr().err
@@ -150,8 +160,9 @@ def test_a_run_folder_that_holds_a_run_is_not_overwritten_unless_asked(
     assert (folder / "model.zip").read_text() == "an earlier run"  # untouched
     with pytest.raises(SystemExit):
         main(["train", "ppo_candidate_sets", "--out", str(tmp_path), "--resume", "latest", "--overwrite"])
-    check_run_dir(config, tmp_path, resume=False, overwrite=True)
-    assert not folder.exists()
+    open_run_dir(config, tmp_path, resume=False, overwrite=True)
+    assert not (folder / "model.zip").exists() and not (folder / "checkpoints" / "step_8.zip").exists()
+    assert (folder / "checkpoints" / "notes.txt").read_text() == "the user's"  # the run's files only
 
 
 def test_version_and_the_demo_help_say_what_they_should(capsys: pytest.CaptureFixture[str]) -> None:

@@ -29,7 +29,7 @@ import yaml
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from agents.common.util import at_least, seed_int
+from agents.common.util import at_least, check_output_file, seed_int
 from envs.features.ceiling import LABEL_NAMES, PALETTE, colour_label
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import CeilingCamera
@@ -269,8 +269,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> Path:
-    if args.out.exists() and not args.overwrite:
-        raise ConfigError(f"--out {args.out} exists; give --overwrite to replace its thresholds")
+    check_output_file(args.out, args.overwrite)  # before the fit, not after it
     plan = FitPlan(train_images=args.train_images, test_images=args.test_images, seed=args.seed, camera=args.camera)
     ranges, record = fit(plan)
     for colour, spaces in record["held_out"].items():

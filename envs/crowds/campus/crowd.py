@@ -84,6 +84,8 @@ class CampusCrowd(Crowd):
             raise ConfigError(f"crowd {name!r}: {self.walkers} walkers need walkways (campus.walkways is empty)")
         if self.cars and not config.lanes:
             raise ConfigError(f"crowd {name!r}: {self.cars} cars need lanes (campus.lanes is empty)")
+        if self.cars:
+            self._lane_shares()  # refuses a crowd whose cars cannot fit on their lanes
         if self.sizes and not (self.doors.shape[0] or config.walkways):
             raise ConfigError(f"crowd {name!r}: standing groups need buildings with doors or walkways to stand by")
         self._check_parked(name, np.asarray(config.parked, dtype=np.float64).reshape(-1, 3))
@@ -254,6 +256,29 @@ class CampusCrowd(Crowd):
                 return False
         return True
 
+    def _lane_shares(self) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """Each lane's usable length (m) and its number of moving cars (shared by length).
+
+        Raises:
+            ConfigError: if a lane has no room for its cars ``car_gap_m`` apart.
+        """
+        c = self.c
+        usable = np.maximum(self.lanes.length - CAR_LEAVE_M, 0.0)
+        quota = usable / usable.sum() * self.cars
+        per_lane = np.floor(quota).astype(np.int64)
+        for k in np.argsort(-(quota - per_lane), kind="stable")[: self.cars - int(per_lane.sum())]:
+            per_lane[k] += 1
+        need = c.car.length_m + c.car_gap_m
+        for k, n in enumerate(per_lane):
+            if n and usable[k] / n < need:
+                raise ConfigError(
+                    f"world {self.world_config.name!r}: lane {c.lanes[k].name or k!r} of crowd {self.name!r} "
+                    f"({self.lanes.length[k]:.1f} m) has no room for {n} cars {c.car_gap_m:g} m apart "
+                    f"({self.cars} of the crowd's {c.count} are cars); ask for fewer cars (count, car_share) or a "
+                    "shorter car_gap_m"
+                )
+        return usable, per_lane
+
     def _place_cars(
         self,
         rng: np.random.Generator,
@@ -267,23 +292,13 @@ class CampusCrowd(Crowd):
         lanes = self.lanes
         if not self.cars:
             return
-        usable = np.maximum(lanes.length - CAR_LEAVE_M, 0.0)
-        quota = usable / usable.sum() * self.cars
-        per_lane = np.floor(quota).astype(np.int64)
-        for k in np.argsort(-(quota - per_lane), kind="stable")[: self.cars - int(per_lane.sum())]:
-            per_lane[k] += 1
+        usable, per_lane = self._lane_shares()
         need = c.car.length_m + c.car_gap_m
         car = self.first_car
         for k, n in enumerate(per_lane):
             if n == 0:
                 continue
             spacing = usable[k] / n
-            if spacing < need:
-                raise RuntimeError(
-                    f"world {self.world_config.name!r}: lane {c.lanes[k].name or k!r} of crowd {self.name!r} "
-                    f"({lanes.length[k]:.1f} m) has no room for {n} cars {c.car_gap_m:g} m apart; ask for fewer cars "
-                    "(count, car_share) or a shorter car_gap_m"
-                )
             for _ in range(100):
                 s = rng.uniform(0.0, spacing) + spacing * np.arange(n) + rng.uniform(0.0, spacing - need, size=n)
                 s = np.sort(np.mod(s, usable[k]))
