@@ -33,7 +33,7 @@ test: venv lint
 lint: venv
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
-	$(VENV)/bin/mypy envs localizers agents
+	$(VENV)/bin/mypy core envs localizers agents
 
 test-slow: venv
 	$(PY) -m pytest -m slow

@@ -13,7 +13,7 @@ from __future__ import annotations
 from setuptools import find_namespace_packages, find_packages, setup
 
 #: find_packages patterns of the code packages: each one and all its subpackages (with __init__.py)
-CODE_PACKAGES = ("envs", "envs.*", "localizers", "localizers.*", "agents", "agents.*")
+CODE_PACKAGES = ("core", "core.*", "envs", "envs.*", "localizers", "localizers.*", "agents", "agents.*")
 #: data package -> its folder (the same as pyproject.toml's package-dir)
 DATA_PACKAGES = {"crowdloc_configs": "configs", "crowdloc_models": "models"}
 

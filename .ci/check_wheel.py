@@ -15,7 +15,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-CODE_PACKAGES = ("envs", "localizers", "agents")
+CODE_PACKAGES = ("core", "envs", "localizers", "agents")
 #: data package -> its folder in the checkout
 DATA_PACKAGES = {"crowdloc_configs": "configs", "crowdloc_models": "models"}
 STEPS = 5
@@ -79,6 +79,7 @@ def check_envs() -> None:
     """Every registered id makes with every localizer its sensors can feed, resets and steps."""
     import gymnasium as gym
 
+    import agents  # noqa: F401  (the task ids and far_landmark_pf's scene-map builder)
     import envs
     from localizers.measurements import readable_kinds
     from localizers.registry import LOCALIZERS

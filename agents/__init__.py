@@ -10,9 +10,13 @@
 - :mod:`agents.tune`, :mod:`agents.papers`: ``crowdloc tune`` and the papers' reproductions.
 - :mod:`agents.cli` and :mod:`agents.demo` sit on top and may import all of them.
 
-The flat modules of the previous release (``agents.train``, ``agents.metrics``, ...) still
-import, for one release, as aliases of their new homes (:data:`MOVED`) with a
-``DeprecationWarning`` naming the new path.
+Importing ``agents`` registers what this package gives the layers below it: the task ids
+``crowdloc/Active*-v0`` with Gymnasium (:mod:`agents.rl.task_ids`) and ``far_landmark_pf``'s
+preparation hook, which drives a world to make its default scene map
+(:func:`agents.experiments.scene_maps.prepare_far_landmark_pf`).
+
+The flat module names ``agents.train``, ``agents.metrics``, ... import as aliases of their homes
+(:data:`MOVED`), with a ``DeprecationWarning`` naming the home; the aliases go in the next release.
 """
 
 from __future__ import annotations
@@ -71,3 +75,14 @@ class _MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
 if not any(isinstance(f, _MovedModuleFinder) for f in sys.meta_path):
     sys.meta_path.append(_MovedModuleFinder())
+
+
+def _register_pieces() -> None:
+    from agents.rl.task_ids import register_task_ids
+    from localizers.registry import set_prepare
+
+    register_task_ids()
+    set_prepare("far_landmark_pf", "agents.experiments.scene_maps:prepare_far_landmark_pf")
+
+
+_register_pieces()

@@ -402,7 +402,7 @@ def _run_demo(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 def _run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from agents.rl.config import load_train_config, parse_overrides
     from agents.rl.train import latest_checkpoint, train
-    from localizers.schema import ConfigError
+    from core.schema import ConfigError
 
     if args.seeds and args.resume:
         parser.error("--resume continues one run; give --seed, not --seeds")
@@ -498,11 +498,12 @@ def _run_map(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 def _run_worlds(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     import envs
+    from agents.rl import task_ids
 
     for env_id, world in envs.ENV_WORLDS.items():
         print(f"{env_id:32s} {world:18s} {envs.load_world(world).description}")
     print("\ntask ids (a world with its localizer, training conditions and reward; the ids above return reward 0):")
-    for env_id, config in envs.TASK_CONFIGS.items():
+    for env_id, config in task_ids.TASK_CONFIGS.items():
         print(f"{env_id:32s} {config:18s} configs/experiments/{config}.yaml")
     return 0
 
@@ -524,7 +525,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(argv)
     args = parser.parse_args(argv)
-    from localizers.schema import ConfigError
+    from core.schema import ConfigError
 
     runner = _RUNNERS.get(args.command)
     if runner is None:

@@ -46,8 +46,8 @@ from agents.demo_tasks import TASK_OUTPUTS, TASK_SEEDS, tasks_section
 from agents.evaluate.metrics import beam_breakdown
 from agents.evaluate.outputs import EVAL_OUTPUTS
 from agents.policies import RandomWalk
+from core.raycast import cast_rays
 from envs.sensors import RangeSensor
-from localizers.raycast import cast_rays
 
 if TYPE_CHECKING:
     from agents.evaluate import EvalResult, Stat, SummaryRow

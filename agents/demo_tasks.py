@@ -11,7 +11,7 @@ share that missed the goal and the time to it (where the world has a goal) and t
 
 A few seeds show how each policy drives; they do not say which is better. The verdict is
 ``crowdloc eval --conditions NAME --verdict ppo:models/NAME.zip`` on 100 fresh seeds at the
-world's default and largest crowd (README, "The verdict on a world task's trained policy").
+world's default and largest crowd (docs/tasks.md, "The verdict on a trained policy").
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def tasks_section(out_dir: Path, seeds: int = TASK_SEEDS, workers: int | None = 
         f"world's default crowd on {seeds} test seed(s): the task's fixed policy to beat, `random_walk` and the task's shipped "
         "PPO policy where this checkout has one. Mean [95 % bootstrap CI] over the episodes; a few seeds show how a "
         "policy drives, not which is better: the verdict is `crowdloc eval --conditions NAME --verdict "
-        "ppo:models/NAME.zip` on 100 seeds at the default and the largest crowd (README).",
+        "ppo:models/NAME.zip` on 100 seeds at the default and the largest crowd (docs/tasks.md).",
         "",
     ]
     for task, paper_policy in WORLD_TASKS.items():
@@ -76,7 +76,7 @@ def tasks_section(out_dir: Path, seeds: int = TASK_SEEDS, workers: int | None = 
         write_tables(result, out_dir / task)
         lines += [f"### `{task}` ({config.env_id}, {config.localizer})", "", *_table(result), ""]
         if not model.is_file():
-            lines += [f"No trained policy at `models/{task}.zip` yet (issue 31): the fixed policies alone.", ""]
+            lines += [f"No trained policy at `models/{task}.zip`: the fixed policies alone.", ""]
     return "\n".join(lines) + "\n"
 
 

@@ -15,7 +15,7 @@ from agents.papers.ceiling_target.fit import camera_of
 from benchmarks.common import Result, per_call_ms
 from envs.localization_env import LocalizationEnv
 from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
-from localizers.ceiling_vision import CameraIntrinsics
+from localizers.ceiling_target.vision import CameraIntrinsics
 from localizers.registry import make_localizer
 
 

@@ -17,10 +17,10 @@ import time
 import numpy as np
 
 from benchmarks.common import Result
+from core.geometry import between
+from core.motion import sample_odometry
+from core.raycast import cast_rays
 from localizers.base import LandmarkMap, OdometryDelta, PoseEstimate, ScanMeasurement
-from localizers.geometry import between
-from localizers.motion import sample_odometry
-from localizers.raycast import cast_rays
 
 ROOM = np.array([[0, 0, 7, 0], [7, 0, 7, 7], [7, 7, 0, 7], [0, 7, 0, 0]], float)
 ANGLES = np.linspace(-0.75 * math.pi, 0.75 * math.pi, 1081)

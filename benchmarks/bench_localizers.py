@@ -16,9 +16,9 @@ import numpy as np
 
 import envs
 from benchmarks.common import Result
+from core.geometry import bearings_to, between
+from core.motion import sample_odometry
 from localizers.base import BearingMeasurement, LandmarkMap, OdometryDelta, PoseEstimate
-from localizers.geometry import bearings_to, between
-from localizers.motion import sample_odometry
 from localizers.registry import LOCALIZERS, make_localizer
 
 TARGETS_MS = {"candidate_sets": 0.3, "mcl_bearing": 0.3}

@@ -1,4 +1,4 @@
-"""The ceiling camera's light colour (issue 30): its cost, and what the shipped colour thresholds do under it.
+"""The ceiling camera's light colour: its cost, and what the shipped colour thresholds do under it.
 
 1. The cost: the best time of one :meth:`CeilingCamera.render` (a moving frame: the motion-blur path,
    noise on) and of :meth:`CeilingCamera.channel_gains`, without and with each option, with no target in
@@ -26,7 +26,7 @@ from agents.papers.ceiling_target.fit import _HSV_SCALE, inside
 from agents.papers.ceiling_target.static import LAMP_BY_TARGET_M, Rig
 from envs.features.ceiling import colour_label
 from envs.sensors.light_colour import cct_white_rgb, white_balance_gains
-from localizers.ceiling_vision import hsv8
+from localizers.ceiling_target.vision import hsv8
 
 COLOUR = {"white_balance_k": 6500.0, "cct_k": (4000.0, 4000.0)}
 AUTO = {"auto_white_balance": True, "cct_k": (4000.0, 4000.0)}

@@ -1,4 +1,4 @@
-"""Contacts and pushes of our robot against crowd size, with people who do and do not see it (issue 30).
+"""Contacts and pushes of our robot against crowd size, with people who do and do not see it.
 
 For each world with a crowd of people (the crowded room, the ceiling corridor, the campus), its
 crowd's ``sees_robot`` at 0 (today's invisible robot) and 1, a few crowd sizes and seeds:

@@ -1,4 +1,4 @@
-"""The stereo campus's free-running webcams (issue 30): edges per row in the image mode against the fast
+"""The stereo campus's free-running webcams: edges per row in the image mode against the fast
 mode on the same scenes, and the fast mode's step rate with and without the options.
 
 1. Agreement: per seed and crowd size, the campus is driven (fast mode; the webcam options on or off, the fast
@@ -26,7 +26,7 @@ import numpy as np
 
 import envs  # noqa: F401  (registers the ids)
 from envs.sensors.stereo_camera import StereoCamera
-from localizers.stereo_vision import LEVELS, edge_types_parts, match_checked
+from envs.stereo.vision import LEVELS, edge_types_parts, match_checked
 
 ENV_ID = "crowdloc/StereoCampus-v0"
 #: the options at the values their fields cite (envs/sensors/stereo_camera.py)

@@ -1,6 +1,7 @@
 """crowdloc worlds: Pymunk scenarios with crowds, sensors and the Gymnasium environments.
 
-Importing this package registers the environment ids in the ``crowdloc`` namespace::
+Importing this package registers the world ids in the ``crowdloc`` namespace (``import agents``
+adds the task ids, :mod:`agents.rl.task_ids`)::
 
     import gymnasium as gym
     import envs  # noqa: F401  (registers crowdloc/*)
@@ -25,25 +26,6 @@ ENV_WORLDS = {
 }
 
 
-#: task id -> shipped training config (``configs/experiments/``): a world with its localizer,
-#: conditions and the active-localization reward (``agents.rl.tasks``); the ids above return reward 0
-TASK_CONFIGS = {
-    "crowdloc/ActiveCandidateSets-v0": "ppo_candidate_sets",
-    "crowdloc/ActiveMCLBearing-v0": "ppo_mcl_bearing",
-    "crowdloc/ActiveRoomLidar-v0": "ppo_room_lidar",
-    "crowdloc/ActiveCorridorTargets-v0": "ppo_corridor_targets",
-    "crowdloc/ActiveCampusStereo-v0": "ppo_campus_stereo",
-}
-
-
-def task_episode_steps(config: str) -> int:
-    """A task's episode length: its training config's ``ppo.n_steps`` (one episode per env per rollout)."""
-    import crowdloc_configs
-    from localizers.schema import load_yaml
-
-    return int(load_yaml(crowdloc_configs.path("experiments", f"{config}.yaml"))["ppo"]["n_steps"])
-
-
 def _register() -> None:
     for env_id, world in ENV_WORLDS.items():
         if env_id in registry:
@@ -54,17 +36,8 @@ def _register() -> None:
             kwargs={"world": world},
             max_episode_steps=load_world(world).max_episode_steps,
         )
-    for env_id, config in TASK_CONFIGS.items():
-        if env_id not in registry:
-            # by name only: envs does not import agents; the task module loads when one is made
-            register(
-                id=env_id,
-                entry_point="agents.rl.tasks:make_task",
-                kwargs={"config": config},
-                max_episode_steps=task_episode_steps(config),
-            )
 
 
 _register()
 
-__all__ = ["ENV_WORLDS", "TASK_CONFIGS", "task_episode_steps", "LocalizationEnv", "WorldConfig", "available_worlds", "load_world"]
+__all__ = ["ENV_WORLDS", "LocalizationEnv", "WorldConfig", "available_worlds", "load_world"]

@@ -57,7 +57,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.schema import check, check_ranges, check_rgb
+from core.schema import check, check_ranges, check_rgb
 
 #: a person moving slower than this stands: legs together, heading and gait phase frozen
 STAND_SPEED_MPS = 0.05

@@ -9,7 +9,7 @@ crowd or feature is a new module. Importing a ``base`` module imports its packag
 knows them when it loads a world.
 
 Every unit is in the field name (``_m``, ``_rad``, ``_s``, ``_mps``). Loading goes through
-:func:`localizers.schema.from_mapping`, which rejects unknown keys and wrong types with
+:func:`core.schema.from_mapping`, which rejects unknown keys and wrong types with
 the key and the file in the message; ranges are checked in ``__post_init__``.
 """
 
@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import crowdloc_configs
+from core.schema import ConfigError, check, check_ranges, from_mapping, is_real, load_yaml
 from envs.crowds.base import CrowdConfig
 from envs.features.base import FeatureConfig, Segment
 from envs.floor import FloorGrid, floor_grid
@@ -42,7 +43,6 @@ from envs.view import (
     drawn_bounds,
     fit,
 )
-from localizers.schema import ConfigError, check, check_ranges, from_mapping, is_real, load_yaml
 
 #: the first this-many rows of :meth:`WorldConfig.wall_segments` are the arena boundary
 BOUNDARY_SEGMENTS = 4
@@ -165,7 +165,7 @@ class RobotConfig:
             angular_accel_rps2: the commanded angular acceleration magnitude, ``|omega(t) - omega(t-1)| / dt``.
             in_contact: whether the robot touches something as the step starts.
             rng: the world's random stream; drawn from only when ``slip_probability > 0``
-                (one draw, and a second for the size of a slip), as before the other terms existed.
+                (one draw, and a second for the size of a slip); the other terms draw nothing.
         """
         lost = 0.0
         if self.slip_probability > 0 and rng.random() < self.slip_probability:

@@ -27,12 +27,13 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from core.schema import ConfigError, replace_checked
+from core.types import LandmarkMap
 from envs.config import WorldConfig, load_world
+from envs.layouts import checked_layout, layout_world
 from envs.sensors import Sensor, SensorBase, build_sensor, sensor_types
 from envs.state import WorldState
 from envs.world import World
-from localizers.base import LandmarkMap
-from localizers.schema import ConfigError, replace_checked
 
 #: keyword overrides of world sections accepted by the env (besides the sensors, by name or type)
 OVERRIDE_SECTIONS = ("robot", "crowd")
@@ -52,6 +53,8 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         world: a shipped world name (``"robocup_crowded"``), a YAML path or a ``WorldConfig``.
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
         crowd_size: number of moving obstacles (robots or people), the crowd density.
+        layout: a layout seed: the world's scenery drawn by its layout generator
+            (:mod:`envs.layouts`) before the overrides; None (the default) keeps the world's own.
         robot: a mapping overriding fields of the world's robot.
         crowd: a mapping from crowd name to overrides of that crowd's fields
             (``crowd={"walkers": {"count": 6}}``).
@@ -71,12 +74,17 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
         world: str | WorldConfig = "robocup_crowded",
         render_mode: str | None = None,
         crowd_size: int | None = None,
+        layout: int | None = None,
         **overrides: Any,
     ) -> None:
         config = world if isinstance(world, WorldConfig) else load_world(world)
         #: the crowd size of the world as given, before the env's overrides (None without a crowd):
         #: what a world's default data is made with, whatever crowd this env runs (a scene map)
         self.file_crowd_size: int | None = config.crowd.count if config.crowd is not None else None
+        #: the layout seed this world was drawn with (:mod:`envs.layouts`); None: the world's own layout
+        self.layout = None if layout is None else checked_layout(layout)
+        if self.layout is not None:
+            config = layout_world(config, self.layout)
         config = apply_overrides(config, crowd_size=crowd_size, **overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
@@ -340,7 +348,7 @@ def apply_overrides(config: WorldConfig, crowd_size: int | None = None, **overri
     for section, value in overrides.items():
         known = section in OVERRIDE_SECTIONS or section in config.sensors or section in sensor_types()
         if not known:
-            valid = ["world", "render_mode", "crowd_size", "sensors", *OVERRIDE_SECTIONS, *config.sensors]
+            valid = ["world", "render_mode", "crowd_size", "layout", "sensors", *OVERRIDE_SECTIONS, *config.sensors]
             added = [t for t in sensor_types() if t not in config.sensors]
             raise ConfigError(
                 f"unknown env keyword {section!r} = {value!r} (valid: {', '.join(valid)}; "

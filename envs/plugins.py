@@ -2,7 +2,7 @@
 
 A plug-in type is a config dataclass plus a factory, registered under a type name. A world
 YAML names its plug-ins as a mapping from name to a config tagged by ``type``; the strict
-loader (:mod:`localizers.schema`) calls the base config's ``__from_config__`` hook, which
+loader (:mod:`core.schema`) calls the base config's ``__from_config__`` hook, which
 asks the registry for the tagged class and loads the remaining keys into it.
 """
 
@@ -13,7 +13,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
-from localizers.schema import ConfigError, from_mapping
+from core.schema import ConfigError, from_mapping
 
 C = TypeVar("C")
 F = TypeVar("F")

@@ -26,7 +26,7 @@ def make_env(
         world: shipped world name.
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
         localizer: a registered localizer name; the env then comes wrapped in
-            :class:`localizers.wrappers.LocalizationObservation` (estimate in the observation).
+            :class:`envs.wrappers.LocalizationObservation` (estimate in the observation).
         localizer_params: overrides of that localizer's parameters.
         prior: ``"start"`` or ``"none"``: whether the localizer gets the true start pose.
         belief_spread: also observe the spread of the localizer's hypotheses (default false).
@@ -38,7 +38,7 @@ def make_env(
         if localizer_params is not None or prior is not None or belief_spread is not None or localizer_sensor is not None:
             raise ValueError("localizer_params, prior, belief_spread and localizer_sensor need a localizer=... name")
         return env
-    from localizers.wrappers import LocalizationObservation  # envs -> localizers, never the reverse
+    from envs.wrappers import LocalizationObservation  # the localizers load only when a localizer is asked for
 
     spread = False if belief_spread is None else belief_spread
     return LocalizationObservation(env, localizer, localizer_params, prior, spread, localizer_sensor)

@@ -18,7 +18,7 @@ frame then shows a window of that many metres (and its margins) centred on the r
 position, moved to stay inside the world's bounds. Its background is the whole world drawn
 once at the window's scale; each frame blits the part under the window and hands the moving
 parts, sensors and overlays a :class:`Canvas` whose origin follows the window, so they draw
-in world coordinates as before. The geometry (sizes, scales, the window) is :mod:`envs.view`.
+in world coordinates, as in a whole-world frame. The geometry (sizes, scales, the window) is :mod:`envs.view`.
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ import pygame  # noqa: E402
 import pygame.surfarray  # noqa: E402
 from numpy.typing import ArrayLike, NDArray  # noqa: E402
 
+from core.types import Overlay  # noqa: E402
 from envs.config import WorldConfig  # noqa: E402
 from envs.palette import HIDDEN_LANDMARK, Color, landmark_color  # noqa: E402
 from envs.state import WorldState  # noqa: E402
@@ -54,7 +55,6 @@ from envs.view import (  # noqa: E402
     fit,
     follow_window,
 )
-from localizers.base import Overlay  # noqa: E402
 
 if TYPE_CHECKING:
     from envs.localization_env import LocalizationEnv

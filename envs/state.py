@@ -14,8 +14,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from core.geometry import spanning
 from envs.figures import Figures, Section
-from localizers.geometry import spanning
 
 #: body rows: a slice where they are consecutive (views), else an index array
 Rows = slice | NDArray[np.int64]
@@ -46,7 +46,7 @@ class WorldState(NamedTuple):
             ``landmark_names``: ``L`` names.
         robot_start: ``(3,)`` our robot's position and heading (unwrapped) at the start of the
             step that led here, where a sensor that takes time finds the poses within the step
-            (:func:`localizers.geometry.poses_along_step`); the current ones after a reset or a
+            (:func:`core.geometry.poses_along_step`); the current ones after a reset or a
             teleport (no motion).
     """
 

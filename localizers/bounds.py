@@ -12,7 +12,7 @@ and the bound is ``E[(x_hat - x)(x_hat - x)^T] >= J_k^-1``. ``J_z`` sums
 ``H_l^T H_l / sigma_b^2`` over the landmarks ``l`` visible at that step, with ``H_l`` the
 gradient of the bearing ``atan2(l_y - y, l_x - x) - theta``.
 
-The process noise is the odometry alpha model of :mod:`localizers.motion`, mapped from
+The process noise is the odometry alpha model of :mod:`core.motion`, mapped from
 ``(rot1, trans, rot2)`` to the pose through the linearized motion ``G_k``:
 ``Q_k = G_k diag(std^2) G_k^T``. Standing still gives ``Q_k = 0`` and a pure rotation a
 rank-deficient ``Q_k``, so ``Q^-1`` does not exist; we regularize with
@@ -35,7 +35,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.motion import odometry_noise_std, to_rot_trans_rot
+from core.motion import odometry_noise_std, to_rot_trans_rot
 
 Array = NDArray[np.float64]
 

@@ -1,4 +1,4 @@
-"""Lost detection (ours, issue 19): a pose estimate that the measurements keep contradicting.
+"""Lost detection (ours; the papers have none): a pose estimate that the measurements keep contradicting.
 
 Each frame with at least two measurements is compared with what the estimate predicts: the
 median of the measurements' residuals above a threshold contradicts it. Contradicted on every
@@ -11,7 +11,7 @@ nothing either way.
 bearings' (the absolute wrapped bearing residual against ``residual_rad``), used by
 ``candidate_sets`` (which restarts from the bearings) and ``mcl_bearing`` (which claims no pose
 while lost). ``far_landmark_pf`` folds in the median Mahalanobis distance of its stereo
-detections to the scene map's landmarks (issue 27).
+detections to the scene map's landmarks.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.motion import wrap_scalar
+from core.motion import wrap_scalar
 
 
 @numba.njit(cache=True)

@@ -21,24 +21,23 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from core.geometry import compose, wrap_angle
+from core.schema import check_ranges
 from localizers.base import (
     DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     ConsistencyPromise,
     LandmarkMap,
+    LocalizerBase,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     check_max_spread,
     checked_bearings,
-    checked_dt,
-    checked_odometry,
     finite_covariance,
     require_reset,
     within_spread,
 )
-from localizers.geometry import compose, wrap_angle
-from localizers.schema import check_ranges
 
 
 @dataclass(frozen=True)
@@ -51,7 +50,7 @@ class DeadReckoningParams:
         heading_var_rad2_per_rad: heading variance added per radian turned.
         initial_position_std_m: prior position std when the prior has no finite covariance.
         initial_heading_std_rad: prior heading std when the prior has no finite covariance.
-        max_spread_m: past this position spread (m) the estimate is no longer claimed
+        max_spread_m: past this position spread (m) the estimate is not claimed
             (``valid`` false; ours). Dead reckoning cannot notice a kidnapping or recover: this
             is where it stops claiming a pose. With the default drift (1e-3 m^2 per m per
             axis) the spread reaches 1 m after 500 m of travel; the coasting test checks that
@@ -116,7 +115,7 @@ def drift_covariance(
     return G @ Q @ G.T
 
 
-class DeadReckoningLocalizer:
+class DeadReckoningLocalizer(LocalizerBase[DeadReckoningParams]):
     """Integrates odometry from the prior pose; bearings are validated and ignored. The
     estimate is valid while its position spread is at most ``max_spread_m``."""
 
@@ -129,10 +128,7 @@ class DeadReckoningLocalizer:
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.3)
 
     def __init__(self, landmarks: LandmarkMap, params: DeadReckoningParams, *, dt_s: float) -> None:
-        self._dt = checked_dt("DeadReckoningLocalizer", dt_s)
-        self._map = landmarks
-        self._step_limit_m = landmarks.step_limit_m
-        self._params = params
+        super().__init__(landmarks, params, dt_s=dt_s, owner="DeadReckoningLocalizer")
         self._pose: NDArray[np.float64] | None = None
         self._cov = np.zeros((3, 3))
 
@@ -165,7 +161,7 @@ class DeadReckoningLocalizer:
     def predict(self, odometry: OdometryDelta) -> None:
         """Compose the increment and propagate the covariance (:func:`dead_reckon`)."""
         pose = self._require_reset()
-        d = checked_odometry(self.name, odometry, self._step_limit_m)
+        d = self._checked_odometry(odometry)
         p = self._params
         self._pose, self._cov = dead_reckon(
             pose, self._cov, d, p.position_var_m2_per_m, p.heading_var_rad2_per_m, p.heading_var_rad2_per_rad

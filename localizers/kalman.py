@@ -13,7 +13,7 @@ acceleration; we observe the velocity only, as docs/papers.md states: a finite d
 The linear filter itself is two pure functions in the style of filterpy, :func:`kf_predict`
 and :func:`kf_update`; they broadcast over leading axes.
 
-What is ours (issue 19, "localizers that know when they are lost"; the paper says nothing
+What is ours (for a localizer that knows when it is lost; the paper says nothing
 of it), each a parameter of :class:`KalmanParams`:
 
 * *Coupled covariance.* The per-axis models are the paper's, but the covariance is one
@@ -39,8 +39,8 @@ of it), each a parameter of :class:`KalmanParams`:
 Consistency (measured, ``crowdloc reproduce bearing-candidates``, 20 seeds, run with the gate
 and without the restart): Exp 1 NEES median 1.25, 92 % of steps inside the 95 % region;
 Exp 2 5.48 and 58 %: among the crowd's contacts and fast turns the constant-acceleration
-model's prediction is too sure between fixes. Before issue 19 (independent axes, the odometry
-as velocity noise) the medians were 641 and 84.
+model's prediction is too sure between fixes. With independent axes and the odometry as
+velocity noise instead, the medians are 641 and 84.
 """
 
 from __future__ import annotations
@@ -53,26 +53,25 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from core.geometry import wrap_angle
+from core.schema import check, check_ranges, is_int
 from localizers.base import (
     DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     ConsistencyPromise,
     LandmarkMap,
+    LocalizerBase,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     check_max_spread,
     checked_bearings,
-    checked_dt,
-    checked_odometry,
     finite_covariance,
     require_reset,
     within_spread,
 )
 from localizers.dead_reckoning import drift_covariance
-from localizers.geometry import wrap_angle
 from localizers.resection import DEFAULT_MIN_CONDITIONING, fix_covariance, resect_all_triples
-from localizers.schema import check, check_ranges, is_int
 
 Array = NDArray[np.float64]
 
@@ -278,7 +277,7 @@ def _wrap_heading_row(z: Array, hx: Array) -> Array:
     return y
 
 
-class KalmanLocalizer:
+class KalmanLocalizer(LocalizerBase[KalmanParams]):
     """Dead reckoning + resection fused by constant-acceleration Kalman filters per axis.
 
     The state is ``x`` ``(3, 3)`` (rows: x, y, heading; columns: p, p', p''), its covariance
@@ -298,12 +297,9 @@ class KalmanLocalizer:
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.65)
 
     def __init__(self, landmarks: LandmarkMap, params: KalmanParams, *, dt_s: float) -> None:
-        self._dt = checked_dt("KalmanLocalizer", dt_s)
-        self._map = landmarks
-        self._step_limit_m = landmarks.step_limit_m
-        self._params = params
+        super().__init__(landmarks, params, dt_s=dt_s, owner="KalmanLocalizer")
         F, Q = constant_acceleration_model(
-            self._dt,
+            self._dt_s,
             [params.jerk_psd_xy_m2_per_s5, params.jerk_psd_xy_m2_per_s5, params.jerk_psd_heading_rad2_per_s5],
         )
         self._F = np.kron(np.eye(3), F)
@@ -363,7 +359,7 @@ class KalmanLocalizer:
         """Time update by ``dt_s`` with the odometry drift, then the dead-reckoning velocity
         observation (eq. A.4) linearized in the heading."""
         self._require_reset()
-        d = checked_odometry(self.name, odometry, self._step_limit_m)
+        d = self._checked_odometry(odometry)
         if self._x is None or self._P is None:
             return
         p = self._params
@@ -380,7 +376,7 @@ class KalmanLocalizer:
         H[0, [1, 4, 6]] = [c, s, -s * vx + c * vy]
         H[1, [1, 4, 6]] = [-s, c, -c * vx - s * vy]
         H[2, 7] = 1.0
-        z = d / self._dt - h + H @ x  # so that kf_update's z - H x is the EKF innovation
+        z = d / self._dt_s - h + H @ x  # so that kf_update's z - H x is the EKF innovation
         x, P = kf_update(x, P, z, H, self._R_velocity)
         x[6] = wrap_angle(x[6])
         self._x, self._P = x, P

@@ -11,7 +11,7 @@
 Both share the particle core of :mod:`localizers.particles` (re-exported here). Particles
 are stored *struct-of-arrays*: an array of shape ``(3, N)`` whose rows are x, y and
 heading, so every vector operation runs over one contiguous row of N values. The motion
-model is the alpha model of :mod:`localizers.motion` (Probabilistic Robotics,
+model is the alpha model of :mod:`core.motion` (Probabilistic Robotics,
 sample_motion_model_odometry), applied to the odometry increment.
 
 Consistency (measured, ``crowdloc reproduce bearing-candidates``, 20 seeds, NEES of the pose
@@ -32,23 +32,24 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from core.geometry import compose, wrap_angle
+from core.schema import check, check_at_most, check_ranges
 from localizers.base import (
     DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     ConsistencyPromise,
     LandmarkMap,
+    LocalizerBase,
     OdometryDelta,
     Overlay,
+    ParamsT,
     PoseEstimate,
     check_max_spread,
     checked_bearings,
-    checked_dt,
-    checked_odometry,
     require_reset,
     within_spread,
 )
 from localizers.contradiction import Contradiction
-from localizers.geometry import compose, wrap_angle
 from localizers.particles import (
     MAX_PARTICLES,
     PARTICLE_MEMORY,
@@ -63,7 +64,6 @@ from localizers.particles import (
 )
 from localizers.particles import prior_covariance as _prior_covariance
 from localizers.resection import inscribed_arc_poses, resect_all_triples
-from localizers.schema import check, check_at_most, check_ranges
 
 Array = NDArray[np.float64]
 _TWO_PI = 2.0 * math.pi
@@ -135,15 +135,15 @@ def _check_alphas(owner: str, alphas: tuple[float, float, float, float]) -> None
     )
 
 
-class _ParticleLocalizer:
+class _ParticleLocalizer(LocalizerBase[ParamsT]):
     """What both filters share: the map, the rng, particle propagation, estimate, overlay."""
 
     name: ClassVar[str] = ""
 
-    def __init__(self, landmarks: LandmarkMap, *, dt_s: float, alphas: ArrayLike, floors: tuple[float, float]) -> None:
-        self._dt = checked_dt(type(self).__name__, dt_s)
-        self._map = landmarks
-        self._step_limit_m = landmarks.step_limit_m
+    def __init__(
+        self, landmarks: LandmarkMap, params: ParamsT, *, dt_s: float, alphas: ArrayLike, floors: tuple[float, float]
+    ) -> None:
+        super().__init__(landmarks, params, dt_s=dt_s)
         self._alphas = np.asarray(alphas, dtype=np.float64)
         self._floor_m, self._floor_rad = floors
         self._rng: np.random.Generator | None = None
@@ -265,7 +265,7 @@ class PaperMCLParams:
         _check_alphas("PaperMCLParams", self.alphas)
 
 
-class PaperBearingMCL(_ParticleLocalizer):
+class PaperBearingMCL(_ParticleLocalizer[PaperMCLParams]):
     """The paper's MCL: gate-and-delete, re-seed from the observation, mean of the set.
 
     Re-seeding (paper sec. 5 (4)), by the number ``n`` of landmarks seen now:
@@ -292,11 +292,11 @@ class PaperBearingMCL(_ParticleLocalizer):
     def __init__(self, landmarks: LandmarkMap, params: PaperMCLParams, *, dt_s: float) -> None:
         super().__init__(
             landmarks,
+            params,
             dt_s=dt_s,
             alphas=params.alphas,
             floors=(params.min_translation_std_m, params.min_rotation_std_rad),
         )
-        self._params = params
         self._has_pose = False  # MCL has yielded a pose (an observation left a non-empty set)
         self._fallback: tuple[Array, Array] | None = None  # (pose, covariance) dead-reckoned
         self._survival = 1.0  # fraction of the set that survived the latest observation's gate
@@ -321,7 +321,7 @@ class PaperBearingMCL(_ParticleLocalizer):
     def predict(self, odometry: OdometryDelta) -> None:
         """Move every particle, and the dead-reckoned pose while MCL yields none."""
         self._generator()
-        d = checked_odometry(self.name, odometry, self._step_limit_m)
+        d = self._checked_odometry(odometry)
         if not self._has_pose and self._fallback is not None:
             pose, cov = self._fallback
             p = self._params
@@ -511,7 +511,7 @@ class BearingMCLParams:
         )
 
 
-class BearingMCL(_ParticleLocalizer):
+class BearingMCL(_ParticleLocalizer[BearingMCLParams]):
     """Weighted MCL with a Gaussian bearing likelihood and augmented-MCL recovery.
 
     Per update with ``n >= 1`` bearings: ``log w += -sum_l e_l^2 / (2 s^2)`` with ``e_l`` the
@@ -531,11 +531,11 @@ class BearingMCL(_ParticleLocalizer):
     def __init__(self, landmarks: LandmarkMap, params: BearingMCLParams, *, dt_s: float) -> None:
         super().__init__(
             landmarks,
+            params,
             dt_s=dt_s,
             alphas=params.alphas,
             floors=(params.min_translation_std_m, params.min_rotation_std_rad),
         )
-        self._params = params
         sigma = params.bearing_std_rad * params.likelihood_inflation
         self._neg_half_inv_var = -0.5 / (sigma * sigma)
         self._w_reference = 1.0 / math.sqrt(1.0 + 1.0 / params.likelihood_inflation**2)
@@ -570,8 +570,8 @@ class BearingMCL(_ParticleLocalizer):
 
     def predict(self, odometry: OdometryDelta) -> None:
         """Sample the odometry motion model for every particle."""
-        self._propagate(checked_odometry(self.name, odometry, self._step_limit_m))
-        self._t_s += self._dt
+        self._propagate(self._checked_odometry(odometry))
+        self._t_s += self._dt_s
 
     def update(self, measurement: BearingMeasurement) -> None:
         """Weight by the bearing likelihood; resample (with injection) when needed."""

@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import ConfigError
 from localizers.base import BearingMeasurement, EdgeMeasurement, LandmarkMap, MeasurementError, OdometryDelta, ScanMeasurement
-from localizers.schema import ConfigError
 
 Decoder = Callable[[NDArray[np.float32], Mapping[str, Any]], Any]
 

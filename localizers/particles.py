@@ -2,7 +2,7 @@
 
 Pure functions on particle sets stored *struct-of-arrays*: an array of shape ``(3, N)``
 whose rows are x, y and heading, so every vector operation runs over one contiguous row of
-N values. The motion model is the alpha model of :mod:`localizers.motion` (Probabilistic
+N values. The motion model is the alpha model of :mod:`core.motion` (Probabilistic
 Robotics sec. 5.4, sample_motion_model_odometry), applied to the odometry increment.
 """
 
@@ -13,17 +13,17 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from core.geometry import circular_mean, wrap_angle
+from core.motion import odometry_noise_std, to_rot_trans_rot
 from localizers.base import PoseEstimate, finite_covariance
 from localizers.bounds import odometry_process_noise
-from localizers.geometry import circular_mean, wrap_angle
-from localizers.motion import odometry_noise_std, to_rot_trans_rot
 
 Array = NDArray[np.float64]
 _HEADING_REWRAP_RAD = 32.0  # particle headings are re-wrapped once they exceed this magnitude
 
 #: the most particles (or candidate poses) a localizer's parameters may ask for: each is a pose and
 #: its weights, about 50 bytes, weighed at every update; 10**6 is a thousand times the papers' sets
-#: and about 50 MB (10**9 would need about 50 GB). Checked with :func:`localizers.schema.check_at_most`.
+#: and about 50 MB (10**9 would need about 50 GB). Checked with :func:`core.schema.check_at_most`.
 MAX_PARTICLES = 1_000_000
 #: why :data:`MAX_PARTICLES` (the reason the parameter errors give)
 PARTICLE_MEMORY = "memory: each particle is a pose and its weights, about 50 bytes, weighed at every update"
@@ -41,7 +41,7 @@ def propagate_particles(
     """Sample the odometry motion model for every particle, in place.
 
     Each particle draws its own ``(rot1, trans, rot2)`` around the decomposed increment
-    with the alpha-model standard deviations (:func:`localizers.motion.odometry_noise_std`);
+    with the alpha-model standard deviations (:func:`core.motion.odometry_noise_std`);
     the optional floors are added in quadrature to those deviations so that a robot at rest
     keeps a little particle diversity (ours, a form of roughening).
 

@@ -4,13 +4,13 @@ What the LIDAR MCL (:mod:`localizers.mcl_lidar`) precomputes once per map:
 
 - beam model: a *ray-cast table* of the expected range ``z*`` for every cell of a grid over
   the map bounds and every one of ``table_directions`` world directions, computed with
-  :func:`localizers.raycast.cast_rays` and cached on disk (:func:`build_range_table`);
+  :func:`core.raycast.cast_rays` and cached on disk (:func:`build_range_table`);
 - likelihood field: the distance from each cell centre to the nearest wall
   (:func:`wall_distance_field`).
 
 Both grow with the map's area: a table's memory is estimated before anything is allocated
 (:func:`check_table_size`) and a table above its bound (:data:`MAX_TABLE_MB` by default) is
-refused with a :class:`~localizers.schema.ConfigError` that gives the estimate and what to
+refused with a :class:`~core.schema.ConfigError` that gives the estimate and what to
 change. The beam model's table of a 150 m x 100 m campus at 5 cm and 720 directions would be
 17 GB; its likelihood field, 75 MB.
 """
@@ -30,9 +30,9 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from core.raycast import cast_rays
+from core.schema import ConfigError
 from localizers.base import LandmarkMap
-from localizers.raycast import cast_rays
-from localizers.schema import ConfigError
 
 Array = NDArray[np.float64]
 _log = logging.getLogger(__name__)

@@ -2,11 +2,12 @@
 
 Each localizer's parameters live in ``configs/localizers/<name>.yaml`` (the papers' values as
 defaults, each with its unit and source) and can be overridden key by key; an unknown key or
-a bad value is a :class:`~localizers.schema.ConfigError` naming it.
+a bad value is a :class:`~core.schema.ConfigError` naming it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -14,8 +15,8 @@ from pathlib import Path
 from typing import Any
 
 import crowdloc_configs
+from core.schema import ConfigError, from_mapping, load_yaml, merge_nested
 from localizers.base import LandmarkMap, Localizer
-from localizers.schema import ConfigError, from_mapping, load_yaml, merge_nested
 
 LOCALIZER_CONFIG_DIR = crowdloc_configs.path("localizers")  # package data (configs/ in the checkout)
 
@@ -38,7 +39,9 @@ class LocalizerSpec:
             ``prepare(env, sensor, params)`` before building it, and that returns the parameters
             to build it with (``far_landmark_pf``: the world's default scene map, made on first
             use; ``mcl_lidar``: the likelihood field in a world too large for the beam model's
-            table). Named, not imported: ``localizers`` does not import the code that drives a world.
+            table). Named, not imported. A hook that needs code above this package (driving a
+            world to map it) is given by that code, with :func:`set_prepare` (``import agents``
+            gives ``far_landmark_pf`` its scene-map hook).
         fallback: a measurement kind it reads instead in a world without a sensor of
             ``measurement``'s kind (dead reckoning, which uses odometry only and merely validates
             the bearings it is given: ``"odometry"``, so that it runs in every world);
@@ -139,7 +142,6 @@ LOCALIZERS: dict[str, LocalizerSpec] = {
         "stereo_edges",
         True,
         "500-particle filter on stereo edges, the farthest matching one per 30 deg sector, a map of scenes (paper D's method)",
-        prepare="agents.experiments.scene_maps:prepare_far_landmark_pf",
     ),
 }
 
@@ -165,6 +167,19 @@ def register_localizer(name: str, entry: LocalizerSpec) -> LocalizerSpec:
         raise ConfigError(f"localizer {name!r} is already registered ({current.module}.{current.cls})")
     LOCALIZERS[name] = entry
     return entry
+
+
+def set_prepare(name: str, hook: str) -> None:
+    """Give the registered localizer ``name`` its preparation hook, ``"module:function"``
+    (:attr:`LocalizerSpec.prepare`): the package that holds the hook registers it.
+
+    Raises:
+        ConfigError: if ``name`` is not registered or ``hook`` is not of the form ``module:function``.
+    """
+    module, sep, function = hook.partition(":")
+    if not (sep and module and function):
+        raise ConfigError(f"prepare hook for {name!r} must be 'module:function', got {hook!r}")
+    LOCALIZERS[name] = dataclasses.replace(spec(name), prepare=hook)
 
 
 def spec(name: str) -> LocalizerSpec:

@@ -55,24 +55,23 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from core.geometry import circular_mean, wrap_angle
+from core.motion import wrap_scalar
+from core.schema import check_ranges
 from localizers.base import (
     DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     ConsistencyPromise,
     LandmarkMap,
+    LocalizerBase,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     check_max_spread,
     checked_bearings,
-    checked_dt,
-    checked_odometry,
     require_reset,
     within_spread,
 )
-from localizers.geometry import circular_mean, wrap_angle
-from localizers.motion import wrap_scalar
-from localizers.schema import check_ranges
 
 DEFAULT_MIN_CONDITIONING = 0.1
 """Default lower bound on the conditioning ``c`` (ours; see the module docstring)."""
@@ -453,7 +452,7 @@ class ResectionParams:
         check_ranges(self, "ResectionParams", positive=("min_conditioning", "inlier_radius_m", "bearing_std_rad"))
 
 
-class ResectionLocalizer:
+class ResectionLocalizer(LocalizerBase[ResectionParams]):
     """Baseline (2): Cassini resection whenever >= 3 bearings are seen, no output otherwise.
 
     With more than 3 landmarks every triple is solved and combined by
@@ -469,10 +468,7 @@ class ResectionLocalizer:
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.95)
 
     def __init__(self, landmarks: LandmarkMap, params: ResectionParams, *, dt_s: float) -> None:
-        self._dt = checked_dt("ResectionLocalizer", dt_s)
-        self._map = landmarks
-        self._step_limit_m = landmarks.step_limit_m
-        self._params = params
+        super().__init__(landmarks, params, dt_s=dt_s, owner="ResectionLocalizer")
         self._started = False
         self._estimate = PoseEstimate.invalid()
         self._last: TripleResection | None = None
@@ -490,7 +486,7 @@ class ResectionLocalizer:
     def predict(self, odometry: OdometryDelta) -> None:
         """Check the increment and drop the estimate (no motion model in this baseline)."""
         self._require_reset()
-        checked_odometry(self.name, odometry, self._step_limit_m)
+        self._checked_odometry(odometry)
         self._estimate = PoseEstimate.invalid()
         self._last = None
 

@@ -36,24 +36,23 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from core.geometry import between, compose, wrap_angle
+from core.schema import check, check_at_most
 from localizers.base import (
     ConsistencyPromise,
     LandmarkMap,
+    LocalizerBase,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     ScanMeasurement,
-    checked_dt,
     checked_odometry,
     require_reset,
     validated_scan,
     within_spread,
 )
 from localizers.bounds import odometry_process_noise
-from localizers.geometry import between, compose, wrap_angle
-from localizers.mcl_lidar import LidarMCL, deskewed, informative
-from localizers.mcl_lidar_params import LidarMCLParams, large_map_mcl
-from localizers.schema import check, check_at_most
+from localizers.mcl_lidar import LidarMCL, LidarMCLParams, deskewed, informative, large_map_mcl
 
 Array = NDArray[np.float64]
 
@@ -357,7 +356,7 @@ def window_covariance(pose: ArrayLike, window: ArrayLike, mcl: LidarMCLParams) -
     """``(3, 3)`` what a fix on the accumulation window inherits from its odometry
     (:attr:`FarPointMCLParams.window_error`): a third of the MCL's motion-model noise
     (:func:`localizers.bounds.odometry_process_noise`) for the increment ``window`` that ends
-    at ``pose``, the estimate right after the fix."""
+    at ``pose``, the estimate with the fix applied."""
     end = np.asarray(pose, dtype=np.float64)
     start = compose(end, between(window, np.zeros(3)))  # the pose at the window's oldest scan
     noise = odometry_process_noise(start, window, mcl.alphas, min_translation_std_m=mcl.min_translation_std_m,
@@ -373,9 +372,9 @@ class FarPointMCLParams:
         mcl: the LIDAR MCL that consumes the processed scans; its estimate is this
             localizer's, its ``max_spread_m`` the limit past which no pose is claimed.
         filter: accumulation and far-point extraction.
-        deskew: undo the robot's motion during each swept scan before accumulating it (issue 30;
+        deskew: undo the robot's motion during each swept scan before accumulating it (ours;
             off in the paper's reproduction): ``mcl_lidar``'s option
-            (:attr:`localizers.mcl_lidar_params.LidarMCLParams.deskew`) applied to the raw scans,
+            (:attr:`localizers.mcl_lidar.LidarMCLParams.deskew`) applied to the raw scans,
             whose hit points the window keeps. ``mcl.deskew`` is refused: the far-point scans the
             MCL weighs are made at the current pose and have no beam times.
         window_error: add the odometry noise of the accumulation window to the reported
@@ -405,7 +404,7 @@ class FarPointMCLParams:
 def large_map_params(env: Any, sensor: str, params: Mapping[str, Any] | None) -> Mapping[str, Any] | None:
     """``far_point_mcl``'s preparation (its registry entry names it): its ``mcl`` section gets what
     ``mcl_lidar`` gets in a world too large for the beam model's table
-    (:func:`localizers.mcl_lidar_params.large_map_mcl`: the campus reference's likelihood field, logged);
+    (:func:`localizers.mcl_lidar.large_map_mcl`: the campus reference's likelihood field, logged);
     elsewhere, or when the section names a ``model``, ``params`` unchanged."""
     from localizers.registry import load_params
 
@@ -418,7 +417,7 @@ def large_map_params(env: Any, sensor: str, params: Mapping[str, Any] | None) ->
     return params if chosen is section else {**(params or {}), "mcl": chosen}
 
 
-class FarPointMCL:
+class FarPointMCL(LocalizerBase[FarPointMCLParams]):
     """LIDAR MCL on accumulated, far-point-extracted scans (paper B's method).
 
     Every scan is accumulated; when the MCL is due for an update (every
@@ -433,9 +432,8 @@ class FarPointMCL:
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/CrowdedRoom-v0", "random_walk", 500, 0.8)
 
     def __init__(self, landmarks: LandmarkMap, params: FarPointMCLParams, *, dt_s: float) -> None:
-        self.params = params
-        self._step_limit_m = landmarks.step_limit_m
-        self.mcl = LidarMCL(landmarks, params.mcl, dt_s=checked_dt(type(self).__name__, dt_s))
+        super().__init__(landmarks, params, dt_s=dt_s)
+        self.mcl = LidarMCL(landmarks, params.mcl, dt_s=self._dt_s)
         self.filter = ScanFilter(params.filter)
         self._ready = False
         self._last: ScanMeasurement | None = None
@@ -457,7 +455,7 @@ class FarPointMCL:
 
     def predict(self, odometry: OdometryDelta) -> None:
         require_reset(type(self).__name__, self._ready)
-        checked_odometry(self.name, odometry, self._step_limit_m)  # named for this localizer (the parts check again)
+        self._checked_odometry(odometry)  # named for this localizer (the parts check again)
         self.mcl.predict(odometry)
         self.filter.predict(odometry)
 

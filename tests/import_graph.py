@@ -11,7 +11,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 #: the source packages (configs/ and models/ hold data)
-PACKAGES = ("envs", "localizers", "agents")
+PACKAGES = ("core", "envs", "localizers", "agents")
 
 
 def source_files() -> dict[str, Path]:

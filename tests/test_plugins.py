@@ -28,6 +28,7 @@ import envs.config
 from agents.evaluate import EvalSpec, evaluate
 from agents.experiments.replay import record, replay
 from agents.experiments.scenarios import square_driver
+from core.raycast import cast_rays
 from envs.config import load_world, world_path
 from envs.crowds import Commands, Crowd, CrowdConfig, Taken, register_crowd
 from envs.sensors import SensorBase, SensorConfig, register_sensor
@@ -35,7 +36,6 @@ from envs.state import Rows, WorldState
 from localizers.base import PoseEstimate, ScanMeasurement
 from localizers.mcl_lidar import CACHE_ENV
 from localizers.measurements import MeasurementKind, register_measurement
-from localizers.raycast import cast_rays
 from localizers.registry import LocalizerSpec, register_localizer
 
 TOY_HIT = (1, 254, 3)  # the toy sensor's dots: a colour nothing else draws

@@ -11,13 +11,13 @@ import pytest
 import yaml
 
 import envs  # noqa: F401  (registers crowdloc/*)
+from core.schema import ConfigError
 from envs.config import load_world, world_path
 from envs.crowds import CrowdConfig, QueueCrowd, register_crowd
 from envs.sensors import Lidar, LidarConfig, SensorConfig, register_sensor
 from localizers.base import ScanMeasurement
 from localizers.measurements import MeasurementKind, find_sensor, register_measurement, scan_measurement
 from localizers.registry import LocalizerSpec, register_localizer
-from localizers.schema import ConfigError
 
 
 def test_a_taken_sensor_type_name_is_refused() -> None:

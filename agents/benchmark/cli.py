@@ -12,7 +12,7 @@ from agents.benchmark.results import BENCHMARK_OUTPUTS, write_results
 from agents.benchmark.run import BenchmarkPlan, EpisodeScore, load_plugins, plan_benchmark, score_task
 from agents.common.output_folder import open_output_folder
 from agents.common.sweep import run_tasks
-from localizers.schema import check
+from core.schema import check
 
 
 def run_cli(args: Any) -> BenchmarkPlan:

@@ -1,7 +1,7 @@
 """A benchmark run's journal, ``episodes.jsonl`` in ``--out``: every scored episode, written the moment it finishes.
 
-The full protocol takes hours on a small machine; a run that is killed (or stopped at the end of
-a working session) keeps what it finished, and ``crowdloc benchmark --resume`` with the same
+The full protocol takes hours on a small machine; a run that is killed or stopped
+keeps what it finished, and ``crowdloc benchmark --resume`` with the same
 options and ``--out`` plays only the rest, then writes the same tables as an uninterrupted run
 (the scores are put back in the plan's order; the update cost, a timing, is the one exception).
 It is :class:`agents.evaluate.journal.Journal` (eval's format) holding :class:`EpisodeScore` s

@@ -2,8 +2,8 @@
 
 A protocol fixes everything that decides a benchmark number: per world (a registered env id) the
 crowd sizes, the fixed policies that drive, the episode length, the start condition and the
-failure threshold; and the test seeds. :func:`protocol_digest` hashes the protocol file, the
-YAML of its worlds and crowdloc's version: two results with the same name and digest compare.
+failure threshold; and the test seeds. :func:`protocol_digest` hashes the values of the protocol
+file, of its worlds' YAML and of the built-in localizers' parameters, and crowdloc's version: two results with the same name and digest compare.
 
 The test seeds lie at or above :data:`RESERVED_BELOW`: every training seed is below
 ``EVAL_SEED_BASE`` (2**31) and every held-out evaluation seed that eval, demo and tune draw is
@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.metadata
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,8 +25,8 @@ import crowdloc_configs
 from agents.evaluate.spec import FIRST_SEED_MAX, crowdloc_ids, runnable_policies, world_of
 from agents.policies import FIXED_POLICIES
 from agents.rl.config import EVAL_SEED_BASE
+from core.schema import ConfigError, check, from_mapping, load_yaml
 from localizers.registry import BUILTIN_LOCALIZERS
-from localizers.schema import ConfigError, check, from_mapping, load_yaml
 
 #: the first seed no other command uses: above every training seed and every held-out seed of eval, demo and tune
 RESERVED_BELOW = EVAL_SEED_BASE + FIRST_SEED_MAX + 2**29
@@ -187,19 +188,27 @@ def crowdloc_version() -> str:
 def protocol_digest(protocol: Protocol) -> str:
     """sha256 (hex) of what decides a number: the protocol file, each of its worlds' YAML (in the
     protocol's order), the parameter file of every built-in localizer (``configs/localizers/``, by
-    name) and crowdloc's version. A plug-in's own parameters are the plug-in's to cite."""
+    name) and crowdloc's version. A plug-in's own parameters are the plug-in's to cite.
+
+    Each YAML file enters by its values (:func:`_yaml_values`), not its text: a comment or a
+    reformatting decides no number, so it leaves the digest as it is."""
     import gymnasium as gym
 
     from envs.config import world_path
     from localizers.registry import params_path
 
     h = hashlib.sha256()
-    h.update(Path(protocol.path).read_bytes())
+    h.update(_yaml_values(Path(protocol.path)))
     for env_id in protocol.worlds:
         world = gym.spec(env_id).kwargs["world"]
-        h.update(env_id.encode() + b"\0" + world_path(world).read_bytes())
+        h.update(env_id.encode() + b"\0" + _yaml_values(world_path(world)))
     for name in sorted(BUILTIN_LOCALIZERS):  # not the plug-ins a process has imported: one digest everywhere
         path = params_path(name)
-        h.update(name.encode() + b"\0" + (path.read_bytes() if path.is_file() else b""))
+        h.update(name.encode() + b"\0" + (_yaml_values(path) if path.is_file() else b""))
     h.update(crowdloc_version().encode())
     return h.hexdigest()
+
+
+def _yaml_values(path: Path) -> bytes:
+    """A YAML file's values as canonical JSON (keys sorted, no comments, no layout)."""
+    return json.dumps(load_yaml(path), sort_keys=True, separators=(",", ":")).encode()

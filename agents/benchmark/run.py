@@ -33,10 +33,10 @@ from agents.evaluate.spec import (
     world_of,
 )
 from agents.policies import FIXED_POLICIES
+from core.schema import ConfigError, check
 from localizers.measurements import find_sensor
 from localizers.registry import LOCALIZERS, measurement_in
 from localizers.registry import spec as localizer_spec
-from localizers.schema import ConfigError, check
 
 #: the per-episode values of :func:`score_task`, in the tables' order (a new key goes last: each key's
 #: index is its bootstrap stream, so the others keep their intervals)

@@ -28,8 +28,8 @@ from types import TracebackType
 from typing import Any
 
 from agents.common.util import make_out_dir
+from core.schema import ConfigError
 from localizers.range_table import write_atomically
-from localizers.schema import ConfigError
 
 #: the manifest's file name in every output folder
 MANIFEST_NAME = "crowdloc-manifest.json"

@@ -274,3 +274,27 @@ def scan_snapshot(
         ax.set_ylabel("y [m]", fontsize=8)
         ax.tick_params(labelsize=7)
     return save_figure(fig, path, title)
+
+
+def learning_curves_figure(csv_path: Path, path: Path, title: str) -> Path:
+    """One line per training run from a ``run,step,ep_rew_mean`` CSV (the mean training return of the
+    last 100 episodes, read from the runs' TensorBoard logs), in the order the runs first appear."""
+    import csv
+
+    runs: dict[str, list[tuple[float, float]]] = {}
+    with csv_path.open(newline="") as handle:
+        rows = csv.DictReader(handle)
+        if rows.fieldnames != ["run", "step", "ep_rew_mean"]:
+            raise ValueError(f"{csv_path}: columns must be run,step,ep_rew_mean, got {rows.fieldnames}")
+        for row in rows:
+            runs.setdefault(row["run"], []).append((float(row["step"]), float(row["ep_rew_mean"])))
+    fig, ax = plt.subplots(figsize=(7.2, 3.8))
+    for run, points in runs.items():
+        steps, returns = zip(*sorted(points), strict=True)
+        ax.plot(steps, returns, lw=1.4, label=run)
+    ax.set_xlabel("env steps")
+    ax.set_ylabel("mean training return (last 100 episodes)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(title, fontsize=10)
+    return save_figure(fig, path)

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 
 def _argument_type(convert: Callable[[str], Any], accept: Callable[[Any], bool], what: str) -> Callable[[str], Any]:

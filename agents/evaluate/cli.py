@@ -12,7 +12,7 @@ from agents.evaluate.outputs import EVAL_OUTPUTS, summary_markdown, write_output
 from agents.evaluate.paired import paired_verdict, verdict_markdown, verdict_policy, write_verdict
 from agents.evaluate.spec import Cell, EvalSpec, check_first_seed, task_conditions
 from agents.evaluate.stats import EvalResult, evaluate
-from localizers.schema import ConfigError, check
+from core.schema import ConfigError, check
 
 
 def parse_gif_cell(text: str, spec: EvalSpec) -> Cell:
@@ -38,7 +38,7 @@ def spec_from_args(args: Any) -> EvalSpec:
     """
     from agents.common.util import nest
     from agents.rl.config import load_train_config, parse_overrides
-    from localizers.schema import merge_nested
+    from core.schema import merge_nested
 
     check_first_seed(args.first_seed, "--first-seed")
     given = {"policies": args.policies, "localizers": args.localizers, "crowd_sizes": args.crowd_sizes}

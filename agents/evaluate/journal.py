@@ -27,7 +27,7 @@ from typing import Any, ClassVar, Generic, TypeVar
 from agents.common.util import jsonable
 from agents.evaluate.episode import Episode
 from agents.evaluate.spec import EvalSpec
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 #: the journal's file name in the output folder
 JOURNAL_NAME = "episodes.jsonl"

@@ -3,7 +3,7 @@
 At the first step at or after ``at_s`` the robot is teleported to a random free pose at least
 ``min_distance_m`` from where it stood (:func:`agents.experiments.scenarios.kidnap`; odometry does not see
 it, the localizer is not told): by default anywhere in the arena with a random heading; with
-``max_distance_m`` at most that far, and with ``keep_heading`` a pure translation (issue 27's
+``max_distance_m`` at most that far, and with ``keep_heading`` a pure translation (a
 kidnap of 2-5 m: ``--kidnap-m 2 --kidnap-max-m 5 --kidnap-keep-heading``). From the jump on, over ``window_s``:
 
 - ``recovered``: 1 if the localizer is back for good within the window: it claims a pose
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from agents.evaluate.plugins import MetricInfo, Track
-from localizers.schema import check
+from core.schema import check
 
 #: the kidnapping metrics, after the core ones in the tables
 KIDNAP_METRICS: tuple[MetricInfo, ...] = (

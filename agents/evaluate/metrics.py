@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.geometry import polyline_distance
+from core.geometry import polyline_distance
 
 Array = NDArray[np.float64]
 
@@ -32,7 +32,7 @@ def position_errors(estimates: ArrayLike, truth: ArrayLike) -> Array:
 def path_distances(estimates: ArrayLike, path_xy: ArrayLike, *, closed: bool) -> Array:
     """``(T,)`` distance from each estimated position to a drawn path (input units), NaN where the
     estimate is NaN: the error the candidate-set paper reported for Exp 1, whose ground truth was
-    the line the robot was pushed along (:func:`localizers.geometry.polyline_distance`). Unlike
+    the line the robot was pushed along (:func:`core.geometry.polyline_distance`). Unlike
     :func:`position_errors` it is blind to an error along the path."""
     return polyline_distance(np.asarray(estimates, dtype=np.float64)[:, :2], path_xy, closed=closed)
 

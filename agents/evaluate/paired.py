@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from agents.evaluate.outputs import write_csv
 from agents.evaluate.spec import PPO_PREFIX, Cell, EvalSpec
 from agents.evaluate.stats import EvalResult, Stat
-from localizers.schema import ConfigError, check
+from core.schema import ConfigError, check
 
 #: the metrics of the verdict (every one lower-is-better), in table order
 VERDICT_METRICS = ("position_error_mean_m", "failure_rate", "first_fix_s", "goal_missed", "time_to_goal_s", "collisions")

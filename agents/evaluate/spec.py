@@ -15,18 +15,18 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-import envs  # registers the crowdloc ids
 from agents.evaluate.goal import GOAL_METRICS
 from agents.evaluate.kidnap import KIDNAP_METRICS, Kidnap
 from agents.evaluate.plugins import MetricInfo, localizer_kind, localizer_metrics
 from agents.policies import FIXED_POLICIES, task_route_kwargs
+from agents.rl import task_ids
 from agents.rl.config import EVAL_SEED_BASE, TrainConfig
 from agents.rl.observation import ObservationConfig, RouteConfig
 from agents.rl.residual import ActionConfig, check_trained_action
 from agents.rl.rewards import RewardWeights
 from agents.rl.train import task_wrappers
+from core.schema import ConfigError, check, is_int
 from localizers.measurements import find_sensor
-from localizers.schema import ConfigError, check, is_int
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -69,7 +69,7 @@ class EvalSpec:
             id's world), world section overrides for ``gym.make`` (e.g.
             ``{"camera": {"fov_rad": 1.5708}}``) and ``prior`` (``"start"``: localizers get the
             true start pose; ``"none"``: they start lost; default: each localizer's own) and
-            ``belief_spread`` (see ``localizers.wrappers``).
+            ``belief_spread`` (see ``envs.wrappers``).
         reward: the reward weights reported as the episode return.
         route: the task's route, for the reward's progress term and the observation's waypoint
             (``agents.rl.observation.RouteConfig``; default: the map's).
@@ -325,7 +325,7 @@ def crowdloc_ids() -> list[str]:
     """The registered world ids of the ``crowdloc`` namespace, sorted (not the task ids, which
     bring their own localizer and reward: the grid sets those)."""
 
-    return sorted(i for i in gym.registry if i.startswith("crowdloc/") and i not in envs.TASK_CONFIGS)
+    return sorted(i for i in gym.registry if i.startswith("crowdloc/") and i not in task_ids.TASK_CONFIGS)
 
 
 _TRAINING_CONDITIONS = "evaluate it in its training conditions (crowdloc eval --conditions <its training config>)"

@@ -18,7 +18,7 @@ from agents.evaluate.spec import EvalSpec
 
 if TYPE_CHECKING:
     from agents.evaluate.journal import EpisodeJournal
-from localizers.schema import check
+from core.schema import check
 
 
 def bootstrap_ci(values: ArrayLike, n: int = 2000, *, rng: np.random.Generator, level: float = 0.95) -> tuple[float, float]:

@@ -4,7 +4,7 @@
 sensor's observation array (a mapping by observation key) and the sensors' metadata, beside
 the ground truth from ``info`` (true pose, truly visible landmarks, false detections,
 contacts). :func:`replay` feeds the *observations only* to a localizer exactly as
-:class:`localizers.wrappers.LocalizationObservation` does online (``reset`` with an optional
+:class:`envs.wrappers.LocalizationObservation` does online (``reset`` with an optional
 known start pose, an update with the first frame, then ``predict`` and ``update`` per step),
 so every localizer runs on identical data and the results equal the online wrapper's for the
 same generator. Ground truth is used for the prior only when asked (``prior="start"``).
@@ -32,10 +32,10 @@ from numpy.typing import ArrayLike, NDArray
 import envs  # noqa: F401  (registers the crowdloc ids)
 from agents.experiments.scenarios import Driver
 from envs.localization_env import LocalizationEnv
+from envs.wrappers import _SEED_SALT
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, OdometryDelta, PoseEstimate, ScanMeasurement
 from localizers.measurements import decode, find_sensor, measurement_kind, odometry_delta, readable_kinds, sensor_map
 from localizers.registry import make_localizer, measurement_in, spec
-from localizers.wrappers import _SEED_SALT
 
 #: the covariance of the known start pose handed to localizers that need it (as the wrapper does)
 PRIOR_COVARIANCE = np.diag([1e-6, 1e-6, 1e-6])
@@ -242,7 +242,7 @@ def record_policy(
 
 
 def online_rng(seed: int) -> np.random.Generator:
-    """The generator the online wrapper (:class:`localizers.wrappers.LocalizationObservation`)
+    """The generator the online wrapper (:class:`envs.wrappers.LocalizationObservation`)
     gives its localizer after ``env.reset(seed=seed)``: a replay drawing from it reproduces
     :attr:`Recording.estimates`."""
     return np.random.default_rng([seed, _SEED_SALT])

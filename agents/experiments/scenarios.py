@@ -27,8 +27,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from agents.policies.paths import EXP1_VERTICES, Command, command_actions, polygon_commands, square_vertices
+from core.geometry import wrap_angle
 from envs.crowds import SoccerCrowd
-from localizers.geometry import wrap_angle
 
 if TYPE_CHECKING:
     from envs.localization_env import LocalizationEnv
@@ -476,9 +476,9 @@ def kidnap(
     until the robot's disc fits there (:meth:`envs.world.World.robot_placement_problem`) and
     no crowd member's footprint disc overlaps it. With a finite ``max_distance_m`` the position
     is drawn over the arena's part within ``max_distance_m`` of the robot (along each axis) and
-    refused beyond it: a short jump (issue 27's 2-5 m), uniform over the ring's free part. With
+    refused beyond it: a short jump (e.g. 2-5 m), uniform over the ring's free part. With
     ``keep_heading`` the robot keeps its heading (a pure translation; the heading is still drawn,
-    so the positions are those of the same draws). The defaults draw exactly as before these options.
+    so the positions are those of the same draws). With the defaults the draws are those without these options.
 
     Raises:
         ValueError: when ``min_distance_m`` is not a finite number >= 0, ``max_distance_m`` not a

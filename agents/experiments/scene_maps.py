@@ -8,7 +8,7 @@ LIDAR reference's estimate (``mcl_lidar`` in ROS amcl's likelihood-field configu
 records every ``period_s``: the pose is that reference's estimate (``pose="reference"``, the
 default, as on a real robot) or the truth (``pose="truth"``); the landmarks are the camera's
 detections of that step. On free-running webcams the drive takes its bends slowly and a scene due
-while it turns waits for the next frame (:attr:`MappingDrive.max_shift_px`, issue 31): a frame taken
+while it turns waits for the next frame (:attr:`MappingDrive.max_shift_px`): a frame taken
 mid-turn has its far landmarks' ranges off, and a map made of such frames contradicts the right pose.
 
 :func:`default_scene_map` is the world's default map: made once (seed 0, the crowd size of the
@@ -36,13 +36,13 @@ from typing import Any, Literal
 import numpy as np
 from tqdm import tqdm
 
+from core.schema import ConfigError, check, is_real
 from envs.config import WorldConfig
 from envs.localization_env import LocalizationEnv, apply_overrides
+from localizers.far_landmark_pf.scene_map import SceneMap, geometry_fingerprint
 from localizers.mcl_lidar import LARGE_MAP_PARAMS
 from localizers.measurements import edge_measurement, find_sensor, sensor_map
 from localizers.range_table import cache_dir
-from localizers.scene_map import SceneMap, geometry_fingerprint
-from localizers.schema import ConfigError, check, is_real
 
 _log = logging.getLogger(__name__)
 
@@ -83,12 +83,12 @@ class MappingDrive:
         max_shift_px: a scene is recorded only from a frame whose cameras the robot's turn (the step's
             odometry) moved by at most this many pixels between their frames (turn rate x the rig's
             ``frame_gap_s`` x focal length); a scene due mid-turn waits for the first frame after it
-            (ours, issue 31: free-running webcams take their frames up to 1/30 s apart, so a frame taken
+            (ours: free-running webcams take their frames up to 1/30 s apart, so a frame taken
             in a turn has its disparities off by that shift, about 6 px at the campus corner's 0.33 rad/s,
             and its far landmarks' ranges with them; 1 px is about twice the rig's disparity noise). The drive turns
             no faster than that (``route_follower``'s ``max_turn``: it slows in bends, the campus corner at
             0.054 rad/s), so the scenes cover the bends' views too. Synchronised cameras (``frame_gap_s`` 0)
-            drive and record as before.
+            neither slow in bends nor wait: every scene is recorded when due.
     """
 
     seed: int = 0
@@ -129,7 +129,7 @@ def _camera(env: LocalizationEnv) -> tuple[str, dict[str, Any]]:
 
 def rig_timing(metadata: Mapping[str, Any]) -> dict[str, float]:
     """``far_landmark_pf``'s ``frame_gap_s`` and ``baseline_m`` from a stereo camera's metadata: what a turn can
-    shift between the rig's frames, which its lost test allows for (issue 31)."""
+    shift between the rig's frames, which its lost test allows for."""
     return {"frame_gap_s": float(metadata["frame_gap_s"]), "baseline_m": float(metadata["baseline_m"])}
 
 
@@ -154,7 +154,7 @@ def build_scene_map(
         ConfigError: a world without a route, a stereo camera or (for the reference) a LIDAR.
     """
     from agents.policies import make_policy
-    from localizers.wrappers import LocalizationObservation
+    from envs.wrappers import LocalizationObservation
 
     kwargs = dict(env_kwargs or {})
     if drive.crowd_size is not None:

@@ -7,7 +7,7 @@
 - :mod:`agents.policies.route_following`: pure pursuit along a world's route;
 - :mod:`agents.policies.paths`: open-loop polygon paths as actions.
 
-The names below are importable from ``agents.policies`` itself, as before it was a package.
+The names below are importable from ``agents.policies`` itself.
 
 May import: ``envs``, ``localizers``, :mod:`agents.common`; never :mod:`agents.experiments`,
 :mod:`agents.rl`, :mod:`agents.evaluate`, :mod:`agents.tune`, :mod:`agents.papers`.

@@ -13,9 +13,9 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.geometry import ring_directions, wrap_angle
-from localizers.schema import is_real
-from localizers.wrappers import decode_estimate
+from core.geometry import ring_directions, wrap_angle
+from core.schema import is_real
+from envs.wrappers import decode_estimate
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

@@ -45,10 +45,10 @@ from agents.policies.base import FixedPolicy, Observation, check_command, read_e
 from agents.policies.navigation import CorridorFollower
 from agents.policies.paths import EXP1_VERTICES, command_actions, polygon_commands
 from agents.policies.route_following import LookThenRoute, RouteFollower, range_sensor_kwargs, route_points
+from core.geometry import in_field_of_view, wrap_angle
 from envs.sensors import BearingCameraConfig
 from localizers.base import LandmarkMap
 from localizers.bounds import bearing_information
-from localizers.geometry import in_field_of_view, wrap_angle
 
 __all__ = [
     "CLEARANCE_M",
@@ -258,7 +258,7 @@ class _MapPolicy(FixedPolicy):
         In camera range, inside the camera's field of view around ``headings`` ``(C,)`` (a
         narrow camera needs them), and either seen now or seen from a direction that has
         turned by more than ``occluder_halfwidth_rad`` from the current one (whatever hides
-        it now no longer covers it). A landmark outside the field of view now is not known
+        it now does not cover it from there). A landmark outside the field of view now is not known
         to be hidden, so it counts as seen now.
         """
         lm = self.landmarks.positions_xy_m
@@ -516,7 +516,7 @@ def register_policy(name: str, cls: type[FixedPolicy]) -> type[FixedPolicy]:
     Raises:
         ConfigError: ``name`` is taken by another policy, or ``cls`` is not a FixedPolicy subclass.
     """
-    from localizers.schema import ConfigError
+    from core.schema import ConfigError
 
     if not (isinstance(cls, type) and issubclass(cls, FixedPolicy)):
         raise ConfigError(f"policy {name!r} must be a FixedPolicy subclass, got {cls!r}")

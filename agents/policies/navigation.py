@@ -5,7 +5,7 @@ corridor centre with its ultrasonic side ranges; it stops under each target and 
 pose; when the measured rotation is beyond a threshold (image distortion makes such fixes
 poor) it moves under the target centre and measures again; after the last target it stops.
 :class:`CorridorFollower` does that from the observation alone (the localizer's estimate
-behind :class:`~localizers.wrappers.LocalizationObservation` and the ``sonar`` ring), and also
+behind :class:`~envs.wrappers.LocalizationObservation` and the ``sonar`` ring), and also
 slows down, waits and steers around when people block the way.
 
 **Frame.** The corridor world's: x across the corridor (centre line x = 0, walls at
@@ -48,7 +48,7 @@ x = -``wall_distance_m``, the one nearest -90 deg (index 12) at the other.
 Targets more than ``behind_m`` behind the first estimate are skipped. Without a valid
 estimate before a first fix the robot stands still.
 
-**Lost** (ours, issue 27): when the localizer stops claiming a pose after it had one (it
+**Lost** (ours): when the localizer stops claiming a pose after it had one (it
 noticed that it was carried away, :attr:`localizers.ceiling_target.CeilingTargetLocalizer.lost`),
 the robot searches with the sonar alone (``search``): it drives on at ``cruise``, slowed as
 before a person, steering toward the middle between the side sonars when both see a wall, and
@@ -91,8 +91,8 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
-from localizers.geometry import ring_directions, wrap_angle
-from localizers.schema import is_int, is_real
+from core.geometry import ring_directions, wrap_angle
+from core.schema import is_int, is_real
 
 #: the heading along the corridor (+y)
 ALONG_RAD = math.pi / 2

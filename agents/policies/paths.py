@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.geometry import wrap_angle
+from core.geometry import wrap_angle
 
 #: Exp 1 path (ours): the paper's Fig. 11 is not in the OCR text. A convex octagon in the
 #: 5 m x 10 m field starting at a = (2.5, 8) facing +x (the world's start pose), clockwise.

@@ -2,7 +2,7 @@
 
 The far-landmark stereo paper's robot drives a route of about 100 m across a campus; this is
 that drive, done from the observation alone: the localizer's estimate behind
-:class:`~localizers.wrappers.LocalizationObservation` (never the truth) and, to keep clear of
+:class:`~envs.wrappers.LocalizationObservation` (never the truth) and, to keep clear of
 people and cars, a range sensor (a ``lidar`` entry, or a ``sonar`` ring, or none).
 
 **Path.** Pure pursuit (Coulter 1992) along the route's polyline: the progress ``s`` is the
@@ -51,8 +51,8 @@ from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate
-from localizers.geometry import polyline_point, ring_directions
-from localizers.schema import is_int, is_real
+from core.geometry import polyline_point, ring_directions
+from core.schema import is_int, is_real
 
 #: the states of :attr:`RouteFollower.phase`
 PHASES = ("look", "wait", "drive", "done")

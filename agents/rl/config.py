@@ -18,10 +18,11 @@ import yaml
 
 import crowdloc_configs
 from agents.common.util import nest
+from agents.rl.layout_episodes import LayoutSplits
 from agents.rl.observation import ObservationConfig, RouteConfig
 from agents.rl.residual import ActionConfig
 from agents.rl.rewards import RewardWeights
-from localizers.schema import ConfigError, check, from_mapping, load_yaml, parse_yaml, replace_checked
+from core.schema import ConfigError, check, from_mapping, load_yaml, parse_yaml, replace_checked
 
 EXPERIMENT_DIR = crowdloc_configs.path("experiments")  # package data (configs/ in the checkout)
 #: env seeds at or above this are evaluation seeds; training episodes never use them
@@ -72,6 +73,9 @@ class TrainConfig:
     observation: ObservationConfig = field(default_factory=ObservationConfig)  # what the policy sees (agents.rl.observation)
     route: RouteConfig = field(default_factory=RouteConfig)  # the task's route (progress, waypoint); default the map's
     action: ActionConfig = field(default_factory=ActionConfig)  # what the policy's action means (agents.rl.residual)
+    #: the layout seeds of training, validation and test (agents.rl.layout_episodes); None: the world's own layout
+    layouts: LayoutSplits | None = None
+    layout_cache: int = 8  # layouts whose tasks (worlds and localizer maps) one env keeps
     n_envs: int = 4
     vec_env: str = "subproc"  # "subproc" (one process per env) or "dummy" (in-process)
     seed: int = 0
@@ -84,6 +88,8 @@ class TrainConfig:
         check(self.vec_env in ("subproc", "dummy"), f"vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}")
         check(self.total_timesteps >= 1, f"total_timesteps must be >= 1, got {self.total_timesteps}")
         check(len(self.crowd_sizes) >= 1, "crowd_sizes needs at least one crowd size")
+        check(self.layout_cache >= 1, f"layout_cache must be >= 1, got {self.layout_cache}")
+        check("layout" not in self.env_kwargs, "give layout seeds as layouts (train/validation/test), not env_kwargs.layout")
         check(
             "max_episode_steps" not in self.env_kwargs, "the episode length is ppo.n_steps; remove env_kwargs.max_episode_steps"
         )

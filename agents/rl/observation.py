@@ -22,6 +22,10 @@ observation as the task's training config says (:class:`ObservationConfig`, the 
   ``route_follower``'s pure-pursuit point: where the next route point is far ahead (the campus's first
   leg is 57 m long), a metre off the route moves the waypoint's bearing by about a degree; it moves
   this point's by tens of degrees, so the policy can see how far it is off the route.
+- ``belief_map.cells`` > 0 adds ``belief_map`` ``(heading_bins, cells, cells)``: the localizer's
+  hypotheses as a normalised histogram over position and heading, centred on the estimate or over
+  the world (:mod:`agents.rl.belief_map`). Training reads it with a small CNN
+  (:class:`agents.rl.extractor.BeliefMapExtractor`).
 
 Also here: :class:`RouteConfig` and :class:`RouteCursor`, the task's route, which the reward's
 progress term (from the truth) shares with the waypoint (from the estimate).
@@ -33,7 +37,7 @@ With every field at its default the wrapper is not applied (the soccer tasks obs
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import gymnasium as gym
@@ -42,8 +46,9 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from localizers.geometry import polyline_point
-from localizers.schema import ConfigError, check
+from agents.rl.belief_map import BeliefMapConfig, belief_map
+from core.geometry import polyline_point
+from core.schema import ConfigError, check
 
 
 @dataclass(frozen=True)
@@ -145,6 +150,7 @@ class ObservationConfig:
     waypoint: bool = False  # add waypoint: the route's next point in the estimate's frame
     waypoint_clip_m: float = 10.0  # the waypoint's distance is divided by this, clipped to 1
     lookahead_m: float = 0.0  # > 0: add lookahead, the route's point this far ahead of the estimate's place on it
+    belief_map: BeliefMapConfig = field(default_factory=BeliefMapConfig)  # cells > 0: add the belief map
 
     def __post_init__(self) -> None:
         check(self.lidar_sectors >= 0, f"observation.lidar_sectors must be >= 0, got {self.lidar_sectors!r}")
@@ -159,7 +165,7 @@ class ObservationConfig:
 
     @property
     def changes_anything(self) -> bool:
-        return bool(self.drop) or self.lidar_sectors > 0 or self.waypoint or self.lookahead_m > 0
+        return bool(self.drop) or self.lidar_sectors > 0 or self.waypoint or self.lookahead_m > 0 or self.belief_map.cells > 0
 
 
 def task_route(base: Any, route: RouteConfig) -> NDArray[np.float64] | None:
@@ -239,6 +245,12 @@ class TaskObservation(gym.ObservationWrapper[dict[str, Any], Any, dict[str, Any]
             if self._cursor is None:
                 self._cursor = route_cursor(base, route or RouteConfig(), f"observation.{key}")
             kept[key] = spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self._bounds_m: tuple[float, float, float, float] | None = None
+        if config.belief_map.cells:
+            if "estimate" not in space.spaces:
+                raise ConfigError("observation.belief_map is the localizer's belief: make the env with localizer=...")
+            self._bounds_m = tuple(float(b) for b in base.landmark_map.bounds_m)  # type: ignore[assignment]
+            kept["belief_map"] = spaces.Box(0.0, 1.0, config.belief_map.shape, np.float32)
         self.observation_space = spaces.Dict(kept)
 
     def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
@@ -250,6 +262,10 @@ class TaskObservation(gym.ObservationWrapper[dict[str, Any], Any, dict[str, Any]
             out["lidar_summary"] = (least / self.config.lidar_clip_m).astype(np.float32)
         if self._cursor is not None:
             out.update(self._route_points())
+        if self._bounds_m is not None:
+            localizer = self.env.get_wrapper_attr("localizer")
+            estimate = self.env.get_wrapper_attr("estimate")
+            out["belief_map"] = belief_map(self.config.belief_map, localizer.overlay(), estimate, self._bounds_m)
         return out
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:

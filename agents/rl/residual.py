@@ -54,7 +54,7 @@ from numpy.typing import NDArray
 
 from agents.policies.fixed import FIXED_POLICIES, make_policy, task_route_kwargs
 from agents.rl.observation import RouteConfig
-from localizers.schema import ConfigError, check, is_real
+from core.schema import ConfigError, check, is_real
 
 #: the observation entry with the base policy's command
 BASE_KEY = "base_action"

@@ -19,7 +19,7 @@ policy never observes. Per step:
 Each term goes into ``info["reward_terms"]``; they sum to the reward. The last four weigh 0 by
 default, which keeps the soccer tasks' reward as it was: there, localizing is the whole task. In
 the room, the corridor and the campus it is not: with the first five terms alone, standing still
-scores best (issue 31), so their tasks weigh time, progress and a confident wrong pose too.
+scores best, so their tasks weigh time, progress and a confident wrong pose too.
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ import gymnasium as gym
 import numpy as np
 
 from agents.rl.observation import RouteConfig, RouteCursor, route_cursor
-from localizers.geometry import wrap_angle
-from localizers.schema import check, from_mapping
+from core.geometry import wrap_angle
+from core.schema import check, from_mapping
 
 TERMS = ("position", "heading", "no_fix", "first_fix", "collision", "wrong_pose", "time", "progress", "goal")
 

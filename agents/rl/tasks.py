@@ -9,7 +9,8 @@ the real reward, and ``env.spec.id`` names the task (:func:`agents.rl.train.make
 
     env = gym.make("crowdloc/ActiveCandidateSets-v0")   # == configs/experiments/ppo_candidate_sets.yaml
 
-The ids are registered by :mod:`envs` (by name only: this module is imported when one is made).
+The ids are registered by ``import agents`` (:mod:`agents.rl.task_ids`, by name only: this module is
+imported when one is made).
 """
 
 from __future__ import annotations

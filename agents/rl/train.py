@@ -44,10 +44,11 @@ from agents.rl.config import EXPERIMENT_DIR as EXPERIMENT_DIR
 from agents.rl.config import PPOConfig as PPOConfig
 from agents.rl.config import load_train_config as load_train_config
 from agents.rl.config import parse_overrides as parse_overrides
+from agents.rl.layout_episodes import LayoutEpisodes
 from agents.rl.observation import ObservationConfig, RouteConfig, TaskObservation
 from agents.rl.residual import MODEL_ACTION_ATTR, ActionConfig, ResidualAction
 from agents.rl.rewards import ActiveLocalizationReward, RewardWeights
-from localizers.schema import ConfigError, check, merge_nested
+from core.schema import ConfigError, check, merge_nested
 
 
 @dataclass(frozen=True)
@@ -100,8 +101,8 @@ class EpisodeSeeds(gym.Wrapper):
     def replay(self, position: EnvPosition) -> str:
         """Reset into ``position``'s episode and step its actions: back at ``position``.
 
-        Returns ``""`` when the env arrived there, else what went otherwise (the env no longer
-        plays as when the position was taken: an episode of a run never ends at its position).
+        Returns ``""`` when the env arrived there, else what went otherwise (the env does not
+        play as when the position was taken: an episode of a run never ends at its position).
         """
         self.episode = position.episode
         self.reset()
@@ -123,14 +124,29 @@ def _same_obs(a: Any, b: Any) -> bool:
     return np.array_equal(a, b)
 
 
-def make_task_env(config: TrainConfig, crowd_size: int | None, **make_kwargs: Any) -> gym.Env[Any, Any]:
+def make_task_env(
+    config: TrainConfig, crowd_size: int | None, layout_split: str | None = None, **make_kwargs: Any
+) -> gym.Env[Any, Any]:
     """The task a training config describes, at one crowd size: its world, localizer and
     conditions (``env_kwargs``, then ``make_kwargs`` on top), with the active-localization reward
     and the observation the config gives its policy.
 
     ``make_kwargs`` may override the localizer's parameters (``localizer_params``, merged over the
     config's key by key) but not the localizer itself (a ``ConfigError``: the task is its localizer's).
+    ``layout_split`` (``"train"``, ``"validation"`` or ``"test"``, for a config with ``layouts``)
+    plays every episode on a layout of that split (:class:`~agents.rl.layout_episodes.LayoutEpisodes`).
     """
+    if layout_split is not None:
+        if config.layouts is None:
+            raise ConfigError(f"layout_split={layout_split!r}: training config {config.name!r} has no layouts")
+        if "layout" in make_kwargs:
+            raise ConfigError(f"give layout_split={layout_split!r} or layout={make_kwargs['layout']!r}, not both")
+        seeds = config.layouts.seeds(layout_split)
+        max_episode_steps = make_kwargs.pop("max_episode_steps", None)
+        env: gym.Env[Any, Any] = LayoutEpisodes(
+            lambda layout: make_task_env(config, crowd_size, layout=layout, **make_kwargs), seeds, config.layout_cache
+        )
+        return env if max_episode_steps is None else gym.wrappers.TimeLimit(env, max_episode_steps)
     kwargs = {**dict(config.env_kwargs), **make_kwargs}
     if "localizer" in kwargs:
         raise ConfigError(
@@ -207,7 +223,8 @@ def make_training_env(config: TrainConfig, env_index: int) -> gym.Env[Any, Any]:
     from stable_baselines3.common.monitor import Monitor
 
     crowd = config.crowd_sizes[env_index % len(config.crowd_sizes)]
-    env = make_task_env(config, crowd, max_episode_steps=config.ppo.n_steps)
+    split = None if config.layouts is None else "train"
+    env = make_task_env(config, crowd, split, max_episode_steps=config.ppo.n_steps)
     return EpisodeSeeds(Monitor(env), config.seed, env_index)
 
 
@@ -368,7 +385,7 @@ def _resumed_model(config: TrainConfig, resume: Path, state: Mapping[str, Any]) 
     replay against the observation it had (its own: stable-baselines3 may transpose images).
 
     Raises:
-        ConfigError: for a checkpoint whose envs no longer replay to where the run had them.
+        ConfigError: for a checkpoint whose envs do not replay to where the run had them.
     """
     from stable_baselines3 import PPO
 
@@ -380,7 +397,7 @@ def _resumed_model(config: TrainConfig, resume: Path, state: Mapping[str, Any]) 
             venv.close()
             raise ConfigError(
                 f"checkpoint {resume}: env {i}, replayed into its episode {position.episode}, does not reach where the run "
-                f"had it ({problem}): the task no longer plays as when the checkpoint was written"
+                f"had it ({problem}): the task does not play as when the checkpoint was written"
             )
     _set_random_states(state["random"])  # last: an env in this process may draw from them while replaying
     return model, venv
@@ -394,6 +411,11 @@ def _new_model(config: TrainConfig, directory: Path, verbose: int) -> tuple[Any,
     set_random_seed(config.seed)
     venv = make_vec_env(config)
     p = config.ppo
+    policy_kwargs: dict[str, Any] = {"net_arch": list(p.net_arch), "log_std_init": p.log_std_init}
+    if config.observation.belief_map.cells:
+        from agents.rl.extractor import BeliefMapExtractor
+
+        policy_kwargs["features_extractor_class"] = BeliefMapExtractor
     model = PPO(
         "MultiInputPolicy",
         venv,
@@ -407,7 +429,7 @@ def _new_model(config: TrainConfig, directory: Path, verbose: int) -> tuple[Any,
         ent_coef=p.ent_coef,
         vf_coef=p.vf_coef,
         max_grad_norm=p.max_grad_norm,
-        policy_kwargs={"net_arch": list(p.net_arch), "log_std_init": p.log_std_init},
+        policy_kwargs=policy_kwargs,
         tensorboard_log=str(directory / "tb"),
         seed=config.seed,
         device="cpu",

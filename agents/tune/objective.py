@@ -24,8 +24,8 @@ from agents.experiments.replay import Recording, record, replay
 from agents.experiments.scenarios import SoccerDriver
 from agents.rl.config import EVAL_SEED_BASE
 from agents.tune.space import SearchSpace
+from core.schema import ConfigError
 from localizers.registry import load_params, prepared_params, spec
-from localizers.schema import ConfigError
 
 DEFAULT_ENV_ID = "crowdloc/RoboCupCrowded-v0"
 #: the LIDAR paper's room (docs/papers.md section B) and its square path

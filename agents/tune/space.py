@@ -28,8 +28,8 @@ import optuna
 
 import crowdloc_configs
 from agents.common.util import nest
+from core.schema import ConfigError, is_int, is_real, load_yaml
 from localizers.registry import LOCALIZERS, load_params, spec
-from localizers.schema import ConfigError, is_int, is_real, load_yaml
 
 TUNING_CONFIG_DIR = crowdloc_configs.path("tuning")  # package data (configs/ in the checkout)
 _SPEC_KEYS = ("low", "high", "log", "step", "choices", "at_most")

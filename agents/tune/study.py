@@ -41,8 +41,8 @@ from agents.tune.objective import (
 from agents.tune.plan import DEFAULT_STORAGE, StudyPlan, TuneConfig, TuneResult, default_study_name
 from agents.tune.report import write_report
 from agents.tune.space import UNTUNED, SearchSpace, load_search_space, tunable_localizers
+from core.schema import ConfigError
 from localizers.registry import spec
-from localizers.schema import ConfigError
 
 #: median pruning: trials run unpruned until this many finished; none is pruned before its second episode
 PRUNER_STARTUP_TRIALS = 5
@@ -221,7 +221,7 @@ def _optimize(config: TuneConfig, study: optuna.Study, objective: Objective, fir
     remaining = config.trials
     if study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.WAITING,)):
         # the enqueued defaults run here, before any worker starts: on SQLite two processes
-        # can pop the same waiting trial (optuna issue #4002)
+        # can pop the same waiting trial (https://github.com/optuna/optuna/issues/4002)
         study.optimize(objective, n_trials=1, catch=(ConfigError,))
         remaining -= 1
     workers = min(config.workers, remaining)

@@ -24,11 +24,11 @@ from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check, is_real
 from envs.bodies import CarConfig, PersonConfig
 from envs.crowds.steering import draw_seers, see_robot
 from envs.plugins import Entry, Registry
 from envs.state import Rows, WorldState
-from localizers.schema import check, is_real
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -108,8 +108,7 @@ class PeopleConfig(CrowdConfig):
     does (:func:`envs.crowds.steering.see_robot`, CrowdNav's "visible robot"): a social force
     from the robot's disc, and stepping aside, slowing or waiting when contact is near. The
     others treat it as the crowd always has (0: the invisible robot, CrowdNav's other setting,
-    for studies of inattentive crowds). The default is 1: everyone sees it (issue 30; the crowds
-    before it were 0).
+    for studies of inattentive crowds). The default is 1: everyone sees it.
     """
 
     sees_robot: float = 1.0

@@ -29,13 +29,13 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from core.raycast import cast_rays
+from core.schema import ConfigError, check, check_ranges
 from envs.crowds.base import Commands, Crowd, PeopleConfig, Taken, register_crowd
 from envs.crowds.queues import PEOPLE_FILL
 from envs.crowds.steering import SEEK_RELAXATION_S, seek
 from envs.crowds.walkers import SPEED_CAP, social_force_velocities
 from envs.state import Rows, WorldState
-from localizers.raycast import cast_rays
-from localizers.schema import ConfigError, check, check_ranges
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check
 from envs.crowds.base import Commands, Crowd, PeopleConfig, Taken, register_crowd
 from envs.crowds.steering import SEEK_RELAXATION_S, TRANSIT_M, give_way, seek
 from envs.state import Rows, WorldState
-from localizers.schema import check
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

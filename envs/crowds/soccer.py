@@ -15,10 +15,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check, check_ranges
 from envs.crowds.base import BodySpec, Commands, Crowd, CrowdConfig, Taken, register_crowd
 from envs.crowds.steering import ARRIVE_RADIUS_M, seek
 from envs.state import Rows, WorldState
-from localizers.schema import check, check_ranges
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

@@ -14,11 +14,11 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check
 from envs.crowds.base import Commands, Crowd, PeopleConfig, Taken, register_crowd
 from envs.crowds.queues import PEOPLE_FILL
 from envs.crowds.steering import cap_speed
 from envs.state import Rows, WorldState
-from localizers.schema import check
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

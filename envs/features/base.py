@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check
 from envs.plugins import Registry
-from localizers.schema import check
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

@@ -25,8 +25,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check, check_rgb
 from envs.features.base import FeatureConfig, register_feature
-from localizers.schema import check, check_rgb
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -278,7 +278,7 @@ class CeilingConfig(FeatureConfig):
             "end_size_m": self.end_size_m,
             "targets": targets,
             "palette": {name: list(rgb) for name, rgb in PALETTE.items()},
-            # the ceiling as built (a building's ceiling plan), for a lost test by the scenery (issue 27)
+            # the ceiling as built (a building's ceiling plan), for a lost test by the scenery
             "plan": {
                 "tile_m": self.tile_m,
                 "tile_origin_m": list(self.tile_origin_m),

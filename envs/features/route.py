@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check
 from envs.features.base import FeatureConfig, register_feature
-from localizers.schema import check
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check, check_ranges, check_rgb
 from envs.features.base import (
     FacadeProfile,
     FeatureConfig,
@@ -37,7 +38,6 @@ from envs.features.base import (
     register_feature,
     regular_polygon,
 )
-from localizers.schema import check, check_ranges, check_rgb
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

@@ -28,12 +28,12 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from core.geometry import in_field_of_view
+from core.raycast import sight_lines_clear
+from core.schema import check
 from envs.palette import landmark_color
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.state import WorldState
-from localizers.geometry import in_field_of_view
-from localizers.raycast import sight_lines_clear
-from localizers.schema import check
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -358,7 +358,7 @@ def _camera_frame(
 
     ``targets_xy`` (radii, ranges) holds the ``L`` landmarks, then the distractors; a target is
     in view where its sight line is clear of the walls ``seg_a``-``seg_b`` and the discs
-    ``centres``, ``radii`` (:func:`~localizers.raycast.sight_lines_clear`) and ``in_fov`` holds.
+    ``centres``, ``radii`` (:func:`~core.raycast.sight_lines_clear`) and ``in_fov`` holds.
     Per slot, first match wins: a random false detection; nothing when the slot drops out (a
     missed detection drops the slot, whichever object would have filled it); the landmark
     when visible; the nearest distractor in view of that landmark; else the slot stays zero.

@@ -63,14 +63,14 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from core.geometry import undistort
+from core.schema import ConfigError, check, check_ranges
 from envs.features.ceiling import LABEL_CEILING, LABEL_HEAD, LABEL_JOINT, CeilingConfig
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.sensors.exposure import blur_expose
 from envs.sensors.glare import Glare, GlareConfig
 from envs.sensors.light_colour import cct_white_rgb, check_light, grey_world_gains, white_balance_gains
 from envs.state import WorldState
-from localizers.ceiling_vision import undistort
-from localizers.schema import ConfigError, check, check_ranges
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -119,7 +119,7 @@ class CeilingCameraConfig(SensorConfig):
     gain_time_period_s: float = 7.0
     vignetting: float = 0.25  # relative darkening at the image corners
     exposure_s: float = 1.0 / 60.0  # 0: no motion blur
-    # The light's colour (issue 30; off by default: the shipped corridor's light is colourless). To turn it on,
+    # The light's colour (off by default: the shipped corridor's light is colourless). To turn it on,
     # set the camera's fixed white balance, e.g. white_balance_k: 6500 (sRGB's D65 white, a camera's daylight
     # preset), and the light's CCT: cct_k: [4230, 5500] (under the panels cool-white fluorescent tubes, CIE
     # illuminant F2, CCT 4230 K; midway between them more daylight through the doors, CIE D55, 5503 K;
@@ -132,7 +132,7 @@ class CeilingCameraConfig(SensorConfig):
     # Auto white balance (off), in place of white_balance_k: grey world, every frame's mean made grey (G. Buchsbaum,
     # "A spatial processor model for object colour perception", J. Franklin Inst. 310(1), 1980, 1-26)
     auto_white_balance: bool = False
-    glare: GlareConfig = GlareConfig()  # the tape's glare spot (issue 30; off: no lamps; envs/sensors/glare.py)
+    glare: GlareConfig = GlareConfig()  # the tape's glare spot (off: no lamps; envs/sensors/glare.py)
     texel_m: float = 0.0025  # the rendered ceiling's resolution (a pixel sees 3.4 mm of it)
     head_height_m: float = 1.70  # the people's heads, as discs at this height (0: no heads)
     head_radius_m: float = 0.12  # a head with its hair; people pressing on the robot show at the image corners

@@ -1,4 +1,4 @@
-"""A specular glare spot on the ceiling's glossy fluorescent tape, seen by the upward camera (issue 30).
+"""A specular glare spot on the ceiling's glossy fluorescent tape, seen by the upward camera.
 
 **Where the spot is.** The tape lies on the ceiling plane (height ``H``) and the camera looks up
 from below it (``d_c = H - z_camera`` under the ceiling). The tape mirrors a lamp at ``(x_L, y_L, z_L)``
@@ -37,8 +37,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check
 from envs.features.ceiling import LABEL_COLOUR
-from localizers.schema import check
 
 
 @dataclass(frozen=True)

@@ -16,10 +16,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import check
 from envs.sensors.base import SensorConfig, register_sensor
 from envs.sensors.ranging import RangeSensor, check_ray_count
 from envs.state import WorldState
-from localizers.schema import check
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -35,8 +35,8 @@ class LidarConfig(SensorConfig):
     max_range_m: float = 30.0
     range_std_m: float = 0.01
     height_m: float = 0.2  # the scan plane's height above the floor
-    # seconds one turn of the scanner takes; 0: every beam at the end of the step (instantaneous, the default,
-    # issue 30). The datasheet values: Hokuyo UTM-30LX 0.025 (25 ms/scan, 40 Hz; its 270 deg of beams take
+    # seconds one turn of the scanner takes; 0: every beam at the end of the step (instantaneous, the default).
+    # The datasheet values: Hokuyo UTM-30LX 0.025 (25 ms/scan, 40 Hz; its 270 deg of beams take
     # 18.75 ms of the turn), Velodyne VLP-16 0.1 (600 rpm, 10 Hz, its default). See beam_lags_s.
     sweep_s: float = 0.0
 

@@ -1,7 +1,7 @@
 """The colour of light in the ceiling camera's images: a light's colour temperature against the
 camera's white balance, fixed or automatic (grey world), one gain per channel
 (:class:`envs.sensors.ceiling_camera.CeilingCameraConfig`'s ``white_balance_k``, ``cct_k``,
-``daylight_cct_k`` and ``auto_white_balance``; issue 30)."""
+``daylight_cct_k`` and ``auto_white_balance``)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.schema import check
+from core.schema import check
 
 #: the colour temperatures the Planckian-locus fit of :func:`cct_white_rgb` covers with every
 #: linear sRGB channel of the white positive (Krystek's fit holds over 1000-15000 K; below about

@@ -45,10 +45,10 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from core.motion import odometry_noise_std, sample_odometry
+from core.schema import check, check_ranges
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.state import WorldState
-from localizers.motion import odometry_noise_std, sample_odometry
-from localizers.schema import check, check_ranges
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
@@ -113,8 +113,8 @@ class Odometry(SensorBase):
     ``command(delta)`` is called by the env with the exact commanded increment before the
     physics step. With systematic errors set it is first turned into what the wheel encoders
     and the nominal kinematics make of it (module docstring); the noise follows the alpha
-    model (:mod:`localizers.motion`). Without them the reading is the command plus noise,
-    by the same code and to the same bit as before the systematic errors existed.
+    model (:mod:`core.motion`). Without them the reading is the command plus noise,
+    from the alpha model alone (the systematic errors' code is skipped).
     """
 
     def __init__(self, name: str, config: OdometryConfig, world: WorldConfig, state: WorldState) -> None:

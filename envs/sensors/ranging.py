@@ -1,9 +1,9 @@
 """Range sensors: rays cast from the robot's centre against walls and everything that moves.
 
 A sensor whose rays take time (a swept LIDAR: ``ray_lags_s``) casts each ray from the robot's pose
-at its time within the step (:func:`localizers.geometry.poses_along_step` between the step's start
+at its time within the step (:func:`core.geometry.poses_along_step` between the step's start
 and end poses), along its direction relative to the heading then, in one batched call
-(:func:`localizers.raycast.cast_rays_from`). What moves stays where it is at the end of the step
+(:func:`core.raycast.cast_rays_from`). What moves stays where it is at the end of the step
 (a person walking at 1.5 m/s moves 2.8 cm in a UTM-30LX's 18.75 ms of beams).
 
 :class:`RangeSensor` casts, adds noise and draws; the sensor types say where the rays go and
@@ -20,11 +20,11 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from core.geometry import poses_along_step
+from core.raycast import cast_rays, cast_rays_from
+from core.schema import check
 from envs.sensors.base import SensorBase
 from envs.state import WorldState
-from localizers.geometry import poses_along_step
-from localizers.raycast import cast_rays, cast_rays_from
-from localizers.schema import check
 
 #: the most rays a range sensor may cast: one every 0.05 deg over a full turn, finer than 2-D
 #: scanning range finders resolve (the Hokuyo UTM-30LX: 0.25 deg); every ray is cast every step,

@@ -9,11 +9,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from core.geometry import ring_directions
+from core.schema import check
 from envs.sensors.base import SensorConfig, register_sensor
 from envs.sensors.ranging import RangeSensor, check_ray_count
 from envs.state import WorldState
-from localizers.geometry import ring_directions
-from localizers.schema import check
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

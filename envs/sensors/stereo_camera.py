@@ -8,11 +8,11 @@ the sensor reports the vertical edges seen by all three cameras, each as a detec
 1. **edges**: at 5 detection rows in the upper part of the image, the paper's tall filter
    (101 x 7 at 640 x 480, scaled to the resolution) on each colour channel; an edge's *type*
    is its channel, row and polarity (rising or falling), 30 types
-   (:func:`localizers.stereo_vision.edge_type`);
+   (:func:`envs.stereo.vision.edge_type`);
 2. **matching**: left and right edges of one type, each pair confirmed by an edge of that type in
-   the middle camera half-way between them (:func:`localizers.stereo_vision.match_trinocular`);
+   the middle camera half-way between them (:func:`envs.stereo.vision.match_trinocular`);
 3. **range and bearing** from the outer pair's disparity by the paper's eqs. (2)-(5),
-   converted to the robot frame (:func:`localizers.stereo_vision.rig_range_bearing`): the
+   converted to the robot frame (:func:`envs.stereo.vision.rig_range_bearing`): the
    range error grows as ``r^2 / (f b)``.
 
 Two modes produce step 1:
@@ -28,9 +28,9 @@ Two modes produce step 1:
   then matched and triangulated exactly as in the image mode. Training and sweeps use it; a
   test shows both modes find the same edges on a clean scene.
 
-**Free-running webcams** (issue 30; the defaults, the paper's cameras; ``synchronised: true``,
-``exposure_range: [1, 1]``, ``white_balance_k: [0, 0]`` and ``fast_edges: lines`` give the cameras
-before it). The paper's three USB webcams have no hardware sync and their own
+**Free-running webcams** (the defaults, the paper's cameras; ``synchronised: true``,
+``exposure_range: [1, 1]``, ``white_balance_k: [0, 0]`` and ``fast_edges: lines`` give synchronised
+cameras of equal gains). The paper's three USB webcams have no hardware sync and their own
 auto exposure and white balance. With ``synchronised: false`` each camera takes its frame
 ``frame_lags_s`` before the step's end (drawn per episode uniformly within one ``frame_period_s``,
 the webcams' 30 fps), from the robot's pose then (:meth:`StereoCamera.camera_poses`, the swept
@@ -46,7 +46,7 @@ children of the sensor stream at the first frame after a reset, and only when an
 The fast mode's ``fast_edges: rows`` goes with them: each camera's filter response along each
 detection row is rebuilt from the lines' colour steps (:func:`envs.stereo.geometric.row_response`)
 and searched by the image mode's detector, so steps closer than the filter's width add up or cancel
-as in the images (``lines``, before issue 30: each line is an edge of its own, weakened by its neighbours).
+as in the images (``lines``: each line is an edge of its own, weakened by its neighbours).
 
 The images are in the observation only with ``images: true`` (keys ``<key>_left``,
 ``<key>_middle``, ``<key>_right``, uint8 ``(H, W, 3)``); the fast mode then renders them
@@ -66,16 +66,16 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from core.geometry import poses_along_step
+from core.schema import ConfigError, check, check_ranges, is_real
 from envs.sensors.base import SensorBase, SensorConfig, register_sensor
 from envs.sensors.light_colour import CCT_RANGE_K, white_balance_gains
 from envs.state import WorldState
+from envs.stereo.edges import find_edges
 from envs.stereo.geometric import camera_edges, lines, row_response
 from envs.stereo.render import ColumnRenderer, Moving
 from envs.stereo.scene import Rig, static_scene
-from localizers.geometry import poses_along_step
-from localizers.schema import ConfigError, check, check_ranges, is_real
-from localizers.stereo_edges import find_edges
-from localizers.stereo_vision import (
+from envs.stereo.vision import (
     CHANNEL_COLOURS,
     EDGE_TYPES,
     LEVELS,
@@ -146,8 +146,8 @@ class StereoCameraConfig(SensorConfig):
     gain_range: tuple[float, float] = (0.8, 1.2)
     render_range_m: float = 200.0  # nothing farther is drawn or seen
     show_images: bool = True  # rendered frames show the three images with their edges under the top view
-    # ---- free-running webcams (issue 30: the paper's cameras are the defaults; the values in brackets give the
-    # cameras before it). The paper's three BUFFALO BSW200MBK USB webcams have no hardware sync: each streams on
+    # ---- free-running webcams (the paper's cameras are the defaults; the values in brackets give synchronised
+    # cameras of equal gains). The paper's three BUFFALO BSW200MBK USB webcams have no hardware sync: each streams on
     # its own clock. false (the default): each camera's frame is taken frame_lags_s before the end of the step
     # (drawn per episode, uniform within one frame period, unless given), from the robot's pose then; [true]: all
     # at the step's end.
@@ -175,7 +175,7 @@ class StereoCameraConfig(SensorConfig):
     # image puts them, and searched for peaks by the image mode's detector (envs.stereo.geometric.row_response), so
     # that steps closer than the filter's width add up or cancel as in the images, and an edge's column is where the
     # image's detector puts it (whole pixels for a sharp step; edge_noise_px is not used): the default, which agrees
-    # with the image mode within 5 % per row and type on the campus (issue 30; benchmarks/stereo_webcams.py measures it)
+    # with the image mode within 5 % per row and type on the campus (benchmarks/stereo_webcams.py measures it)
     fast_edges: Literal["lines", "rows"] = "rows"
 
     def __post_init__(self) -> None:
@@ -229,7 +229,7 @@ class StereoCameraConfig(SensorConfig):
         return float(self.frame_period_s)
 
     def _check_webcams(self, where: str) -> None:
-        """The free-running webcams' fields (issue 30)."""
+        """The free-running webcams' fields."""
         period = self.frame_period_s
         check(math.isfinite(period) and period > 0, f"{where}.frame_period_s must be finite and > 0 s, got {period}")
         if self.frame_lags_s is not None:
@@ -341,7 +341,7 @@ class StereoCamera(SensorBase):
         self._gain = 1.0
         self._fresh = True
         self._dt_s = float(world.dt_s)
-        # the free-running webcams (issue 30), drawn per episode when on: each camera's lag behind the
+        # the free-running webcams, drawn per episode when on: each camera's lag behind the
         # step's end (s) and its gain per channel (exposure x white balance); None: synchronised cameras of equal gains
         self.frame_lags_s: NDArray[np.float64] | None = None
         self.camera_gains: NDArray[np.float64] | None = None
@@ -433,7 +433,7 @@ class StereoCamera(SensorBase):
     def camera_poses(self, state: WorldState) -> NDArray[np.float64]:
         """``(3,)`` the robot's pose at the step's end, or with unsynchronised cameras ``(3, 3)``
         the robot's pose when each camera took its frame: ``frame_lags_s`` before the step's end,
-        along the step's motion (:func:`localizers.geometry.poses_along_step`, the model the swept
+        along the step's motion (:func:`core.geometry.poses_along_step`, the model the swept
         LIDAR uses). The bodies stay where they are at the step's end (a walker at 1.5 m/s moves
         5 cm in a 30 fps frame period)."""
         if self.frame_lags_s is None:
@@ -616,7 +616,7 @@ class StereoCamera(SensorBase):
     # ------------------------------------------------------------------ drawing
     def views(self, state: WorldState, width_px: int | None = None, height_px: int | None = None) -> NDArray[np.uint8]:
         """The three cameras' last images side by side (rendered now in the fast mode), each with
-        its edges marked by type (:func:`localizers.stereo_vision.draw_detections`: a marker in
+        its edges marked by type (:func:`envs.stereo.vision.draw_detections`: a marker in
         its channel's colour on its row, hollow for a rising edge, filled for a falling one);
         scaled to ``(height_px, width_px)`` when given (markers drawn after scaling)."""
         import cv2

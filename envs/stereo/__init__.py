@@ -7,5 +7,5 @@
 - :mod:`.sight`: the fast mode's lines of sight (what an image column meets, hides and shows behind).
 
 The image functions that also run on real camera frames (the vertical edge filter, trinocular
-matching, the paper's triangulation) are in :mod:`localizers.stereo_vision`.
+matching, the paper's triangulation) are in :mod:`envs.stereo.vision`.
 """

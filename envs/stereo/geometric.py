@@ -419,7 +419,7 @@ def row_response(
     u: Array, level: IntArray, response: Array, gains: Array, width: int, levels: int, half: int
 ) -> NDArray[np.float32]:  # fmt: skip
     """One camera's filter response along each detection row, rebuilt from the lines' colour steps: what
-    :func:`localizers.stereo_edges.vertical_edge_response` gives on an image whose only changes along a row
+    :func:`envs.stereo.edges.vertical_edge_response` gives on an image whose only changes along a row
     are these steps (the fast mode's ``fast_edges: rows``).
 
     Line ``n`` at column ``u[n]`` (continuous) is a step of ``gains * response[n]`` (right minus left, per

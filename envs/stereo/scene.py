@@ -15,7 +15,7 @@ runs and the colours either side.
 **Camera geometry** (:class:`Rig`): three level pinhole cameras in a row, ``baseline_m``
 apart, the middle one ``forward_m`` ahead of the robot's centre at ``height_m``. Pixel
 column ``k`` spans ``[k, k + 1)`` and its ray goes through its centre ``k + 0.5`` (the
-convention of :mod:`localizers.stereo_vision`): a point at ``(right X, forward Z, height z)``
+convention of :mod:`envs.stereo.vision`): a point at ``(right X, forward Z, height z)``
 in a camera's frame is at ``u = cx + f X / Z``, ``v = cy - f (z - height) / Z``.
 """
 

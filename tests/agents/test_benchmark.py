@@ -20,8 +20,8 @@ import yaml
 from agents.benchmark.protocol import RESERVED_BELOW, load_protocol, protocol_digest, protocol_path
 from agents.cli import main
 from agents.policies import FIXED_POLICIES
+from core.schema import ConfigError
 from localizers.registry import LOCALIZERS
-from localizers.schema import ConfigError
 
 PLUGIN = "my_crowdloc_entry"
 REPO = Path(__file__).resolve().parents[2]
@@ -236,8 +236,8 @@ def test_the_test_seeds_are_no_other_commands_seeds() -> None:
 def test_the_digest_follows_the_localizers_parameters_and_not_the_plugins(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, plugin: Path
 ) -> None:
-    """A built-in localizer's parameter file decides its numbers, so it decides the digest; a plug-in
-    registered in this process (the fixture's) does not change it."""
+    """A built-in localizer's parameter values decide its numbers, so they decide the digest; a
+    comment in the file does not, nor does a plug-in registered in this process (the fixture's)."""
     from localizers import registry
 
     protocol = load_protocol("v1")
@@ -245,9 +245,13 @@ def test_the_digest_follows_the_localizers_parameters_and_not_the_plugins(
     importlib.import_module(PLUGIN)  # registers the localizer start_pose
     assert "start_pose" in LOCALIZERS and protocol_digest(protocol) == before
     edited = tmp_path / "kalman.yaml"
-    edited.write_text(registry.params_path("kalman").read_text() + "\n# an edit\n")
+    text = registry.params_path("kalman").read_text()
     real = registry.params_path
     monkeypatch.setattr(registry, "params_path", lambda name: edited if name == "kalman" else real(name))
+    edited.write_text("# a comment\n" + text.replace("#", "# and more:"))
+    assert protocol_digest(protocol) == before
+    assert "\nmax_spread_m: 1.0 " in text
+    edited.write_text(text.replace("\nmax_spread_m: 1.0 ", "\nmax_spread_m: 1.5 "))  # a value
     assert protocol_digest(protocol) != before
 
 

@@ -1,4 +1,4 @@
-"""``crowdloc eval`` on a world task (issue 31): a trained policy observes the task's observation, the
+"""``crowdloc eval`` on a world task: a trained policy observes the task's observation, the
 fixed policies the raw sensors; the goal's metrics; the paired verdict against the best fixed policy."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from agents.evaluate.spec import Cell
 from agents.evaluate.stats import EvalResult
 from agents.rl.config import load_train_config
 from agents.rl.train import make_task_env
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 
 @pytest.fixture(scope="module")

@@ -32,7 +32,7 @@ from agents.evaluate import (
 )
 from agents.rl.config import EVAL_SEED_BASE, load_train_config
 from agents.rl.train import train
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 
 def test_cli_eval_writes_tables_plots_trajectories_and_a_gif(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -343,7 +343,7 @@ def test_the_odometry_an_episode_records_is_the_world_s_one_odometry_sensor() ->
 
 
 def test_conditions_reach_the_episode_and_the_bound() -> None:
-    from localizers.geometry import in_field_of_view
+    from core.geometry import in_field_of_view
 
     fov = 1.0
     spec = EvalSpec(policies=("spin",), localizers=("mcl_bearing",), crowd_sizes=(0,), seeds=1, episode_steps=30,

@@ -27,8 +27,8 @@ from agents.evaluate import (
     unregister_metrics,
     write_tables,
 )
+from core.schema import ConfigError
 from envs.config import world_path
-from localizers.schema import ConfigError
 
 CORE_KEYS = [m.key for m in CORE_METRICS]
 BEARING_ONLY = ("third_landmark_s", "fix_after_third_s", "bound_rmse_m", "error_bound_ratio")

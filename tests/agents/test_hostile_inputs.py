@@ -15,9 +15,9 @@ from agents import tune
 from agents.cli import main
 from agents.evaluate import EvalSpec
 from agents.evaluate.kidnap import Kidnap
+from core.schema import ConfigError
 from localizers.candidate_sets import CandidateSetParams
 from localizers.registry import load_params
-from localizers.schema import ConfigError
 
 
 def _one_line(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:

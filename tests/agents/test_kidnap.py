@@ -11,7 +11,7 @@ import pytest
 
 from agents.cli import main
 from agents.evaluate import KIDNAP_METRICS, EvalSpec, Kidnap, Track, kidnap_metrics, run_episode
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 
 def hand_made(valid: list[bool], errors: list[float]) -> Track:

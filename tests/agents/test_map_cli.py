@@ -13,8 +13,8 @@ import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.cli import main
+from localizers.far_landmark_pf.scene_map import SceneMap
 from localizers.range_table import CACHE_ENV
-from localizers.scene_map import SceneMap
 
 WORLD = "stereo_campus"
 

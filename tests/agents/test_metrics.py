@@ -51,7 +51,7 @@ def test_statistics_start_at_the_first_fix_and_skip_invalid_steps() -> None:
     est = truth.copy()
     est[:3] = np.nan  # no pose yet
     est[3:, 1] = [0.5, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.3]  # a known cross-track error
-    est[6] = np.nan  # a dropout after the fix
+    est[6] = np.nan  # a dropout after the first fix
     err = metrics.position_errors(est, truth)
     start = metrics.first_fix(np.isfinite(est[:, 0]))
     assert start == 3

@@ -19,7 +19,7 @@ from gymnasium import spaces
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.policies import make_policy
 from agents.policies.navigation import CorridorFollower
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 CORRIDOR = "crowdloc/CeilingCorridor-v0"
 TARGET_Y = {"T0": 0.0, "T1": 6.9, "T2": 13.9, "T3": 20.8}
@@ -262,7 +262,7 @@ def test_lost_after_a_pose_it_searches_by_the_sonar_and_starts_over_from_the_nex
 def test_what_is_missing_is_named() -> None:
     from envs import load_world
     from envs.localization_env import LocalizationEnv
-    from localizers.wrappers import LocalizationObservation
+    from envs.wrappers import LocalizationObservation
 
     env = gym.make(CORRIDOR)  # no localizer: no estimate in the observation
     obs, _ = env.reset(seed=0)

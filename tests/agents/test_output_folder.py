@@ -10,7 +10,7 @@ import pytest
 
 from agents.cli import main
 from agents.common.output_folder import MANIFEST_NAME, open_output_folder, read_manifest
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 PATTERNS = ("report.md", "plots/*.png", "episodes.jsonl")
 TINY_EVAL = ["eval", "--policies", "spin", "--localizers", "dead_reckoning", "--crowd-sizes", "0", "--seeds", "1",

@@ -13,9 +13,9 @@ import envs  # noqa: F401
 from agents.evaluate import metrics
 from agents.experiments.replay import Recording, measurements, odometry_deltas, record, replay, replay_into, scans
 from agents.experiments.scenarios import SoccerDriver, exp1_driver, square_driver
+from envs.wrappers import _SEED_SALT, bearing_measurement
 from localizers.base import BearingMeasurement, OdometryDelta, Overlay, PoseEstimate
 from localizers.registry import LOCALIZERS
-from localizers.wrappers import _SEED_SALT, bearing_measurement
 from tests.envs.exact import EXACT
 
 BEARING_LOCALIZERS = sorted(name for name, s in LOCALIZERS.items() if s.measurement == "bearings")

@@ -23,7 +23,7 @@ from agents.rl.config import EXPERIMENT_DIR, load_train_config
 from agents.rl.observation import ObservationConfig
 from agents.rl.residual import BASE_KEY, MODEL_ACTION_ATTR, ActionConfig, ResidualAction, check_trained_action
 from agents.rl.train import make_task_env
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 #: training config -> the fixed policy a residual corrects there
 BASES = {"ppo_room_lidar": "route_follower", "ppo_corridor_targets": "corridor_follower"}

@@ -10,8 +10,8 @@ import pytest
 
 import envs  # noqa: F401
 from agents.rl.rewards import TERMS, ActiveLocalizationReward, RewardWeights
+from core.schema import ConfigError
 from localizers.base import PoseEstimate
-from localizers.schema import ConfigError
 
 
 @pytest.mark.parametrize("localizer", ["candidate_sets", "mcl_bearing", "kalman"])

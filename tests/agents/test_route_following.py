@@ -21,9 +21,9 @@ import envs  # noqa: F401  (registers crowdloc/*)
 from agents.policies import FIXED_POLICIES, make_policy
 from agents.policies.route_following import RouteFollower
 from envs.config import load_world
+from envs.wrappers import LocalizationObservation, encode_estimate
 from localizers.base import PoseEstimate
 from localizers.dead_reckoning import DeadReckoningLocalizer, DeadReckoningParams
-from localizers.wrappers import LocalizationObservation, encode_estimate
 
 CAMPUS = "crowdloc/StereoCampus-v0"
 GOAL = np.array([50.0, 71.0])
@@ -262,7 +262,7 @@ def test_the_corridor_follows_the_turn_it_drives() -> None:
 
 
 def test_with_max_turn_it_turns_no_faster_and_slows_in_the_bend_instead() -> None:
-    """``max_turn`` (a scene map's drive on free-running webcams, issue 31): the whole campus route with no command
+    """``max_turn`` (a scene map's drive on free-running webcams): the whole campus route with no command
     turning faster than the cap; the corner takes longer at a lower speed, and the route is still driven to its end."""
     fast = drive(campus(crowd_size=0))
     env = campus(crowd_size=0)

@@ -12,7 +12,7 @@ import envs  # noqa: F401
 from agents.experiments.replay import record
 from agents.experiments.scenarios import PatrolDriver, ShoveDriver, SoccerDriver, exp1_driver, kidnap
 from agents.policies.paths import EXP1_VERTICES, polygon_commands
-from localizers.geometry import compose, wrap_angle
+from core.geometry import compose, wrap_angle
 from tests.envs.exact import EXACT
 
 DT = 1.0 / 30.0
@@ -156,7 +156,7 @@ def test_a_short_kidnap_translates_the_robot_by_the_given_distances_and_the_defa
     got = [kidnap(world, np.random.default_rng(0), 2.0)]
     np.testing.assert_allclose(got[0], [3.139814654603079, 3.87697936590399, 0.27410390540137985], atol=1e-12)
     rng = np.random.default_rng(1)
-    for _ in range(20):  # issue 27's kidnap: 2-5 m, pure translation
+    for _ in range(20):  # a short kidnap: 2-5 m, pure translation
         before = world.robot_pose.copy()
         pose = kidnap(world, rng, 2.0, max_distance_m=5.0, keep_heading=True)
         assert 2.0 <= np.hypot(*(pose[:2] - before[:2])) <= 5.0

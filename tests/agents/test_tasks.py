@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from stable_baselines3.common.monitor import Monitor
 
-import envs
+from agents.rl import task_ids
 from agents.rl.config import load_train_config
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 SOCCER_TASKS = {"crowdloc/ActiveCandidateSets-v0": "ppo_candidate_sets", "crowdloc/ActiveMCLBearing-v0": "ppo_mcl_bearing"}
 
@@ -22,7 +22,7 @@ def test_a_task_id_is_its_training_config_with_the_reward(env_id: str, config: s
     """The soccer tasks; the other worlds' tasks: tests/agents/test_world_tasks.py."""
     trained = load_train_config(config)
     env = Monitor(gym.make(env_id))
-    assert env.spec is not None and env.spec.max_episode_steps == trained.ppo.n_steps == envs.task_episode_steps(config)
+    assert env.spec is not None and env.spec.max_episode_steps == trained.ppo.n_steps == task_ids.task_episode_steps(config)
     obs, info = env.reset(seed=0)
     assert {"estimate", "estimate_valid", "sonar"} <= set(obs) and "true_pose" not in obs
     assert env.unwrapped.config.sensors["camera"].fov_rad == pytest.approx(trained.env_kwargs["camera"]["fov_rad"])
@@ -36,7 +36,7 @@ def test_a_task_id_is_its_training_config_with_the_reward(env_id: str, config: s
     assert env.get_episode_rewards() == [pytest.approx(total)]  # Monitor outside sees the task's reward
 
 
-@pytest.mark.parametrize("env_id", sorted(envs.TASK_CONFIGS))
+@pytest.mark.parametrize("env_id", sorted(task_ids.TASK_CONFIGS))
 def test_a_task_id_names_the_task_in_its_spec_and_monitor_files(env_id: str, tmp_path: Path) -> None:
     """env.spec.id was the bare world's (its wrappers inside the task cached it): rl-zoo3's monitor
     files named the world. The spec also re-makes the task, and one time limit ends its episodes."""

@@ -15,7 +15,7 @@ import torch
 from agents.cli import main
 from agents.rl.config import TrainConfig, load_train_config, parse_overrides
 from agents.rl.train import check_train_config, latest_checkpoint, run_dir, train
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 
 def tiny(total: int, **kw: object) -> TrainConfig:
@@ -86,8 +86,8 @@ def test_bad_training_configs_name_the_problem(overrides: dict, needle: str) -> 
 
 
 def test_the_initial_action_sd_is_the_configs(tmp_path: Path) -> None:
-    """``ppo.log_std_init`` sets the Gaussian actions' starting log sd; its default is SB3's own (sd 1), so the
-    shipped configs train as before it existed."""
+    """``ppo.log_std_init`` sets the Gaussian actions' starting log sd; its default is SB3's own (sd 1), so a
+    config without it trains with SB3's starting sd."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.policies import ActorCriticPolicy
 

@@ -12,8 +12,8 @@ from agents import tune
 from agents.cli import main
 from agents.evaluate import metrics
 from agents.rl.config import EVAL_SEED_BASE
+from core.schema import ConfigError, load_yaml
 from localizers.registry import load_params
-from localizers.schema import ConfigError, load_yaml
 
 TINY = ["--crowd-size", "4", "--episode-steps", "90", "--train-seeds", "1", "--eval-seeds", "1", "--quiet"]
 

@@ -19,9 +19,9 @@ from agents.experiments.replay import Recording
 from agents.papers.lidar_far_point import experiment
 from agents.tune.report import compare_held_out
 from agents.tune.study import _stored_attr
+from core.schema import ConfigError
 from envs.config import load_world
 from localizers.registry import BUILTIN_LOCALIZERS, load_params
-from localizers.schema import ConfigError
 
 # ------------------------------------------------------------------------------------ the shipped spaces
 

@@ -17,7 +17,7 @@ import crowdloc_configs
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.cli import build_parser, main
 from agents.evaluate import EvalSpec
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 
 def _parse_error(capsys: pytest.CaptureFixture[str], *argv: str) -> str:

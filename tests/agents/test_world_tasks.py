@@ -1,4 +1,4 @@
-"""The room, corridor and campus task ids (issue 31): each passes both env checkers and ``make_vec``
+"""The room, corridor and campus task ids: each passes both env checkers and ``make_vec``
 in both modes, observes no ground truth and no raw image or scan, and its reward makes a real task:
 the world's paper policy scores better than standing still, spinning and random actions."""
 
@@ -17,12 +17,13 @@ import pytest
 import crowdloc_models
 import envs
 from agents.policies.fixed import make_policy, task_route_kwargs
+from agents.rl import task_ids
 from agents.rl.config import load_train_config
 from agents.rl.observation import ObservationConfig, RouteConfig, RouteCursor
 from agents.rl.residual import ActionConfig
 from agents.rl.train import make_task_env
-from localizers.geometry import polyline_point
-from localizers.schema import ConfigError
+from core.geometry import polyline_point
+from core.schema import ConfigError
 
 #: task id -> (training config, the world's paper policy, what the policy must not observe)
 TASKS = {
@@ -33,9 +34,9 @@ TASKS = {
 
 
 def test_every_world_but_soccer_has_its_task() -> None:
-    assert {config for config, _, _ in TASKS.values()} <= set(envs.TASK_CONFIGS.values())
-    assert all(envs.TASK_CONFIGS[task] == config for task, (config, _, _) in TASKS.items())
-    worlds = {load_train_config(config).env_id for config in envs.TASK_CONFIGS.values()}
+    assert {config for config, _, _ in TASKS.values()} <= set(task_ids.TASK_CONFIGS.values())
+    assert all(task_ids.TASK_CONFIGS[task] == config for task, (config, _, _) in TASKS.items())
+    worlds = {load_train_config(config).env_id for config in task_ids.TASK_CONFIGS.values()}
     assert worlds == set(envs.ENV_WORLDS) - {"crowdloc/RoboCupStatic-v0"}
 
 
@@ -47,7 +48,7 @@ def test_a_task_passes_both_env_checkers_and_observes_its_needs(task: str) -> No
     config, _, hidden = TASKS[task]
     env = gym.make(task)
     assert env.spec is not None and env.spec.id == task
-    assert env.spec.max_episode_steps == load_train_config(config).ppo.n_steps == envs.task_episode_steps(config)
+    assert env.spec.max_episode_steps == load_train_config(config).ppo.n_steps == task_ids.task_episode_steps(config)
     space = env.observation_space
     assert isinstance(space, gym.spaces.Dict)
     assert {"estimate", "estimate_valid", "estimate_spread", "waypoint"} <= set(space.spaces)
@@ -129,7 +130,7 @@ FAST_STEPS = {"ppo_room_lidar": 800, "ppo_corridor_targets": 400, "ppo_campus_st
 
 @pytest.mark.parametrize("task", sorted(TASKS))
 def test_the_paper_policy_beats_standing_still_spinning_and_random_actions(task: str) -> None:
-    """Today's reward made standing still optimal outside soccer (issue 31); a task's reward must not."""
+    """Outside soccer the reward's first five terms alone make standing still optimal; a task's reward must not."""
     config, paper, _ = TASKS[task]
     steps = FAST_STEPS[config]
     best = _episode_return(config, paper, seed=0, steps=steps)
@@ -263,7 +264,7 @@ def test_ppo_trains_a_task_for_a_few_thousand_steps_and_its_model_drives_the_tas
 
 
 #: the task ids whose training config has a shipped policy (models/<config>.zip)
-SHIPPED_TASKS = sorted(task for task, config in envs.TASK_CONFIGS.items() if crowdloc_models.path(f"{config}.zip").is_file())
+SHIPPED_TASKS = sorted(task for task, config in task_ids.TASK_CONFIGS.items() if crowdloc_models.path(f"{config}.zip").is_file())
 
 
 def _play_shipped(task: str, seed: int, steps: int | None) -> tuple[list[list[float]], list[float]]:
@@ -271,7 +272,7 @@ def _play_shipped(task: str, seed: int, steps: int | None) -> tuple[list[list[fl
     ``steps`` steps or the whole episode (``None``)."""
     from stable_baselines3 import PPO
 
-    model = PPO.load(crowdloc_models.path(f"{envs.TASK_CONFIGS[task]}.zip"), device="cpu")
+    model = PPO.load(crowdloc_models.path(f"{task_ids.TASK_CONFIGS[task]}.zip"), device="cpu")
     env = gym.make(task)
     assert model.observation_space == env.observation_space, "the model observes what its task id gives"
     obs, _ = env.reset(seed=seed)

@@ -1,4 +1,4 @@
-"""Daylight that changes over the day, and the camera's auto white balance (grey world) (issue 30)."""
+"""Daylight that changes over the day, and the camera's auto white balance (grey world)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the ids)
+from core.schema import ConfigError, replace_checked
 from envs.config import load_world
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
 from envs.sensors.light_colour import grey_world_gains
-from localizers.schema import ConfigError, replace_checked
 from tests.envs.ceiling_frames import ceiling_frames
 
 #: midway between two light panels, away from the sprinklers, signs and targets: tiles and joints only

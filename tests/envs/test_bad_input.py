@@ -14,9 +14,9 @@ import pytest
 import yaml
 
 import envs
+from core.schema import ConfigError
 from envs.config import load_world, non_finite_numbers, world_path
 from envs.localization_env import LocalizationEnv
-from localizers.schema import ConfigError
 
 
 def write_world(tmp_path: Path, name: str, edit: Callable[[dict], object]) -> Path:

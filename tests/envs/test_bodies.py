@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
+from core.schema import ConfigError
 from envs.bodies import CROTCH_FRACTION, HIP_FRACTION, SHOULDER_FRACTION, PersonConfig
 from envs.config import load_world
 from envs.figure_model import FigureModel
 from envs.world import World
-from localizers.schema import ConfigError
 
 STILL = np.zeros(2, dtype=np.float32)
 #: one exact adult: every range collapsed to a value

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
+from core.schema import ConfigError
 from envs.bodies import CarConfig
 from envs.config import load_world
 from envs.crowds.campus import CampusConfig, CampusCrowd
 from envs.crowds.campus.traffic import box_disc_gap, boxes_overlap
 from envs.localization_env import LocalizationEnv
-from localizers.schema import ConfigError
 
 ID = "crowdloc/StereoCampus-v0"
 STILL = np.zeros(2, dtype=np.float32)

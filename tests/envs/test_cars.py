@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
+from core.schema import ConfigError
 from envs.bodies import CarConfig
 from envs.config import load_world
 from envs.figure_model import FigureModel
-from localizers.schema import ConfigError
 
 STILL = np.zeros(2, dtype=np.float32)
 CAR = CarConfig()  # 4.4 x 1.8 m, sill 0.3, beltline 0.95, roof 1.45, wheels r 0.32 at +-1.325, +-0.775

@@ -11,11 +11,11 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs  # noqa: F401  (registers the ids)
+from core.schema import ConfigError, from_mapping
 from envs.config import load_world
 from envs.features.ceiling import LABEL_CEILING, LABEL_HEAD, CeilingConfig, CeilingTarget, colour_label
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera, undistort
-from localizers.schema import ConfigError, from_mapping
 
 ID = "crowdloc/CeilingCorridor-v0"
 CLEAN = IDEAL  # every imperfection of the camera off

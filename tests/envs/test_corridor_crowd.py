@@ -15,10 +15,10 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import envs  # noqa: F401  (registers crowdloc/*)
+from core.schema import ConfigError
 from envs.crowds import CorridorConfig, CorridorCrowd
 from envs.crowds.corridor import group_ring
 from envs.localization_env import LocalizationEnv
-from localizers.schema import ConfigError
 
 ENV_ID = "crowdloc/CeilingCorridor-v0"
 STILL = np.zeros(2, dtype=np.float32)

@@ -1,6 +1,6 @@
-"""Dead reckoning ("odometry only", every paper's first baseline) runs in every world (issue 27): it needs
+"""Dead reckoning ("odometry only", every paper's first baseline) runs in every world: it needs
 odometry and the start pose, nothing else. Where the world has a bearing camera it reads (and validates) the
-bearings as before; elsewhere it reads its registry entry's fallback kind, the odometry itself."""
+bearings; elsewhere it reads its registry entry's fallback kind, the odometry itself."""
 
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ def test_dead_reckoning_runs_through_gym_make_in_every_world(env_id: str) -> Non
 def test_the_fallback_applies_only_without_a_bearing_camera() -> None:
     camera = {"odometry": {"type": "odometry"}, "camera": {"type": "bearing_camera"}}
     lidar = {"odometry": {"type": "odometry"}, "lidar": {"type": "lidar"}}
-    assert measurement_in("dead_reckoning", camera) == "bearings"  # as before: its numbers there are unchanged
+    assert measurement_in("dead_reckoning", camera) == "bearings"  # with a bearing camera it reads the bearings
     assert measurement_in("dead_reckoning", lidar) == "odometry"
     assert measurement_in("candidate_sets", lidar) == "bearings"  # no fallback: refused by the wrapper, naming the sensor
 

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
+from core.geometry import wrap_angle
+from core.schema import ConfigError
 from envs.config import load_world, world_path
 from envs.palette import landmark_color
 from envs.render import Renderer
 from envs.sensors.bearing_camera import BearingCameraConfig, DistractorConfig
-from localizers.geometry import wrap_angle
-from localizers.schema import ConfigError
 
 STILL = np.zeros(2, dtype=np.float32)
 # robocup_static: field x in [0, 5], y in [0, 10], walls 0.5 m beyond it; L5 (5, 10) seen within

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
+from core.schema import ConfigError
 from envs.config import FurnitureConfig, load_world
 from envs.world import World
 from localizers.base import LandmarkMap
-from localizers.schema import ConfigError
 
 STILL = np.zeros(2, dtype=np.float32)
 

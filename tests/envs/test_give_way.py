@@ -58,7 +58,7 @@ def test_give_way_turns_only_members_on_a_collision_course() -> None:
 
 
 def test_bad_give_way_values_are_refused() -> None:
-    from localizers.schema import ConfigError
+    from core.schema import ConfigError
 
     with pytest.raises(ConfigError, match="queues.give_way_margin_m must be finite and >= 0, got -1"):
         gym.make("crowdloc/CrowdedRoom-v0", crowd={"queues": {"give_way_margin_m": -1.0}})

@@ -1,4 +1,4 @@
-"""The glare spot on the ceiling's glossy tape (issue 30): its place by the mirror geometry, its lobe, the sensor's saturation."""
+"""The glare spot on the ceiling's glossy tape: its place by the mirror geometry, its lobe, the sensor's saturation."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the ids)
+from core.schema import ConfigError
 from envs.features.ceiling import LABEL_COLOUR
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
 from envs.sensors.glare import mirror_spot_xy
-from localizers.schema import ConfigError
 from tests.envs.ceiling_frames import ceiling_frames
 
 CEILING_M, MOUNT_M = 2.5, 0.75

@@ -1,4 +1,4 @@
-"""The swept LIDAR (``lidar.sweep_s``, issue 30): each beam from the robot's pose at its own time.
+"""The swept LIDAR (``lidar.sweep_s``): each beam from the robot's pose at its own time.
 
 Analytic: in the bare room (four walls) a robot turning in place at ``w`` sees every beam
 turned back by ``w`` times its lag, so the back wall's points from the first beams (taken
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
+from core.schema import ConfigError
 from envs.config import load_world
 from envs.sensors.lidar import beam_lags_s
-from localizers.schema import ConfigError
 
 BARE_ROOM = dataclasses.replace(load_world("crowded_room"), walls=(), furniture=())
 NO_SLIP = {"slip_per_accel_s2": 0.0, "slip_per_angular_accel_s2": 0.0, "slip_in_contact": 0.0}
@@ -110,7 +110,7 @@ def test_driving_shifts_each_wall_point_by_the_travel_during_its_lag() -> None:
 
 
 def test_no_sweep_and_a_robot_standing_still_give_todays_scan_bit_for_bit() -> None:
-    """``sweep_s: 0`` casts as before (every beam from the end pose); a robot that does not move
+    """``sweep_s: 0`` casts every beam from the end pose; a robot that does not move
     sees the same scan with any sweep, noise and crowd included."""
     still = np.zeros(2, dtype=np.float32)
     scans = {}

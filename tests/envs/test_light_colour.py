@@ -1,4 +1,4 @@
-"""The ceiling camera's light colour (issue 30): the light's colour temperature against a fixed white balance."""
+"""The ceiling camera's light colour: the light's colour temperature against a fixed white balance."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the ids)
+from core.schema import ConfigError
 from envs.features.ceiling import LABEL_CEILING
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
 from envs.sensors.light_colour import XYZ_TO_SRGB, cct_white_rgb
-from localizers.schema import ConfigError
 from tests.envs.ceiling_frames import ceiling_frames
 
 ID = "crowdloc/CeilingCorridor-v0"

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import envs
+from agents.rl import task_ids
 
 ENV_IDS = sorted(envs.ENV_WORLDS)
 
@@ -122,13 +123,13 @@ def _info_keys(env: gym.Env) -> set[str]:
     return set(reset_info) | set(step_info)
 
 
-def test_the_readme_lists_every_info_key_of_every_world() -> None:
+def test_docs_environments_lists_every_info_key_of_every_world() -> None:
     from pathlib import Path
 
-    readme = (Path(__file__).parents[2] / "README.md").read_text()
-    paragraph = readme[readme.index("**info**") : readme.index("**Reset options**")]
+    page = (Path(__file__).parents[2] / "docs" / "environments.md").read_text()
+    paragraph = page[page.index("**info**") : page.index("**Reset options**")]
     listed = set(re.findall(r"`([a-z_]+)`", paragraph))
-    produced = {env_id: _info_keys(gym.make(env_id)) for env_id in [*envs.ENV_WORLDS, *envs.TASK_CONFIGS]}
+    produced = {env_id: _info_keys(gym.make(env_id)) for env_id in [*envs.ENV_WORLDS, *task_ids.TASK_CONFIGS]}
     for env_id, keys in produced.items():
-        assert keys <= listed, f"{env_id}: README's info list misses {sorted(keys - listed)}"
+        assert keys <= listed, f"{env_id}: docs/environments.md's info list misses {sorted(keys - listed)}"
     assert {"slip_fraction", "stereo_detections", "stereo_dropped", "estimate", "reward_terms"} <= set().union(*produced.values())

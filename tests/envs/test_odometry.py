@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from core.motion import to_rot_trans_rot
 from envs import LocalizationEnv
-from localizers.motion import to_rot_trans_rot
 from tests.envs.exact import EXACT
 
 #: noise-free and without the world's systematic errors (the soccer worlds ship some)

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
+from core.schema import ConfigError
 from envs import LocalizationEnv
 from envs.config import RobotConfig
-from localizers.schema import ConfigError
 from tests.envs.exact import EXACT
 
 #: noise-free and without the world's systematic errors (the soccer worlds ship some)

@@ -18,12 +18,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from core.geometry import compose, wrap_angle
+from core.motion import odometry_noise_std, sample_odometry
+from core.schema import ConfigError
 from envs import LocalizationEnv
 from envs.config import load_world
 from envs.sensors.odometry import Odometry, OdometryConfig
-from localizers.geometry import compose, wrap_angle
-from localizers.motion import odometry_noise_std, sample_odometry
-from localizers.schema import ConfigError
 from tests.envs.exact import EXACT
 
 #: noise-free and without the world's systematic errors (the soccer worlds ship some)

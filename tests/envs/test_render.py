@@ -287,7 +287,7 @@ def test_a_narrow_world_gets_a_frame_wide_enough_for_its_caption() -> None:
     layout = fit(3.2, 25.0)  # the corridor as one whole-world frame: was 104 px wide
     assert layout.width == MIN_FRAME_WIDTH_PX and layout.height == 600
     assert layout.left == pytest.approx((layout.width - 3.2 * layout.scale) / 2)  # the corridor in the middle
-    assert fit(6.0, 11.0).width == 332  # robocup_static's frame, as before
+    assert fit(6.0, 11.0).width == 332  # robocup_static's frame, wider than the minimum
 
 
 def test_the_corridor_frame_is_legible_and_shows_its_whole_caption(monkeypatch: pytest.MonkeyPatch) -> None:

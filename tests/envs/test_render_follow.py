@@ -14,13 +14,13 @@ import pytest
 from gymnasium.wrappers import RecordVideo, TimeLimit
 
 import envs
+from core.schema import ConfigError
 from envs.config import LandmarkConfig, WorldConfig
 from envs.localization_env import LocalizationEnv
 from envs.palette import HIDDEN_LANDMARK, landmark_color
 from envs.render import BACKGROUND, CAPTION_PX, ROBOT_FILL, Renderer, frame_shape
 from envs.sensors import Lidar
 from envs.view import background_size_px, drawn_bounds, fit
-from localizers.schema import ConfigError
 
 WORLD = Path(__file__).resolve().parents[1] / "data" / "worlds" / "follow_view.yaml"
 MAGENTA = (255, 0, 255)

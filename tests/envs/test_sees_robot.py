@@ -1,4 +1,4 @@
-"""People who see the robot (issue 30): the crowds' ``sees_robot`` share and
+"""People who see the robot: the crowds' ``sees_robot`` share and
 :func:`envs.crowds.steering.see_robot`.
 
 In an open hall built here, a walker heading straight at our standing robot passes it without
@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401
+from core.schema import ConfigError, from_mapping
 from envs.config import WorldConfig
 from envs.crowds.steering import SEE_BEHIND, SEE_FORCE_MPS2, SEE_GAP_M, SEE_RANGE_M, draw_seers, see_robot
 from envs.world import World
-from localizers.schema import ConfigError, from_mapping
 
 ROBOT_XY = (6.0, 3.0)
 ROBOT_R = 0.25
@@ -158,7 +158,7 @@ def test_bad_sees_robot_values_are_refused(env_id: str, crowd: str) -> None:
 
 
 def test_every_shipped_people_crowd_sees_the_robot() -> None:
-    """The default (issue 30): everyone in every crowd of people sees the robot."""
+    """The default: everyone in every crowd of people sees the robot."""
     from envs.config import load_world
     from envs.crowds.base import PeopleConfig
 

@@ -264,7 +264,7 @@ def test_sonar_cone_sees_a_robot_off_its_centre_line() -> None:
 
 
 def test_sonar_is_added_to_a_world_without_one_and_bad_values_are_named() -> None:
-    from localizers.schema import ConfigError
+    from core.schema import ConfigError
 
     plain = gym.make("crowdloc/RoboCupCrowded-v0")
     assert "sonar" not in plain.observation_space.spaces

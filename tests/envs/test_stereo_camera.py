@@ -11,10 +11,10 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
+from core.schema import ConfigError
 from envs.localization_env import LocalizationEnv
 from envs.sensors.stereo_camera import StereoCamera, StereoCameraConfig
-from localizers.schema import ConfigError
-from localizers.stereo_vision import EdgeList, edge_types_parts
+from envs.stereo.vision import EdgeList, edge_types_parts
 from tests.envs.stereo_scene import FACADE_X_M, ROBOT_POSE, place, scene, scene_env
 
 

@@ -1,4 +1,4 @@
-"""The stereo camera's free-running webcams (issue 30): frames taken at their own times, exposures and
+"""The stereo camera's free-running webcams: frames taken at their own times, exposures and
 white balance per camera; analytic checks on a plain box whose two vertical edges are known world points."""
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
+from core.schema import ConfigError
 from envs.config import RobotConfig, WorldConfig
 from envs.features import BuildingConfig, BuildingsConfig, FacadeConfig
 from envs.localization_env import LocalizationEnv
@@ -18,8 +19,7 @@ from envs.sensors import OdometryConfig
 from envs.sensors.light_colour import white_balance_gains
 from envs.sensors.stereo_camera import IDEAL, StereoCamera, StereoCameraConfig
 from envs.stereo.geometric import row_response
-from localizers.schema import ConfigError
-from localizers.stereo_vision import LEVELS, EdgeList, edge_types_parts, vertical_edge_response
+from envs.stereo.vision import LEVELS, EdgeList, edge_types_parts, vertical_edge_response
 
 ROBOT = (10.0, 30.0, 0.0)
 #: a plain box (no windows), lit from the west: its south-west corner (two sides in view, shaded differently) and its
@@ -163,7 +163,7 @@ def test_the_cameras_before_issue_30_draw_nothing_and_the_default_webcams_do() -
 
 
 def test_the_metadata_gives_the_longest_time_between_the_rigs_frames() -> None:
-    """``frame_gap_s`` (issue 31: what ``far_landmark_pf``'s lost test allows a turn to shift between the frames):
+    """``frame_gap_s`` (what ``far_landmark_pf``'s lost test allows a turn to shift between the frames):
     0 for synchronised cameras, the spread of given lags, else one frame period."""
     assert box_env().sensor_metadata["stereo"]["frame_gap_s"] == 0.0
     assert box_env(synchronised=False).sensor_metadata["stereo"]["frame_gap_s"] == pytest.approx(PERIOD_S)

@@ -1,4 +1,4 @@
-"""Inputs issue 19 found unchecked: reset poses outside the field, a dt_s the physics cannot
+"""Inputs that must be checked: reset poses outside the field, a dt_s the physics cannot
 resolve, and a contact list that grew with the episode."""
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 import yaml
 
+from core.schema import ConfigError
 from envs.config import available_worlds, load_world, world_path
 from envs.localization_env import LocalizationEnv
-from localizers.schema import ConfigError
 
 # ---------------------------------------------------------------- reset(options={"robot_pose": ...})
 

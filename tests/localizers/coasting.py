@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from core.geometry import compose
+from core.motion import sample_odometry
 from localizers.base import PoseEstimate
-from localizers.geometry import compose
-from localizers.motion import sample_odometry
 from tests.localizers.lost import blank, drive, during
 
 

@@ -11,7 +11,7 @@ from localizers.mcl_lidar import CACHE_ENV
 
 @pytest.fixture(scope="session")
 def cache_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """One table cache for the session: each table is built once."""
+    """One table cache for the whole test run: each table is built once."""
     return tmp_path_factory.mktemp("crowdloc_cache")
 
 

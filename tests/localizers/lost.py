@@ -1,4 +1,4 @@
-"""Lost and found (issue 19): drive a localizer through a crowdloc env while a scenario tampers
+"""Lost and found: drive a localizer through a crowdloc env while a scenario tampers
 with the world or with what the localizer is fed (a kidnapping, an odometry jump, blank, thinned,
 swapped or zeroed frames), and measure how wrong it is while it claims a pose, how consistent its
 spread is and how soon it is right again. The one harness of the recovery tests

@@ -1,4 +1,4 @@
-"""Issue 19's stress cases, measured: how wrong the localizers are while they claim a pose, how
+"""The lost-and-found stress cases, measured: how wrong the localizers are while they claim a pose, how
 consistent their spread is, and how soon they are right again (tests/localizers/lost.py drives them).
 
     python -m tests.localizers.lost_figures [case ...] [--seeds N]

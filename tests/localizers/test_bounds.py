@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from core.geometry import bearings_to, compose, wrap_angle
+from core.motion import sample_odometry
 from localizers.bounds import (
     bearing_information,
     bearing_jacobians,
@@ -14,8 +16,6 @@ from localizers.bounds import (
     odometry_process_noise,
     posterior_crb,
 )
-from localizers.geometry import bearings_to, compose, wrap_angle
-from localizers.motion import sample_odometry
 
 LANDMARKS = np.array([[0.0, 0.0], [6.0, 0.0], [6.0, 4.0], [0.0, 4.0], [3.0, 0.0], [3.0, 4.0]])
 ALPHAS = np.array([0.1, 0.1, 0.1, 0.01])

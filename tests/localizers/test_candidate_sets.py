@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from core.geometry import bearings_to, between, compose, wrap_angle
+from core.schema import ConfigError, from_mapping, load_yaml
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, MeasurementError, OdometryDelta
 from localizers.candidate_sets import CandidateSetLocalizer, CandidateSetParams, fuse_poses, generate_candidates
-from localizers.geometry import bearings_to, between, compose, wrap_angle
-from localizers.schema import ConfigError, from_mapping, load_yaml
 
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "localizers" / "candidate_sets.yaml"
 DT = 1.0 / 30.0
@@ -479,7 +479,7 @@ def _noisy_run(landmarks: LandmarkMap, p_seen: float, params: CandidateSetParams
     return [len(poses), n_valid, *acc.tolist(), errors, loc.set_sizes.tolist()]
 
 
-# Recorded with the code before the forgetting option existed (commit c5b3ecc).
+# The paper's method: recorded with forgetting off, lost detection and ``max_spread_m`` off (``_CLAIMS_OFF``).
 _BEFORE_FORGETTING = {
     "field8": [337, 336, 1082.3808193666277, 867.5631939141178, -17.307550641408568, 224882.17455808865,
                [3, 38, 3, 29, 1, 72, 28, 3, 4, 360]],
@@ -489,8 +489,8 @@ _BEFORE_FORGETTING = {
 
 @pytest.mark.parametrize(("case", "landmarks", "p_seen"), [("field8", FIELD8, 0.3), ("goal_posts", GOAL_POSTS, 0.8)])
 def test_forgetting_off_is_the_papers_method_exactly(case: str, landmarks: LandmarkMap, p_seen: float) -> None:
-    """The default (no forgetting) and an explicit ``inf`` give the numbers of the code before the option, bit for bit
-    (with the parts of issue 19 that change what is claimed switched off: lost detection and ``max_spread_m``)."""
+    """The default (no forgetting) and an explicit ``inf`` give the paper's method's recorded numbers, bit for bit
+    (with what changes which estimates are claimed switched off: lost detection and ``max_spread_m``)."""
     assert CandidateSetParams().error_time_constant_s == math.inf and not CandidateSetParams().forgets
     assert _noisy_run(landmarks, p_seen, CandidateSetParams(**_CLAIMS_OFF)) == _BEFORE_FORGETTING[case]
     assert (
@@ -512,7 +512,7 @@ def test_the_defaults_keep_the_papers_sets(case: str, landmarks: LandmarkMap, p_
     assert default[1] <= paper[1]
 
 
-#: the parts of issue 19 (ours) that change which estimates are claimed, off
+#: the parts of lost detection (ours) that change which estimates are claimed, off
 _CLAIMS_OFF = {"lost_after_s": math.inf, "max_spread_m": math.inf}
 
 

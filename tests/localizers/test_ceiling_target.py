@@ -14,14 +14,22 @@ import yaml
 
 import envs  # noqa: F401  (registers the ids)
 from agents.papers.ceiling_target.fit import FitPlan, camera_json, fit, inside, labelled_images
+from core.schema import ConfigError
 from envs.features.ceiling import LABEL_LIGHT, LABEL_SIGN, PALETTE, CeilingConfig, colour_label
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import IDEAL, CeilingCamera
 from localizers.base import MeasurementError, OdometryDelta, PoseEstimate
 from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
-from localizers.ceiling_vision import CameraIntrinsics, CeilingPlan, ColourRange, cell_points, fit_colour_range, hsv8, paper_hsv
+from localizers.ceiling_target.vision import (
+    CameraIntrinsics,
+    CeilingPlan,
+    ColourRange,
+    cell_points,
+    fit_colour_range,
+    hsv8,
+    paper_hsv,
+)
 from localizers.registry import load_params, make_localizer
-from localizers.schema import ConfigError
 
 CLEAN = IDEAL  # every imperfection of the camera off
 
@@ -283,7 +291,7 @@ def test_in_the_env_loop_it_is_deterministic_and_fixes_under_the_start_target() 
     assert np.all(np.isfinite(a[0])) and abs(a[0][1]) < 0.03  # fixed on the first frame, under T0
 
 
-# ---------------------------------------------------------------------------- lost and found (issue 27)
+# ---------------------------------------------------------------------------- lost and found
 def _prior(x: float, y: float) -> PoseEstimate:
     return PoseEstimate(x, y, math.pi / 2, np.diag([1e-3, 1e-3, 1e-3]))
 
@@ -344,7 +352,7 @@ def test_lost_detection_settings_are_checked(name: str, value: float) -> None:
         dataclasses.replace(params, **{name: value})
 
 
-# ---------------------------------------------------------------------------- lost by the ceiling plan (issue 27)
+# ---------------------------------------------------------------------------- lost by the ceiling plan
 def _drive(
     loc: CeilingTargetLocalizer,
     cam: CeilingCamera,

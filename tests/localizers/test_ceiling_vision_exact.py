@@ -1,5 +1,5 @@
-"""The ceiling pipeline's fast paths give what the plain computations give, bit for bit (issue 31's
-"do less work, same estimates"): line blobs from the box around the mask, the cells' tint, the plan's
+"""The ceiling pipeline's fast paths give what the plain computations give, bit for bit (they
+do less work for the same estimates): line blobs from the box around the mask, the cells' tint, the plan's
 rectangle distances."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from localizers import ceiling_vision as vision
+from localizers.ceiling_target import vision
 
 
 def _plain_blobs(mask: np.ndarray, min_px: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:

@@ -8,6 +8,7 @@ import re
 import numpy as np
 import pytest
 
+from core.schema import ConfigError
 from envs.features import CeilingConfig, CeilingTarget
 from localizers.base import (
     LandmarkMap,
@@ -20,9 +21,8 @@ from localizers.base import (
     checked_odometry,
     require_reset,
 )
+from localizers.far_landmark_pf.scene_map import SceneMap, geometry_fingerprint
 from localizers.registry import BUILTIN_LOCALIZERS, LOCALIZERS, load_params, make_localizer
-from localizers.scene_map import SceneMap, geometry_fingerprint
-from localizers.schema import ConfigError
 
 NAMES = sorted(BUILTIN_LOCALIZERS)  # not the toy plug-ins other test modules register
 BOX = np.array([[0.0, 0.0, 10.0, 0.0], [10.0, 0.0, 10.0, 8.0], [10.0, 8.0, 0.0, 8.0], [0.0, 8.0, 0.0, 0.0]])
@@ -182,7 +182,7 @@ def test_far_point_mcls_claim_limit_is_its_mcls() -> None:
 
 
 # a size per localizer and its path in the parameters: each is refused at construction with the reason of
-# its bound (issue 27: n_particles 10**9 used to end in numpy's MemoryError without naming the parameter)
+# its bound (n_particles 10**9 would otherwise end in numpy's MemoryError without naming the parameter)
 SIZES = [
     ("mcl_lidar", {"n_particles": 10**9}, "LidarMCLParams.n_particles", "memory"),
     ("mcl_lidar", {"max_particles": 10**9}, "LidarMCLParams.max_particles", "memory"),

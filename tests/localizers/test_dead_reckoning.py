@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from core.geometry import compose, wrap_angle
+from core.schema import ConfigError, from_mapping, load_yaml
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, MeasurementError, OdometryDelta, PoseEstimate
 from localizers.dead_reckoning import DeadReckoningLocalizer, DeadReckoningParams
-from localizers.geometry import compose, wrap_angle
-from localizers.schema import ConfigError, from_mapping, load_yaml
 
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "localizers" / "dead_reckoning.yaml"
 DT = 1.0 / 30.0

@@ -1,7 +1,7 @@
-"""``deskew`` of the LIDAR localizers (issue 30): a swept scan moved to the pose at its end.
+"""``deskew`` of the LIDAR localizers: a swept scan moved to the pose at its end.
 
-Analytic: a scan swept in a box by :func:`localizers.raycast.cast_rays_from` from the poses of
-:func:`localizers.geometry.poses_along_step`, deskewed with the step's exact increment, puts every
+Analytic: a scan swept in a box by :func:`core.raycast.cast_rays_from` from the poses of
+:func:`core.geometry.poses_along_step`, deskewed with the step's exact increment, puts every
 hit back on the walls as seen from the end pose; taken as instantaneous it does not.
 """
 
@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers crowdloc/*)
+from core.geometry import between, deskewed_scan, poses_along_step
+from core.raycast import cast_rays_from
+from core.schema import ConfigError
 from envs.config import load_world
+from envs.wrappers import LocalizationObservation
 from localizers.base import MeasurementError, OdometryDelta, ScanMeasurement
-from localizers.geometry import between, deskewed_scan, poses_along_step
 from localizers.mcl_lidar import LidarMCL, deskewed
-from localizers.raycast import cast_rays_from
 from localizers.registry import load_params, make_localizer
-from localizers.schema import ConfigError
-from localizers.wrappers import LocalizationObservation
 
 BOX = (7.0, 7.0)
 CORNERS = np.array([[0.0, 0.0], [BOX[0], 0.0], [BOX[0], BOX[1]], [0.0, BOX[1]]])

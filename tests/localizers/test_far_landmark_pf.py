@@ -17,6 +17,8 @@ from hypothesis import strategies as st
 import envs  # noqa: F401  (registers crowdloc/*)
 from agents.experiments.scene_maps import MappingDrive, build_scene_map, default_map_path
 from agents.policies import make_policy
+from core.schema import ConfigError
+from envs.stereo.vision import edge_type
 from localizers.base import (
     EDGE_CHANNELS,
     EDGE_LEVELS,
@@ -28,17 +30,15 @@ from localizers.base import (
     OdometryDelta,
     PoseEstimate,
 )
-from localizers.far_landmark_kernels import (
+from localizers.far_landmark_pf import SELECTIONS, FarLandmarkParams, FarLandmarkPF, order_detections
+from localizers.far_landmark_pf.kernels import (
     detection_distances,
     detection_log_likelihood,
     particle_log_weights,
     position_votes,
     top_cells,
 )
-from localizers.far_landmark_pf import SELECTIONS, FarLandmarkParams, FarLandmarkPF, order_detections
-from localizers.scene_map import SceneMap, geometry_fingerprint
-from localizers.schema import ConfigError
-from localizers.stereo_vision import edge_type
+from localizers.far_landmark_pf.scene_map import SceneMap, geometry_fingerprint
 from tests.pinning import PINNED_DIR, assert_same_numbers
 
 CAMPUS = "crowdloc/StereoCampus-v0"
@@ -452,7 +452,7 @@ def test_bad_parameters_are_refused_naming_them(key: str, value: object) -> None
         FarLandmarkParams(**{key: value})  # type: ignore[arg-type]
 
 
-# ------------------------------------------------------------------ lost and found (issue 27)
+# ------------------------------------------------------------------ lost and found
 
 #: the toy campus: one scene at (5, 25) facing +x, 80 landmarks of random types 10-40 m ahead of it
 _RNG = np.random.default_rng(27)
@@ -473,7 +473,7 @@ def seen_from(pose: tuple[float, float, float], rng: np.random.Generator) -> Edg
 
 def kidnapped_run(frames: int = 30, **params: object) -> tuple[list[PoseEstimate], FarLandmarkPF]:
     """Ten frames standing at (5, 25) facing +x, then ``frames`` frames from 3 m ahead and 1 m to the left,
-    the odometry none the wiser (zero increments): issue 27's kidnap."""
+    the odometry none the wiser (zero increments): a kidnap."""
     pf = FarLandmarkPF(SQUARE, FarLandmarkParams(**params), dt_s=0.1, scenes=TOY_CAMPUS)  # type: ignore[arg-type]
     rng = np.random.default_rng(5)
     pf.reset(rng, PoseEstimate(5.0, 25.0, 0.0))
@@ -534,7 +534,7 @@ def turning_run(frames: int = 30, rate_rps: float = 0.4, gap_s: float = 0.03, **
 
 
 def test_a_turn_on_free_running_cameras_is_no_contradiction_when_the_filter_knows_their_frame_gap() -> None:
-    """Issue 31: a turn shifts the disparity between free-running webcams' frames (here 6 sds of the inverse range);
+    """A turn shifts the disparity between free-running webcams' frames (here 6 sds of the inverse range);
     the lost test counts that shift in its sds when the rig's frame gap is known (``gym.make`` passes the camera's),
     and a filter that assumes synchronised cameras (``frame_gap_s`` 0) calls the same right pose lost."""
     knowing = turning_run(frame_gap_s=1.0 / 30.0, baseline_m=0.19)
@@ -571,8 +571,7 @@ def campus_map(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
 
 
-#: the campus's cameras synchronised and of equal gains (before issue 30 made them the paper's free-running webcams,
-#: with which the filter lost the route on seed 1: it did not reach the goal in 2,000 steps)
+#: the campus's cameras synchronised and of equal gains (the campus's default: the paper's free-running webcams)
 SYNCED = {"stereo": {"synchronised": True, "exposure_range": (1.0, 1.0), "white_balance_k": (0.0, 0.0)}}
 
 
@@ -605,9 +604,9 @@ def test_it_tracks_the_crowd_free_route_from_a_known_start(campus_map: Path) -> 
 
 
 def test_on_the_papers_free_running_webcams_it_drives_the_crowd_free_route_round_its_corner() -> None:
-    """Issue 31: with the default map (its drive slows in the corner and records no scene mid-turn) and the camera's
-    frame gap known to the lost test, the filter keeps its pose through the corner on free-running webcams; before,
-    it declared itself lost in the turn at 57 m and route_follower stood there for the rest of the episode."""
+    """With the default map (its drive slows in the corner and records no scene mid-turn) and the camera's frame gap
+    known to the lost test, the filter keeps its pose through the corner on free-running webcams; without those two it
+    declares itself lost in the turn at 57 m and route_follower stands there for the rest of the episode."""
     env = gym.make(CAMPUS, crowd_size=0, localizer="far_landmark_pf")
     obs, info = env.reset(seed=1)
     policy = make_policy("route_follower", env, seed=0)
@@ -626,9 +625,9 @@ def test_on_the_papers_free_running_webcams_it_drives_the_crowd_free_route_round
 
 
 def test_the_map_drive_takes_the_corner_slowly_on_webcams_and_at_speed_on_synchronised_cameras() -> None:
-    """Issue 31: on free-running webcams the mapping drive turns no faster than a 1 px shift between the cameras'
+    """On free-running webcams the mapping drive turns no faster than a 1 px shift between the cameras'
     frames allows (0.054 rad/s on the campus) and records no scene mid-turn, so the corner's views are mapped a few
-    degrees apart and true; synchronised cameras drive and record the corner as before (about 18 deg per scene)."""
+    degrees apart and true; synchronised cameras drive the corner at speed and record it about 18 deg per scene."""
 
     def corner_steps_deg(scene_map: SceneMap) -> np.ndarray:
         headings = np.degrees(scene_map.poses[:, 2]) % 360.0
@@ -663,11 +662,10 @@ def test_a_map_from_the_reference_keeps_its_pose_covariances_and_one_from_the_tr
 
 def test_a_seeded_crowded_campus_run_keeps_the_estimates_pinned_before_the_kernels_savings() -> None:
     """200 steps of random actions in a crowd of 100 on the default map: the estimates and the searches (lost, the
-    filter searches the scene map) as recorded by the code before :func:`particle_log_weights` and
-    :func:`position_votes` skipped work (commit 73d36e4; a speed-up changes no number: never re-record for one).
-    Re-recorded once for an intended change of behaviour (issue 31: the default map's drive takes the corner slowly
-    and records no scene mid-turn, the lost test knows the webcams' frame gap, a search confirms the estimate only
-    in its heading too; the kernels did not change): 5 searches instead of 19, a pose on 92 % of the steps, not 68 %."""
+    filter searches the scene map), pinned; :func:`particle_log_weights` and :func:`position_votes` skip work and must
+    give them bit for bit (a speed-up changes no number: never re-record for one). The pin records the default map's
+    drive taking the corner slowly and recording no scene mid-turn, the lost test knowing the webcams' frame gap and
+    a search confirming the estimate only in its heading too: 5 searches, a pose on 92 % of the steps."""
     pinned = json.loads((PINNED_DIR / "far_landmark_pf_campus.json").read_text())
     env = gym.make(CAMPUS, crowd_size=100, localizer="far_landmark_pf")
     env.reset(seed=3)

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from core.geometry import bearings_to, compose, wrap_angle
+from core.schema import ConfigError, from_mapping, load_yaml
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, MeasurementError, OdometryDelta, PoseEstimate
-from localizers.geometry import bearings_to, compose, wrap_angle
 from localizers.kalman import (
     KalmanLocalizer,
     KalmanParams,
@@ -20,7 +21,6 @@ from localizers.kalman import (
     kf_predict,
     kf_update,
 )
-from localizers.schema import ConfigError, from_mapping, load_yaml
 
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "localizers" / "kalman.yaml"
 DT = 1.0 / 30.0

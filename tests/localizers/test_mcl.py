@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from core.geometry import bearings_to, between, compose, wrap_angle
+from core.schema import ConfigError, from_mapping, load_yaml
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, MeasurementError, OdometryDelta, PoseEstimate
 from localizers.bounds import bound_position_rmse, posterior_crb
-from localizers.geometry import bearings_to, between, compose, wrap_angle
 from localizers.mcl import (
     BearingMCL,
     BearingMCLParams,
@@ -23,7 +24,6 @@ from localizers.mcl import (
     weighted_pose_covariance,
     weighted_pose_mean,
 )
-from localizers.schema import ConfigError, from_mapping, load_yaml
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs" / "localizers"
 DT = 1.0 / 30.0
@@ -44,7 +44,7 @@ def seen(pose: np.ndarray, ids: list[int], landmarks: np.ndarray = LANDMARKS) ->
 
 
 def alpha_model_std(rot1: float, trans: float, rot2: float, alphas: np.ndarray = ALPHAS) -> np.ndarray:
-    """Probabilistic Robotics Table 5.6, written out independently of localizers.motion."""
+    """Probabilistic Robotics Table 5.6, written out independently of core.motion."""
     a1, a2, a3, a4 = alphas
     return np.sqrt(
         [

@@ -18,9 +18,13 @@ from gymnasium.utils.env_checker import check_env
 from scipy import integrate, stats
 
 import envs  # noqa: F401  (registers the env ids)
+from core.geometry import between, compose, wrap_angle
+from core.motion import sample_odometry
+from core.raycast import cast_rays
+from core.schema import ConfigError, from_mapping, load_yaml
+from envs.wrappers import LocalizationObservation
 from localizers import mcl_lidar, range_table
 from localizers.base import LandmarkMap, Localizer, MeasurementError, OdometryDelta, PoseEstimate, ScanMeasurement
-from localizers.geometry import between, compose, wrap_angle
 from localizers.mcl_lidar import (
     BeamModel,
     LidarMCL,
@@ -37,11 +41,7 @@ from localizers.mcl_lidar import (
     range_table_key,
     wall_distance_field,
 )
-from localizers.motion import sample_odometry
-from localizers.raycast import cast_rays
 from localizers.registry import load_params
-from localizers.schema import ConfigError, from_mapping, load_yaml
-from localizers.wrappers import LocalizationObservation
 from tests.localizers.campus import campus_walls
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs" / "localizers"

@@ -1,4 +1,4 @@
-"""``localizers.motion``: the alpha odometry model's decomposition and noise statistics."""
+"""``core.motion``: the alpha odometry model's decomposition and noise statistics."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from localizers.motion import from_rot_trans_rot, odometry_noise_std, sample_odometry, to_rot_trans_rot
+from core.motion import from_rot_trans_rot, odometry_noise_std, sample_odometry, to_rot_trans_rot
 
 N = 10_000
 SIGMAS = 5.0  # tolerance in standard errors of the estimate

@@ -1,4 +1,4 @@
-"""``localizers.raycast`` against closed-form distances and a brute-force numpy reference."""
+"""``core.raycast`` against closed-form distances and a brute-force numpy reference."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from localizers.raycast import cast_rays, cast_rays_from, sight_lines_clear
+from core.raycast import cast_rays, cast_rays_from, sight_lines_clear
 
 NO_POINTS = np.zeros((0, 2))
 NO_RADII = np.zeros(0)

@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from core.geometry import bearings_to, wrap_angle
+from core.schema import ConfigError, from_mapping, load_yaml
 from localizers.base import BearingMeasurement, LandmarkMap, Localizer, MeasurementError, OdometryDelta
-from localizers.geometry import bearings_to, wrap_angle
 from localizers.resection import (
     DEFAULT_MIN_CONDITIONING,
     ResectionLocalizer,
@@ -20,7 +21,6 @@ from localizers.resection import (
     inscribed_arc_poses,
     resect_all_triples,
 )
-from localizers.schema import ConfigError, from_mapping, load_yaml
 
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "localizers" / "resection.yaml"
 DT = 1.0 / 30.0

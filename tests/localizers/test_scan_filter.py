@@ -12,15 +12,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from core.geometry import between, compose, wrap_angle
+from core.motion import sample_odometry
+from core.raycast import cast_rays
+from core.schema import ConfigError, from_mapping, load_yaml
 from localizers.base import LandmarkMap, Localizer, MeasurementError, OdometryDelta, PoseEstimate, ScanMeasurement
 from localizers.bounds import odometry_process_noise
-from localizers.geometry import between, compose, wrap_angle
 from localizers.mcl_lidar import LidarMCLParams
-from localizers.motion import sample_odometry
-from localizers.raycast import cast_rays
 from localizers.registry import load_params, make_localizer
 from localizers.scan_filter import FarPointMCL, FarPointMCLParams, ScanFilter, ScanFilterParams, angular_bins, far_points
-from localizers.schema import ConfigError, from_mapping, load_yaml
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs" / "localizers"
 ROOM = np.array([[0, 0, 7, 0], [7, 0, 7, 7], [7, 7, 0, 7], [0, 7, 0, 0]], dtype=np.float64)

@@ -1,4 +1,4 @@
-"""The scene-map file and its cache (issue 27): written atomically, and an unreadable file named with how to
+"""The scene-map file and its cache: written atomically, and an unreadable file named with how to
 make it again (the world's default map in the cache is made again, saying so)."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from agents.experiments import scene_maps
-from localizers import scene_map
-from localizers.scene_map import SceneMap
-from localizers.schema import ConfigError
+from core.schema import ConfigError
+from localizers.far_landmark_pf import scene_map
+from localizers.far_landmark_pf.scene_map import SceneMap
 
 
 def _map(world: str = "box") -> SceneMap:
@@ -66,9 +66,9 @@ def test_an_unreadable_default_map_is_made_again(
 
 
 def test_the_default_map_is_keyed_by_the_drives_conditions_not_only_the_geometry(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A map cached by a drive in other conditions must not be used (session 38: a campus map cached before the
-    world's defaults turned on the LIDAR sweep, people who see the robot and free-running webcams kept being
-    used under the same name, and gave numbers a fresh clone could not reproduce)."""
+    """A map cached by a drive in other conditions must not be used: a campus map cached under the same name
+    from a drive without the LIDAR sweep, people who see the robot or free-running webcams would give numbers a
+    fresh clone cannot reproduce."""
     from envs.localization_env import LocalizationEnv
 
     def path(**overrides: object) -> Path:

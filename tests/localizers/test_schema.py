@@ -1,4 +1,4 @@
-"""``localizers.schema``: strict mapping -> frozen dataclass conversion."""
+"""``core.schema``: strict mapping -> frozen dataclass conversion."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from typing import Any, Literal
 import numpy as np
 import pytest
 
-from localizers.schema import (
+from core.schema import (
     ConfigError,
     check,
     check_ranges,

@@ -11,7 +11,7 @@ import pytest
 import envs  # noqa: F401
 from agents.experiments.replay import record, replay
 from agents.experiments.scenarios import square_driver
-from localizers.schema import ConfigError
+from core.schema import ConfigError
 
 TOP = {"lidar_top": {"type": "lidar", "key": "lidar_top", "height_m": 1.9, "beams": 271}}
 

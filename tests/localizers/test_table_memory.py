@@ -1,4 +1,4 @@
-"""Map tables whose size grows with the world (issue 27): their memory is estimated before anything is
+"""Map tables whose size grows with the world: their memory is estimated before anything is
 allocated and a table above its bound is refused; mcl_lidar in a world too large for the beam model's
 ray-cast table gets the campus reference's likelihood field instead."""
 
@@ -12,14 +12,15 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the env ids)
-from localizers import beam_model, mcl_lidar, mcl_lidar_params, range_table
+from core.schema import ConfigError
+from localizers import mcl_lidar, range_table
 from localizers.base import LandmarkMap
-from localizers.beam_model import LikelihoodFieldModel
-from localizers.mcl_lidar import LARGE_MAP_PARAMS, LidarMCL, LidarMCLParams, large_map_params
+from localizers.mcl_lidar import LARGE_MAP_PARAMS, LidarMCL, LidarMCLParams, beam_model, large_map_params
+from localizers.mcl_lidar import params as mcl_lidar_params
+from localizers.mcl_lidar.beam_model import LikelihoodFieldModel
 from localizers.range_table import MAX_TABLE_MB, build_range_table, check_table_size, wall_distance_field
 from localizers.registry import spec
 from localizers.scan_filter import large_map_params as far_point_large_map_params
-from localizers.schema import ConfigError
 from tests.localizers.campus import campus_walls
 
 CAMPUS = LandmarkMap(np.zeros((0, 2)), (), (0.0, 0.0, 150.0, 100.0), campus_walls(np.random.default_rng(1), count=50))

@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 
 import envs
 from localizers.base import LandmarkMap
-from localizers.beam_model import LikelihoodFieldModel
 from localizers.mcl_lidar import LidarMCLParams
+from localizers.mcl_lidar.beam_model import LikelihoodFieldModel
 from localizers.measurements import sensor_map
 from localizers.range_table import wall_distance_field
 from tests.localizers.campus import campus_walls
@@ -80,7 +80,7 @@ def test_likelihood_fields_of_the_shipped_maps_are_unchanged(resolution_m: float
 
 
 def test_the_crowded_rooms_lidar_map_is_the_one_the_wrapper_gives_the_localizer() -> None:
-    from localizers.wrappers import LocalizationObservation
+    from envs.wrappers import LocalizationObservation
 
     env = LocalizationObservation(
         envs.LocalizationEnv("crowded_room"), "mcl_lidar", localizer_params={"model": "likelihood_field"}

@@ -115,7 +115,7 @@ class Method:
 
 
 #: the paper's methods answer on every frame they can: the claim limits, lost detection and
-#: recovery that crowdloc's localizers have (ours, issue 19: ``max_spread_m``, the Kalman
+#: recovery that crowdloc's localizers have (ours: ``max_spread_m``, the Kalman
 #: filter's restart after rejected fixes, the candidate sets' restart on contradicting bearings,
 #: the paper MCL's survival test) are off for their rows, so that errors are taken over the frames
 #: the paper's took them over. The Kalman filter keeps its innovation gate: validation gating is
@@ -157,7 +157,7 @@ BASELINES = (
 #: ~7 s. Chosen on seeds EXP1_TUNING_SEEDS (not the evaluation seeds 0..N-1) among 6/4 ... 30/20 rad.
 EXP1_CS_PARAMS: tuple[tuple[str, Any], ...] = (("prune_error_rad", 15.0), ("abort_error_rad", 10.0))
 EXP1_TUNING_SEEDS = (100, 119)  # first and last
-#: "(ours)", not in the paper (issue 15): method (5) with an exponential forgetting of its accumulated
+#: "(ours)", not in the paper: method (5) with an exponential forgetting of its accumulated
 #: Error (``CandidateSetParams.error_time_constant_s``), every other parameter that of the paper's row
 #: it is shown beside. Chosen on seeds EXP1_TUNING_SEEDS (not the evaluation seeds) with the Exp-1
 #: thresholds among 3 ... 60 s (and abort thresholds 4 ... 30 rad, which gained nothing over the

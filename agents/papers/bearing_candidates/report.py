@@ -16,7 +16,6 @@ import numpy as np
 
 from agents.common.util import jsonable, text_table
 from agents.evaluate import consistency
-from agents.papers import before
 from agents.papers.bearing_candidates.analysis import (
     EXP1_CLAIMS,
     Analysis,
@@ -455,39 +454,7 @@ def report_lines(
     extras = extras_discussion(a.density, a.false, a.push, cond)
     if extras:
         lines += ["### Reading the extra studies", "", *extras, ""]
-    return lines + before_section(a, plan) + parameters_section()
-
-
-def before_section(analysis: Analysis, plan: Plan) -> list[str]:
-    """Tables 1-3 of the previous release beside this run's (kept for one release; :mod:`agents.papers.before`)."""
-    old = before.load("bearing-candidates")
-    if old is None or plan.quick:
-        return []
-    tables = {"exp1": analysis.exp1.rows if analysis.exp1 else [], "exp2": [], "exp3": []}
-    if analysis.exp2:
-        tables["exp2"], tables["exp3"] = analysis.exp2.rows, analysis.exp2.exp3_rows
-    lines = [
-        "## Before and after the harder worlds",
-        "",
-        f"The same tables from the previous release ({old['release']}), whose soccer fields had exact odometry (no "
-        "systematic error), no objects of a landmark's colour beyond the field, and robots as footprint discs of "
-        "unlimited height. Since then the fields' odometry reads turns long and its wheels differ (the paper's free "
-        "encoder wheel drifted in rotation), distractors stand beyond the fields, the robots are 0.8 m columns and the "
-        "ball a sphere (`configs/worlds/robocup_*.yaml`). Same seeds and plan.",
-        "",
-    ]
-    for table, rows in tables.items():
-        then = old.get(table, {})
-        body = [(r.label, [pm(then[r.key]["pos_mm"]), pm(then[r.key]["head_deg"], 1)], [pm(r.pos_mm), pm(r.head_deg, 1)])
-                for r in rows if r.key in then]  # fmt: skip
-        if body:
-            lines += [
-                f"**{table.replace('exp', 'Exp ')}**",
-                "",
-                *before.change_table("method", ["position [mm]", "heading [deg]"], body),
-                "",
-            ]
-    return lines
+    return lines + parameters_section()
 
 
 def write_report(

@@ -5,7 +5,7 @@
 - Tables 5-6 (:mod:`.drive`): the 20.8 m drive by the corridor_follower, without and with
   correction at the targets;
 - beyond the paper: the drive among crowds, illumination (HSV against RGB thresholds, under a
-  colourless light's gains and under the light's colour and glare, issue 30's camera options),
+  colourless light's gains and under the light's colour and glare, the camera's options),
   measuring without stopping, and how far apart targets may be.
 
 ``crowdloc reproduce ceiling-target`` calls :func:`add_arguments` and :func:`run`; the

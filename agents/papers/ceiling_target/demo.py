@@ -15,7 +15,7 @@ from agents.policies import make_policy
 from envs.localization_env import LocalizationEnv
 from envs.render import Renderer
 from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
-from localizers.ceiling_vision import CameraIntrinsics, Sighting
+from localizers.ceiling_target.vision import CameraIntrinsics, Sighting
 from localizers.registry import make_localizer
 
 from . import paper

@@ -59,7 +59,7 @@ class DriveResult:
 
 
 #: the paper's robot dead-reckons between targets for as long as it drives: crowdloc's claim limit
-#: (ours, issue 19: ``max_spread_m``) is off, so Table 5's drive without correction has an estimate
+#: (ours: ``max_spread_m``) is off, so Table 5's drive without correction has an estimate
 #: at every target as the paper's had
 AS_IN_PAPER: dict[str, Any] = {"max_spread_m": math.inf}
 

@@ -4,7 +4,7 @@ The upward camera renders the corridor's ceiling at poses near the targets and t
 under illumination gains wider than the camera's own variation, with its noise and
 vignetting and the heads of passers-by; it also says which pixel shows what (the labels of
 :mod:`envs.features.ceiling`). Each target colour's threshold box holds ``coverage`` of its
-labelled pixels (:func:`localizers.ceiling_vision.fit_colour_range`), in HSV as the paper and
+labelled pixels (:func:`localizers.ceiling_target.vision.fit_colour_range`), in HSV as the paper and
 in RGB for comparison. Held-out images (other seeds) then measure, per colour, the share of
 its pixels inside its box and the share of every other kind of pixel (tiles, lights, the
 exit sign, the other colours) that falls inside it too.
@@ -30,12 +30,12 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from agents.common.util import at_least, check_output_file, seed_int
+from core.schema import ConfigError, check
 from envs.features.ceiling import LABEL_NAMES, PALETTE, colour_label
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import CeilingCamera
-from localizers.ceiling_vision import ColourRange, fit_colour_range, hsv8
+from localizers.ceiling_target.vision import ColourRange, fit_colour_range, hsv8
 from localizers.registry import params_path
-from localizers.schema import ConfigError, check
 
 MARKER = "# --- learned by `crowdloc fit ceiling_target` (do not edit below by hand) ---"
 #: a fitted threshold that keeps less than this share of its own colour's held-out pixels is
@@ -58,7 +58,7 @@ class FitPlan:
     coverage: float = 0.995
     margin: float = 0.02  # S, V and RGB
     hue_margin: float = 0.005
-    #: the camera's overrides (the light's colour, auto white balance, glare: issue 30); the light's colour at
+    #: the camera's overrides (the light's colour, auto white balance, glare); the light's colour at
     #: each image's pose times its gain (cct_k's middle value; a per-episode daylight is not drawn here)
     camera: dict[str, Any] = field(default_factory=dict)
 
@@ -257,7 +257,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--camera",
         type=camera_json,
         default={},
-        help="the camera's overrides as JSON, to fit under the light's colour (issue 30), e.g. "
+        help="the camera's overrides as JSON, to fit under the light's colour, e.g. "
         '\'{"white_balance_k": 6500, "cct_k": [4230, 5500]}\' (default: the world\'s camera)',
     )
     parser.add_argument(

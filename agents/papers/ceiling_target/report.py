@@ -217,8 +217,8 @@ def illumination_section(results: dict[str, Any]) -> Lines:
 
 
 def light_section(results: dict[str, Any]) -> Lines:
-    """The illumination study under the modelled lights (issue 30's options), the shipped and the refitted thresholds."""
-    lines = ["### Under the light's colour and glare (issue 30's options)", ""]
+    """The illumination study under the camera's optional light models (colour, glare), the shipped and the refitted thresholds."""
+    lines = ["### Under the light's colour and glare (the camera's optional light models)", ""]
     lines += [
         "The same study under lights the corridor's camera can model but the shipped world does not turn on (the "
         "sources of their values are beside the camera's fields): each image at the gain times the light's colour at "

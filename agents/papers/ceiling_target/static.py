@@ -28,7 +28,7 @@ from envs.features.ceiling import CeilingTarget
 from envs.localization_env import LocalizationEnv
 from envs.sensors.ceiling_camera import CeilingCamera
 from localizers.ceiling_target import CeilingImage, CeilingTargetLocalizer
-from localizers.ceiling_vision import CameraIntrinsics
+from localizers.ceiling_target.vision import CameraIntrinsics
 from localizers.registry import make_localizer
 
 from . import paper
@@ -222,8 +222,8 @@ def illumination(
 
 @dataclass(frozen=True)
 class Light:
-    """A light the illumination study is also run under (issue 30): the camera's overrides, options that
-    the shipped corridor does not turn on yet; their values' sources sit beside the camera's fields
+    """A light the illumination study is also run under: the camera's overrides, options that
+    the shipped corridor does not turn on; their values' sources sit beside the camera's fields
     (``envs/sensors/ceiling_camera.py``, ``envs/sensors/glare.py``)."""
 
     name: str

@@ -110,7 +110,7 @@ class Config:
 
 VARIANTS = {False: "MCL only (raw scan)", True: "MCL + far points"}
 #: the paper's plain MCL answers at every update: crowdloc's lost detection, claim limit and
-#: recovery (ours, issue 19: ``lost_ratio``, ``max_spread_m``, ``recovery``) are off, so errors are
+#: recovery (ours: ``lost_ratio``, ``max_spread_m``, ``recovery``) are off, so errors are
 #: taken over every update of the paper's method
 AS_IN_PAPER: dict[str, Any] = {"lost_ratio": 0.0, "max_spread_m": math.inf, "recovery": False}
 

@@ -29,10 +29,10 @@ from numpy.typing import NDArray
 from agents.common.sweep import run_tasks
 from agents.evaluate import consistency, metrics
 from agents.experiments.replay import Recording, feed, odometry_deltas, record, replay_into, start_prior
+from core.geometry import between
+from core.raycast import cast_rays
 from localizers.base import LandmarkMap, ScanMeasurement
-from localizers.geometry import between
 from localizers.mcl_lidar import LidarMCL, LidarMCLParams
-from localizers.raycast import cast_rays
 from localizers.registry import make_localizer
 from localizers.scan_filter import FarPointMCL, far_points, window_covariance
 

@@ -19,7 +19,6 @@ import numpy as np
 
 from agents.common.util import jsonable, text_table
 from agents.evaluate import consistency
-from agents.papers import before
 from agents.papers.world_text import odometry_text
 
 from . import experiment, paper, world
@@ -522,44 +521,6 @@ def parameters_section(c: Context) -> Lines:
     ]
 
 
-def before_section(c: Context) -> Lines:
-    """The sweeps and claims of the previous release beside this run's (kept for one release;
-    :mod:`agents.papers.before`). Both against the truth: the previous release had no reference LIDAR."""
-    old = before.load("lidar-far-point")
-    if old is None or c.plan.quick:
-        return []
-    then = old["stats"]
-    lines = [
-        "## Before and after the harder room",
-        "",
-        f"The sweeps from the previous release ({old['release']}), against the truth (it had no reference LIDAR), "
-        "beside this run's against the truth. Then each person was one footprint disc at the LIDAR's height (a queue an "
-        "almost closed fence), the queue heads walked through the robot (which weighed 10 t in the experiment so that "
-        "they did not shove it), the room was an exact square with an exact map and the odometry had neither slip nor "
-        "systematic error. Now: legs with gaps, heads that give way to the 30 kg robot, a door, a bevelled corner, a "
-        "shelf, a pillar and a table that the map has elsewhere, systematic odometry and wheel slip "
-        "(`configs/worlds/crowded_room.yaml`). Same seeds and plan; the odometry's and LIDAR's noise draws differ "
-        "(the second LIDAR shares their generator).",
-        "",
-    ]
-    columns = ["raw error [m]", "far error [m]", "raw failures/run"]
-    for sweep, configs in (("sampling", c.plan.sampling_configs()), ("hit sd [m]", c.plan.hit_configs())):
-        body = []
-        for x, pair in configs:
-            keys = [f"{cfg.key}@{experiment.CROWD_SIZE}" for cfg in pair]
-            if not all(k in then for k in keys):
-                continue
-            raw, far = pair_stats(c.st, pair)
-            old_cells = [f"{then[keys[0]]['mean_m']:.3f}", f"{then[keys[1]]['mean_m']:.3f}", f"{then[keys[0]]['failures']:.2f}"]
-            body.append((f"{x:g}", old_cells, [f"{raw.mean_m:.3f}", f"{far.mean_m:.3f}", f"{raw.failures:.2f}"]))
-        if body:
-            lines += [*before.change_table(sweep, columns, body), ""]
-    now: dict[str, str] = {v.claim_id: v.verdict for v in c.verdicts_truth}
-    claims = [(str(cid), [str(verdict)], [now[cid]]) for cid, verdict in old["verdicts"].items() if cid in now]
-    lines += [*before.change_table("claim", ["verdict (vs truth)"], claims), ""]
-    return lines
-
-
 SECTIONS: tuple[Callable[[Context], Lines], ...] = (
     header,
     setup_section,
@@ -569,7 +530,6 @@ SECTIONS: tuple[Callable[[Context], Lines], ...] = (
     amcl_section,
     density_section,
     differences_section,
-    before_section,
     parameters_section,
 )
 

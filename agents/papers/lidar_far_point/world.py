@@ -21,10 +21,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from core.geometry import spanning
 from envs.config import WorldConfig, load_world
 from envs.crowds import QueuesConfig
 from envs.sensors import LidarConfig, OdometryConfig
-from localizers.geometry import spanning
 from localizers.mcl_lidar import LidarMCLParams
 from localizers.registry import LOCALIZER_CONFIG_DIR, load_params, params_path
 from localizers.scan_filter import FarPointMCLParams

@@ -30,9 +30,9 @@ from agents.experiments.replay import Recording, ReplayResult, online_rng, recor
 from agents.experiments.scene_maps import AMCL_LIKE, MappingDrive, build_scene_map, camera_signature, rig_timing
 from agents.policies import make_policy
 from localizers.far_landmark_pf import FarLandmarkPF
+from localizers.far_landmark_pf.scene_map import SceneMap
 from localizers.measurements import edge_measurement
 from localizers.registry import load_params, make_localizer
-from localizers.scene_map import SceneMap
 
 from . import world
 from .experiment import (

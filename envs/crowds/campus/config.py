@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.schema import check, check_ranges
 from envs.crowds.base import PeopleConfig
 from envs.crowds.walkers import SPEED_CAP
-from localizers.schema import check, check_ranges
 
 EDGE_GAP_M = 0.1  # walkers keep this far inside a walkway's edge
 

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import ConfigError
 from envs.crowds.base import BodySpec, Commands, Crowd, Taken, register_crowd
 from envs.crowds.campus.config import EDGE_GAP_M, CampusConfig, LaneConfig, WalkwayConfig
 from envs.crowds.campus.polylines import Polylines
@@ -34,7 +35,6 @@ from envs.crowds.queues import PEOPLE_FILL
 from envs.crowds.steering import SEEK_RELAXATION_S, give_way, seek
 from envs.crowds.walkers import SPEED_CAP
 from envs.state import Rows, WorldState
-from localizers.schema import ConfigError
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig

@@ -137,7 +137,7 @@ def test_quick_run_writes_report_tables_and_figures(tmp_path: Path, capsys: pyte
 
 
 def _check_the_paper_measure(results: dict, report: str, printed: str) -> None:
-    """Exp 1 also on the paper's measure (issue 30): every Table 1 row and "(ours)" row, the true error beside it
+    """Exp 1 also on the paper's measure: every Table 1 row and "(ours)" row, the true error beside it
     equal to Table 1's, the claims judged on it, in the report and on stdout."""
     from agents.papers.bearing_candidates.report import PATH_MEASURE, TRUE_MEASURE
 
@@ -157,7 +157,7 @@ def _check_the_paper_measure(results: dict, report: str, printed: str) -> None:
 
 
 def _check_consistency(results: dict, report: str) -> None:
-    """NEES beside the errors (issue 19): in every row of results.json and in the report, finite where the
+    """NEES beside the errors: in every row of results.json and in the report, finite where the
     localizer reports a covariance, "no covariance" where it does not (the registry's flag)."""
     from localizers.registry import LOCALIZERS
 
@@ -194,7 +194,7 @@ def _check_consistency(results: dict, report: str) -> None:
 
 
 def test_distance_to_a_polyline_analytically() -> None:
-    from localizers.geometry import polyline_distance
+    from core.geometry import polyline_distance
 
     square = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
     # on a segment: 0; beyond an end: the distance to that end point (the projection is clipped)

@@ -46,7 +46,7 @@ def test_quick_run_writes_report_results_and_figures(quick: tuple[Path, str]) ->
 
 
 def test_the_illumination_study_runs_under_each_modelled_light(quick: tuple[Path, str]) -> None:
-    # issue 30: beside the gain sweep, each light (a camera override) with the shipped and the refitted thresholds
+    # beside the gain sweep, each light (a camera override) with the shipped and the refitted thresholds
     out = quick[0]
     results = json.loads((out / "results.json").read_text())
     report = (out / "report.md").read_text()

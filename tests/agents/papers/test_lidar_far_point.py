@@ -18,7 +18,7 @@ from agents.experiments.scenarios import square_driver
 from agents.papers.lidar_far_point import analysis, jobs, paper, world
 from agents.papers.lidar_far_point import experiment as ex
 from agents.policies.paths import square_vertices
-from localizers.geometry import wrap_angle
+from core.geometry import wrap_angle
 from tests.console import assert_aligned, printed_tables
 from tests.pinning import PINNED_DIR, assert_same_numbers
 
@@ -263,7 +263,7 @@ def test_quick_run_writes_report_and_figures(tmp_path: Path, capsys: pytest.Capt
 
 
 def _check_consistency(results: dict, report: str) -> None:
-    """NEES against the truth beside the errors (issue 19): per configuration and crowd size, per run, for the
+    """NEES against the truth beside the errors: per configuration and crowd size, per run, for the
     reference; numbers over every estimate (both localizers report a covariance; a singular one
     counts, as inf) and in the report's consistency tables."""
     from localizers.registry import LOCALIZERS

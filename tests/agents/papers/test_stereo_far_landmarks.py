@@ -184,7 +184,7 @@ def test_quick_run_writes_report_and_figures(tmp_path: Path, capsys: pytest.Capt
 
 
 def test_the_replayed_filter_knows_the_recorded_cameras_frame_gap_as_gym_make_gives_it() -> None:
-    """Issue 31: the reproduction's far_landmark_pf allows for the shift a turn causes between the webcams' frames,
+    """The reproduction's far_landmark_pf allows for the shift a turn causes between the webcams' frames,
     as the one ``gym.make`` builds does (one helper, ``rig_timing``, for both)."""
     rec, _ = jobs.record_run(seed=0, crowd_size=0, max_steps=10)
     scenes = jobs.make_map(jobs.map_tasks(ex.Plan(seeds=1, densities=(0,), max_steps=20))[0]).scenes

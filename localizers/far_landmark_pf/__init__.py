@@ -4,7 +4,7 @@ People and cars are near the robot, building walls and poles far: the filter wei
 particle by the far landmarks first. Per update (sec. 2.4 of the paper, numbered as there):
 
 1. the map's landmarks near the estimate: those of the ``scenes`` scenes recorded nearest the
-   estimate (within ``scene_radius_m``; :class:`localizers.scene_map.SceneMap`), in the world
+   estimate (within ``scene_radius_m``; :class:`localizers.far_landmark_pf.scene_map.SceneMap`), in the world
    frame, grouped by edge type;
 2. eqs. (6)-(10): a detection ``(1/r, theta)`` of a landmark at ``(1/r*, theta*)`` has the
    likelihood ``N(1/r; 1/r*, sigma_inv_r) N(theta; theta*, sigma_theta)`` (normalized
@@ -37,13 +37,13 @@ error, which the particles' weights cannot know. Measured on the campus route at
 70-95 % of the steps inside the 95 % region, NEES medians 1.4-3.8; without it 35-68 % and
 5.0-18.8. The estimate is the same either way.
 
-Lost and found (ours, issue 27; the paper has no recovery). Each frame, before it is weighed, the
+Lost and found (ours; the paper has no recovery). Each frame, before it is weighed, the
 usable detections are compared with the landmarks of the scenes near the estimate: the median
 distance (:func:`detection_distances`, in standard deviations of ``(1/r, theta)``, to the nearest
 same-type landmark; detections toward which the map holds no landmark say nothing) above
 ``lost_gate`` contradicts it (:class:`localizers.contradiction.ContradictionClock`, the bearing
 localizers' test on another residual). Those standard deviations are the paper's widened by what
-the last step's turn can shift between the rig's frames (issue 31: ``frame_gap_s``, ``baseline_m``;
+the last step's turn can shift between the rig's frames (``frame_gap_s``, ``baseline_m``;
 the paper's webcams take their frames up to 1/30 s apart, and a turn of 0.4 rad/s then moves the
 outer pair's disparity by up to 7 sds of the inverse range although the pose is right). Contradicted on
 every frame for ``lost_after_s``, the filter is lost: it claims no pose (``valid`` false) and
@@ -54,18 +54,17 @@ every detection's likelihood, and when the best pose agrees with the frame (medi
 ``lost_gate`` at the paper's sds, directions where the map holds nothing counted against it) the set
 is drawn around it. A search that lands within two cells and two heading steps of the estimate
 confirms it (crowds hiding the landmarks; one that finds the position with another heading redraws
-the set, issue 31: confirming it kept a heading 5-20 deg off and lost it again every 0.5 s). Until a
+the set: confirming it would keep a heading 5-20 deg off and lose it again every 0.5 s). Until a
 frame agrees or a search fits, no pose is claimed: a robot that drives on the estimate
 (``route_follower``) stops, and one kidnapped off the route that turns toward views the mapping drive
 never had may stay there, honestly lost.
 
 Measured on the campus route at crowd 30, seeds 0-9, 50 s, kidnapped at 20 s (``crowdloc eval --env-id
 crowdloc/StereoCampus-v0 --localizers far_landmark_pf --policies route_follower --crowd-sizes 30 --seeds 10
---episode-steps 500 --kidnap-at-s 20``, the figures as before and after issue 31's changes, both on the default
-map each code makes): by 2-5 m (pure translation, heading kept, unseen by odometry; ``--kidnap-m 2 --kidnap-max-m 5
---kidnap-keep-heading``) it recovers in 9 of 10 runs (7 before), in 7.7 s on average (5.5), with 4.7 s of
-confident wrong pose (3.4) and 7.1 s without a pose (10.2) in the 30 s after the jump. Kidnapped to a random pose
-anywhere on the campus with a random heading (without those three options) none recovers, before or after
+--episode-steps 500 --kidnap-at-s 20``, on the default map): by 2-5 m (pure translation, heading kept, unseen by
+odometry; ``--kidnap-m 2 --kidnap-max-m 5 --kidnap-keep-heading``) it recovers in 9 of 10 runs, in 7.7 s on average, with 4.7 s of
+confident wrong pose and 7.1 s without a pose in the 30 s after the jump. Kidnapped to a random pose
+anywhere on the campus with a random heading (without those three options) none recovers
 (the search looks near the estimate, and most of the campus holds no scene): 3.4 s of wrong pose, 26.6 s
 without one. Without a kidnap (the command without ``--kidnap-at-s``): mean error 0.181 m, RMS 0.225 m, 77.7 %
 of the steps inside the 95 % region, a pose on 96.6 % of them.
@@ -80,23 +79,24 @@ from typing import ClassVar, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from core.schema import ConfigError, check, check_at_most, check_ranges
 from localizers.base import (
     DEFAULT_MAX_SPREAD_M,
     ConsistencyPromise,
     EdgeMeasurement,
     LandmarkMap,
+    LocalizerBase,
     MeasurementError,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     check_max_spread,
-    checked_dt,
-    checked_odometry,
     require_reset,
     within_spread,
 )
 from localizers.contradiction import ContradictionClock
-from localizers.far_landmark_kernels import detection_distances, particle_log_weights, position_votes, top_cells
+from localizers.far_landmark_pf.kernels import detection_distances, particle_log_weights, position_votes, top_cells
+from localizers.far_landmark_pf.scene_map import SceneMap
 from localizers.particles import (
     MAX_PARTICLES,
     PARTICLE_MEMORY,
@@ -107,8 +107,6 @@ from localizers.particles import (
     weighted_pose_covariance,
     weighted_pose_mean,
 )
-from localizers.scene_map import SceneMap
-from localizers.schema import ConfigError, check, check_at_most, check_ranges
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -121,7 +119,7 @@ class FarLandmarkParams:
     """Parameters of :class:`FarLandmarkPF` (defaults: ``configs/localizers/far_landmark_pf.yaml``).
 
     Attributes:
-        scene_map: the scene map's file (``.npz``, :class:`~localizers.scene_map.SceneMap`);
+        scene_map: the scene map's file (``.npz``, :class:`~localizers.far_landmark_pf.scene_map.SceneMap`);
             empty: the world's default map, which ``gym.make(..., localizer="far_landmark_pf")``
             builds and caches on first use (:mod:`agents.experiments.scene_maps`).
         n_particles: set size (paper: 500).
@@ -150,7 +148,7 @@ class FarLandmarkParams:
         search_cell_m: the search's vote grid (each detection votes once for every cell its
             matching landmarks put the robot in; the best cells are then refined at a fifth of it).
         frame_gap_s, baseline_m: the camera rig's longest time between two of its frames and its neighbour
-            baseline (ours, issue 31; ``gym.make`` takes both from the env's camera unless given: the
+            baseline (ours; ``gym.make`` takes both from the env's camera unless given: the
             free-running webcams' frame period and 0.19 m, 0 for synchronised cameras). A frame taken while the
             robot turns at ``w`` rad/s (the step's odometry) can have its bearings off by ``w frame_gap_s`` and
             its inverse ranges by ``w frame_gap_s / (2 baseline_m)`` (the outer pair's disparity); the lost test
@@ -161,7 +159,7 @@ class FarLandmarkParams:
             heading drifts most in turns toward views the mapping drive never had).
         map_error: add the map's own uncertainty to the reported covariance (ours; the paper
             reports none): the mean pose covariance of the scenes the last update matched
-            against (:meth:`~localizers.scene_map.SceneMap.pose_covariance`). The filter's
+            against (:meth:`~localizers.far_landmark_pf.scene_map.SceneMap.pose_covariance`). The filter's
             particles know the camera's noise only, but every landmark of a scene carries that
             scene's pose error, so a pose fixed on them is off by it too. The estimate itself
             is the same either way.
@@ -266,28 +264,23 @@ def order_detections(
     return keep[order].astype(np.int64), starts
 
 
-class FarLandmarkPF:
+class FarLandmarkPF(LocalizerBase[FarLandmarkParams]):
     """The far-landmark particle filter (module docstring)."""
 
     name: ClassVar[str] = "far_landmark_pf"
-    #: measured on this run: share 0.738, NEES median 2.48 (without ``map_error``: 0.447 and 9.2, the filter
-    #: knowing only the camera's noise while the scenes' poses, the LIDAR reference's estimates, are off by
-    #: 0.1-0.2 m) (tests/localizers/test_consistency_promises.py); measured again with the lost detection and
-    #: the search (issue 27): the same 0.738 and 2.48 on the same 1104 steps with a pose (its 14 searches
-    #: all confirm the estimate); and again when the campus's cameras became the paper's free-running webcams
-    #: (issue 30): 0.668 and 2.87 on 1156 steps (0.644 with the cameras synchronised, the per-camera gains and the
-    #: rows model kept), so the promise went from 0.7 to 0.6
+    #: measured on this run, on the campus's free-running webcams (tests/localizers/test_consistency_promises.py):
+    #: share 0.668, NEES median 2.87 on 1156 steps with a pose (0.644 with the cameras synchronised, the per-camera
+    #: gains and the rows model kept), so the promise is 0.6 (``map_error``'s part in it: module docstring)
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/StereoCampus-v0", "route_follower", 1200, 0.6)
 
     def __init__(self, landmarks: LandmarkMap, params: FarLandmarkParams, *, dt_s: float, scenes: SceneMap | None = None) -> None:
-        self._dt = checked_dt(type(self).__name__, dt_s)
-        self._map = landmarks
-        self._params = params
+        super().__init__(landmarks, params, dt_s=dt_s)
         if scenes is None:
             if not params.scene_map:
                 raise ConfigError(
                     "far_landmark_pf needs a scene map: give localizer_params={'scene_map': PATH} (`crowdloc map WORLD` makes one), "
-                    "or make it with gym.make(..., localizer='far_landmark_pf'), which builds the world's default map"
+                    "or make it with gym.make(..., localizer='far_landmark_pf') after `import agents`, which builds the "
+                    "world's default map"
                 )
             scenes = SceneMap.load(params.scene_map)
         scenes.check_world(landmarks)
@@ -306,7 +299,7 @@ class FarLandmarkPF:
         self._near: tuple[tuple[int, ...], IntArray, Array, IntArray, Array] | None = None
         #: the detections the estimate's pose used at the last update, in the world frame (for drawing)
         self.used_xy = np.zeros((0, 2))
-        self._clock = ContradictionClock(params.lost_after_s, self._dt, threshold=params.lost_gate)
+        self._clock = ContradictionClock(params.lost_after_s, self._dt_s, threshold=params.lost_gate)
         self._lost = False
         #: the turn rate of the last odometry step, rad/s (what the lost test allows the frame's cameras to disagree by)
         self._turn_rps = 0.0
@@ -345,9 +338,9 @@ class FarLandmarkPF:
     def predict(self, odometry: OdometryDelta) -> None:
         """Move every particle by the odometry motion model."""
         rng = self._generator()
-        d = checked_odometry(self.name, odometry, self._map.step_limit_m)
+        d = self._checked_odometry(odometry)
         p = self._params
-        self._turn_rps = abs(float(d[2])) / self._dt
+        self._turn_rps = abs(float(d[2])) / self._dt_s
         propagate_particles(self._particles, d, self._alphas, rng,
                             min_translation_std_m=p.min_translation_std_m, min_rotation_std_rad=p.min_rotation_std_rad)  # fmt: skip
         self._cache = None
@@ -452,14 +445,14 @@ class FarLandmarkPF:
         return 1.0 / math.hypot(p.sigma_inv_r, shift_inv_r), 1.0 / math.hypot(p.sigma_theta_rad, slew)
 
     def _relocalize(self, meas: EdgeMeasurement) -> bool:
-        """Re-localization from the scene map (ours, issue 27), on this frame's detections: the position votes
+        """Re-localization from the scene map (ours), on this frame's detections: the position votes
         (:func:`position_votes`) of the usable detections against the landmarks of the scenes recorded within
         ``search_radius_m`` of the estimate, at the search's headings; the three best cells refined (+- a cell, at a fifth
         of it) by the likelihood of every usable detection (eq. (13), selection ``"all"``: far emphasis's one or
         two detections per sector fit too many poses to tell them apart) against the landmarks the filter would
         use there. When the best pose agrees with the detections (their median distance within ``lost_gate``,
         detections where the map holds nothing counted against it), the set is drawn around it (sensor resetting)
-        and the filter is no longer lost (when it lies within two cells of the estimate, the search's resolution along
+        and the filter stops being lost (when it lies within two cells of the estimate, the search's resolution along
         the view, the estimate was right and the set stays as it is); else it stays lost. Returns whether the set was drawn anew."""
         rng = self._generator()
         p = self._params

@@ -16,11 +16,11 @@ is triangulated with the outer pair and becomes a landmark at a range and bearin
 This module is the one import for all of it (what the stereo camera sensor and the tests
 use); the code lives in two modules along the pipeline's seam:
 
-- :mod:`localizers.stereo_edges`: one camera's image: the edge types, the filter, detection,
+- :mod:`envs.stereo.edges`: one camera's image: the edge types, the filter, detection,
   :class:`EdgeDetector`, :func:`draw_detections`, and the pixel convention (column ``k``
   spans ``[k, k + 1)``, its ray through ``k + 0.5``; shared with the renderer and the
   geometric fast mode of :mod:`envs.stereo`);
-- :mod:`localizers.stereo_matching`: the rig: trinocular matching, triangulation,
+- :mod:`envs.stereo.matching`: the rig: trinocular matching, triangulation,
   :class:`TrinocularRig`, and the frames' convention (the paper's stereo frame vs crowdloc's
   robot frame).
 
@@ -30,7 +30,7 @@ too: uint8 RGB images of shape ``(H, W, 3)``.
 
 from __future__ import annotations
 
-from localizers.stereo_edges import (
+from envs.stereo.edges import (
     CHANNEL_COLOURS,
     CHANNELS,
     EDGE_TYPES,
@@ -57,7 +57,7 @@ from localizers.stereo_edges import (
     filter_size,
     vertical_edge_response,
 )
-from localizers.stereo_matching import (
+from envs.stereo.matching import (
     Matches,
     TrinocularRig,
     disparity_window,

@@ -8,8 +8,8 @@
 3. :class:`EdgeDetector` bundles one camera's filter, rows and threshold;
    :func:`draw_detections` marks the edges on the image like the paper's Fig. 2.
 
-The three cameras' edges are matched and triangulated in :mod:`localizers.stereo_matching`;
-:mod:`localizers.stereo_vision` gathers both. Everything here works on plain arrays (no env
+The three cameras' edges are matched and triangulated in :mod:`envs.stereo.matching`;
+:mod:`envs.stereo.vision` gathers both. Everything here works on plain arrays (no env
 objects), so it runs on a real camera's frames too: uint8 RGB images of shape ``(H, W, 3)``.
 
 **Pixel coordinates** (shared with the renderer and the geometric fast mode): the continuous
@@ -25,7 +25,7 @@ pixel indices (row 0 at the top).
 **Errors.** Bad parameters raise ValueError naming the argument and the value; malformed
 measured data (images, edge lists) raise :class:`~localizers.base.MeasurementError` (a
 ValueError) naming it; bad config dataclasses raise
-:class:`~localizers.schema.ConfigError` (a ValueError).
+:class:`~core.schema.ConfigError` (a ValueError).
 """
 
 from __future__ import annotations
@@ -40,11 +40,11 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.base import EDGE_CHANNELS as CHANNELS  # R, G, B
-from localizers.base import EDGE_LEVELS as LEVELS  # detection rows; level 0 is the topmost
-from localizers.base import EDGE_POLARITIES as POLARITIES  # rising, falling
-from localizers.base import EDGE_TYPES, MeasurementError
-from localizers.schema import check, is_int, is_real
+from core.schema import check, is_int, is_real
+from core.types import EDGE_CHANNELS as CHANNELS  # R, G, B
+from core.types import EDGE_LEVELS as LEVELS  # detection rows; level 0 is the topmost
+from core.types import EDGE_POLARITIES as POLARITIES  # rising, falling
+from core.types import EDGE_TYPES, MeasurementError
 
 # The paper's filter at its cameras' 640 x 480.
 PAPER_FILTER_ROWS = 101

@@ -26,7 +26,7 @@ Implementation notes (ours):
   ``geometry.compose``), a candidate is stored as ``X = P (+) O(t_gen)^-1`` and its pose
   is ``X (+) O(t)``; by associativity of SE(2) this equals composing every increment in
   the candidate's own frame, and ``predict`` is O(1). The kernels are in
-  :mod:`localizers.candidate_kernels`.
+  :mod:`localizers.candidate_sets.kernels`.
   ``cos``/``sin`` of each ``X``'s heading are stored once, so an update needs one
   ``arctan2`` per candidate and landmark and no other transcendental function.
 * Evaluation runs in float32 (bearing precision ~1e-7 rad; ``arctan2`` is a branch-free
@@ -45,7 +45,7 @@ Implementation notes (ours):
   An exponential factor keeps O(1) state per candidate (a sliding window would have to
   store each candidate's last ``tau / dt`` terms) and, written as a time constant, means
   the same at any frame rate. Multiplying every Error of the store by the same factor
-  changes no ranking, so the least-Error pose of a set is chosen as before; what changes is
+  changes no ranking, so a set chooses the same least-Error pose as without it; what changes is
   the meaning of the thresholds: a candidate whose eq. (1) error is ``e`` per frame settles
   at ``e / (1 - lambda) ~ e tau / dt``, so ``prune_error_rad`` and ``abort_error_rad``
   become limits on the *recent* mean error per frame, ``threshold * (1 - lambda)``. For a
@@ -58,7 +58,7 @@ Implementation notes (ours):
   growing by ``coast_growth_per_m`` per metre travelled (and per radian turned for the
   heading).
 
-Knowing when it is lost (issue 19; ours, the paper says nothing of it):
+Knowing when it is lost (ours, the paper says nothing of it):
 
 * *Widening on empty frames.* A frame without bearings evaluates nothing, so the sets stay
   determined and their candidates move rigidly with the odometry: their spread would stay
@@ -89,22 +89,23 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from core.geometry import between, circular_std, compose
+from core.schema import check, check_at_most, check_ranges
 from localizers.base import (
     DEFAULT_MAX_SPREAD_M,
     BearingMeasurement,
     ConsistencyPromise,
     LandmarkMap,
+    LocalizerBase,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     check_max_spread,
     checked_bearings,
-    checked_dt,
-    checked_increment,
     require_reset,
     within_spread,
 )
-from localizers.candidate_kernels import (
+from localizers.candidate_sets.kernels import (
     ROW_ERR,
     ROW_TH,
     ROW_X,
@@ -122,10 +123,8 @@ from localizers.candidate_kernels import (
     triple_seeds,
 )
 from localizers.contradiction import Contradiction
-from localizers.geometry import between, circular_std, compose
 from localizers.particles import MAX_PARTICLES
 from localizers.resection import inscribed_arc_poses, triple_indices
-from localizers.schema import check, check_at_most, check_ranges
 
 
 @dataclass(frozen=True)
@@ -317,7 +316,7 @@ def fuse_poses(poses: ArrayLike, median_threshold_m: float) -> tuple[NDArray[np.
     return fuse(np.ascontiguousarray(p), float(median_threshold_m))
 
 
-class CandidateSetLocalizer:
+class CandidateSetLocalizer(LocalizerBase[CandidateSetParams]):
     """Multiple candidate sets pruned by accumulated bearing errors, fused (paper method (5)).
 
     The estimate is invalid until a set first determines. Its covariance is the sample
@@ -336,13 +335,10 @@ class CandidateSetLocalizer:
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/RoboCupCrowded-v0", "random_walk", 400, 0.5)
 
     def __init__(self, landmarks: LandmarkMap, params: CandidateSetParams, *, dt_s: float) -> None:
-        self._dt = checked_dt("CandidateSetLocalizer", dt_s)
-        self._map = landmarks
-        self._step_limit_m = landmarks.step_limit_m
-        self._params = params
+        super().__init__(landmarks, params, dt_s=dt_s, owner="CandidateSetLocalizer")
         self._lx32 = landmarks.positions_xy_m[:, 0].astype(np.float32)
         self._ly32 = landmarks.positions_xy_m[:, 1].astype(np.float32)
-        self._contradiction = Contradiction(landmarks.positions_xy_m, params.lost_residual_rad, params.lost_after_s, self._dt)
+        self._contradiction = Contradiction(landmarks.positions_xy_m, params.lost_residual_rad, params.lost_after_s, self._dt_s)
         self._floors = np.array([params.position_floor_m**2] * 2 + [params.heading_floor_rad**2])
         # Candidates, grouped by set in creation order: column i holds candidate i's base pose
         # X (rows ROW_X, ROW_Y, ROW_TH), cos/sin of its heading and its accumulated Error (row ROW_ERR).
@@ -396,7 +392,7 @@ class CandidateSetLocalizer:
     def predict(self, odometry: OdometryDelta) -> None:
         """Propagate every candidate by the increment (lazily: one SE(2) product)."""
         self._require_reset()
-        dx, dy, dth = checked_increment(self.name, odometry, self._step_limit_m)
+        dx, dy, dth = self._checked_increment(odometry)
         accumulate(self._odo, dx, dy, dth)
         self._path_m += math.hypot(dx, dy)
         self._turn_rad += abs(dth)
@@ -412,7 +408,7 @@ class CandidateSetLocalizer:
         ids, bearings = meas.landmark_ids, meas.bearings_rad
         n = ids.size
         p = self._params
-        self._since_eval_s += self._dt
+        self._since_eval_s += self._dt_s
         if n == 0:
             return
         self._seen = (self._path_m, self._turn_rad)

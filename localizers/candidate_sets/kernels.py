@@ -14,7 +14,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from localizers.motion import wrap_scalar
+from core.motion import wrap_scalar
 from localizers.resection import solve_triples
 
 # Rows of the candidate store (see candidate_sets.CandidateSetLocalizer): base pose X, cos/sin of its heading, Error.

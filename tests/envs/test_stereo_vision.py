@@ -1,4 +1,4 @@
-"""The stereo paper's vision (localizers.stereo_vision): edge types, the tall filter on synthetic
+"""The stereo paper's vision (envs.stereo.vision): edge types, the tall filter on synthetic
 stripes, sub-pixel edges, trinocular matching, the paper's eqs. (2)-(5), the range noise,
 drawing and bad input."""
 
@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from localizers.schema import ConfigError
-from localizers.stereo_vision import (
+from core.schema import ConfigError
+from envs.stereo.vision import (
     EDGE_TYPES,
     EdgeDetector,
     EdgeList,

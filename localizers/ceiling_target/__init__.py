@@ -1,6 +1,6 @@
 """The ceiling-target paper's localizer (Fukaya et al.): a pose fix from every colour target in view.
 
-Each image goes through the paper's pipeline (:mod:`localizers.ceiling_vision`): HSV, the
+Each image goes through the paper's pipeline (:mod:`localizers.ceiling_target.vision`): HSV, the
 learned thresholds, the line C fitted by least squares, the end squares A and B found with a
 5 x 5 mask, and the map positions of A and B. A target is identified by its colour code; a
 code that several targets share (or a reading with one end in view that fits several) is
@@ -12,11 +12,11 @@ fix replaces the pose); ``fusion: ekf`` fuses each fix with the dead-reckoned po
 extended Kalman filter (the paper's future work), the fix's covariance being
 ``diag(position_sd_m^2, position_sd_m^2, heading_sd_rad^2)``.
 
-**Lost** (ours, issue 27). Three tests contradict the estimate. (1) The ceiling plan: the map
+**Lost** (ours; the paper has none). Three tests contradict the estimate. (1) The ceiling plan: the map
 also holds the ceiling as built (a ceiling feature's ``plan``: the light panels, the exit signs'
 lettering), and each image, averaged over cells of ``plan_cell_px``, shows its white light panels
 by their HSV saturation (the ceiling's off-white has 0.04-0.07, a panel under 0.03, whatever the
-illumination's gain and the vignetting; :func:`localizers.ceiling_vision.plan_evidence`). White
+illumination's gain and the vignetting; :func:`localizers.ceiling_target.vision.plan_evidence`). White
 seen more than ``plan_margin_out_m`` from every white the plan puts in view from the estimate, or
 a panel it puts in view (``plan_expected_m2``) showing plain ceiling, contradicts the estimate;
 dark cells (a person's head under the camera) count neither way, and white where the plan has it
@@ -27,8 +27,8 @@ the targets. (2) Every target reading of a frame lies more than ``lost_offset_m`
 pose is claimed (:attr:`lost`); a reading whose colour code only one target has is a full fix
 whatever the estimate predicted (it replaces the pose, with ``fusion: ekf`` too), and
 ``corridor_follower`` searches along the corridor by its sonar until it comes under one. Measured
-on 10 seeds with ``corridor_follower``, carried 2-5 m by a pure translation 10 s in (issue 27's
-kidnap)::
+on 10 seeds with ``corridor_follower``, carried 2-5 m by a pure translation 10 s in (a kidnap
+the odometry does not see)::
 
     crowdloc eval --env-id crowdloc/CeilingCorridor-v0 --policies corridor_follower --localizers ceiling_target \
         --crowd-sizes 20 --seeds 10 --episode-steps 800 --workers 1 \
@@ -41,10 +41,10 @@ alone), at most 0.5 s in 9 runs, 12.6 s in one whose jump was close to a multipl
 recovered, the robot searched without passing under a target its colours identify in 30 s (a
 target seen by one end only fits two targets). Carried anywhere with a random heading (``--kidnap-at-s 10`` alone):
 0.39 s (20.9 s), 9 of 10 (3) at crowd 20; 0.81 s, 10 of 10 at crowd 0. (A kidnap lands on the
-floor the robot can reach, :mod:`envs.floor`; one once left it behind the corridor's wall.) Without a
-kidnap the mean error is 0.091 m at crowd 20 (0.132 m before) with availability 0.950 (0.999:
+floor the robot can reach, :mod:`envs.floor`.) Without a
+kidnap the mean error is 0.091 m at crowd 20 (0.132 m with the target tests alone) with availability 0.950 (0.999:
 people pushing the robot make its odometry slip, and the panels show it), and 0.048 m,
-availability 1.000, at crowd 0 (unchanged).
+availability 1.000, at crowd 0 (the same with the target tests alone).
 
 Parameters: ``configs/localizers/ceiling_target.yaml``; the colour thresholds there are
 learned by ``crowdloc fit ceiling_target`` from rendered, labelled images and record the data
@@ -61,22 +61,23 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from core.geometry import wrap_angle
+from core.schema import ConfigError, check, check_ranges
 from localizers.base import (
     DEFAULT_MAX_SPREAD_M,
     ConsistencyPromise,
     LandmarkMap,
+    LocalizerBase,
     MeasurementError,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     check_max_spread,
-    checked_dt,
-    checked_odometry,
     finite_covariance,
     require_reset,
     within_spread,
 )
-from localizers.ceiling_vision import (
+from localizers.ceiling_target.vision import (
     CameraIntrinsics,
     CeilingPlan,
     ColourRange,
@@ -94,8 +95,6 @@ from localizers.ceiling_vision import (
 )
 from localizers.contradiction import ContradictionClock
 from localizers.dead_reckoning import dead_reckon
-from localizers.geometry import wrap_angle
-from localizers.schema import ConfigError, check, check_ranges
 
 
 @dataclass(frozen=True)
@@ -125,7 +124,7 @@ class CeilingTargetParams:
     """Parameters of :class:`CeilingTargetLocalizer` (defaults: ``configs/localizers/ceiling_target.yaml``).
 
     Attributes:
-        thresholds: colour name -> learned :class:`~localizers.ceiling_vision.ColourRange`.
+        thresholds: colour name -> learned :class:`~localizers.ceiling_target.vision.ColourRange`.
         fitted_on: a record of the data the thresholds were learned from (written by ``fit``).
         colour_space: ``"hsv"`` (the paper's) or ``"rgb"`` (plain RGB boxes, for comparison).
         mask_px, mask_fill: the square mask of the end squares and the share of it that must
@@ -142,10 +141,10 @@ class CeilingTargetParams:
         max_gate: with an estimate, a fix farther than this many sds (Mahalanobis) is refused
             as a misreading (0: never refused).
         max_spread_m: past this position spread (m) of the dead reckoning between targets the
-            pose is no longer claimed (ours). With the default drift (2e-4 m^2 per m per axis)
+            pose is not claimed (ours). With the default drift (2e-4 m^2 per m per axis)
             the spread grows by 0.02 m over the 6.9 m between the corridor's targets and
-            reaches 1 m only after 2.5 km without a target, so the reproduction is unchanged.
-        lost_offset_m: lost detection (ours, issue 27): a frame whose every target reading lies
+            reaches 1 m only after 2.5 km without a target, so the reproduction never meets it.
+        lost_offset_m: lost detection (ours): a frame whose every target reading lies
             farther than this (m) from the estimate contradicts it. One target fits the colours
             seen: the reading is a full pose fix and replaces the pose whatever ``fusion``; several
             fit: the localizer is lost (claims no pose) until a reading that only one target fits.
@@ -155,7 +154,7 @@ class CeilingTargetParams:
             contradicts the estimate: lost (inf: never).
         view_margin_m: how far inside the footprint's edge a target's ends must be predicted for
             its absence to count (m; blur, heads at the edges and the estimate's drift).
-        plan_after_s: lost test by the ceiling plan (ours, issue 27; module docstring): the light
+        plan_after_s: lost test by the ceiling plan (ours; module docstring): the light
             panels seen contradicting the estimate on every frame that says anything for this
             long (s): lost (inf: never).
         plan_cell_px: the image is averaged over cells of this many pixels a side (noise).
@@ -265,7 +264,7 @@ class CeilingTargetParams:
         )
 
 
-class CeilingTargetLocalizer:
+class CeilingTargetLocalizer(LocalizerBase[CeilingTargetParams]):
     """Pose fixes from ceiling colour targets, dead reckoning in between (module docstring)."""
 
     name: ClassVar[str] = "ceiling_target"
@@ -274,9 +273,7 @@ class CeilingTargetLocalizer:
     measurement: ClassVar[str] = "ceiling_image"
 
     def __init__(self, landmarks: LandmarkMap, params: CeilingTargetParams, *, dt_s: float) -> None:
-        self._dt = checked_dt("CeilingTargetLocalizer", dt_s)
-        self._params = params
-        self._step_limit_m = landmarks.step_limit_m
+        super().__init__(landmarks, params, dt_s=dt_s, owner="CeilingTargetLocalizer")
         ceilings = {name: data for name, data in landmarks.features.items() if data.get("type") == "ceiling"}
         if not ceilings:
             raise ConfigError(
@@ -302,9 +299,9 @@ class CeilingTargetLocalizer:
         self.fixes = 0
         self._lost = False
         #: how long a target predicted wholly in view has not been seen (``lost_after_s``)
-        self._unseen = ContradictionClock(params.lost_after_s, self._dt)
+        self._unseen = ContradictionClock(params.lost_after_s, self._dt_s)
         #: how long the ceiling plan has contradicted the estimate (``plan_after_s``)
-        self._plan_clock = ContradictionClock(params.plan_after_s, self._dt)
+        self._plan_clock = ContradictionClock(params.plan_after_s, self._dt_s)
         #: what the last image said of the estimate against the ceiling plan (None: not compared)
         self.last_plan: PlanEvidence | None = None
 
@@ -326,7 +323,7 @@ class CeilingTargetLocalizer:
 
     def predict(self, odometry: OdometryDelta) -> None:
         require_reset("CeilingTargetLocalizer", self._ready)
-        d = checked_odometry(self.name, odometry, self._step_limit_m)
+        d = self._checked_odometry(odometry)
         if self._pose is None:
             return
         p = self._params

@@ -20,8 +20,9 @@ and adds to the observation:
 localizer draws from its own generator, seeded from the env seed, so filtering never
 changes the world's random stream. The measurements come from the sensor that the
 localizer's measurement kind reads (:mod:`localizers.measurements`), found through the base
-env's ``sensor_metadata``; odometry from the ``odometry`` sensor. This module imports
-nothing from ``envs``.
+env's ``sensor_metadata``; odometry from the ``odometry`` sensor. The wrapper composes a
+localizer into the env loop, so it lives with the envs, above :mod:`localizers`, and reads the
+env only through its ``landmark_map``, ``sensor_metadata`` and ``config``.
 """
 
 from __future__ import annotations
@@ -36,8 +37,9 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from core.geometry import circular_std
+from core.schema import ConfigError
 from localizers.base import LandmarkMap, Localizer, Overlay, PoseEstimate
-from localizers.geometry import circular_std
 from localizers.measurements import (
     bearing_measurement,
     find_sensor,
@@ -47,7 +49,6 @@ from localizers.measurements import (
     sensor_map,
 )
 from localizers.registry import make_localizer, measurement_in, prepared_params, spec
-from localizers.schema import ConfigError
 
 __all__ = ["LocalizationObservation", "bearing_measurement", "decode_estimate", "encode_estimate", "hypothesis_spread"]
 

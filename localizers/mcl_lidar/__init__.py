@@ -10,18 +10,18 @@ What depends only on the map is precomputed once per map:
 
 - beam model: a *ray-cast table* of the expected range ``z*`` for every cell of a grid over
   the map bounds and every one of ``table_directions`` world directions, computed with
-  :func:`localizers.raycast.cast_rays` and cached on disk
+  :func:`core.raycast.cast_rays` and cached on disk
   (:func:`localizers.range_table.build_range_table`);
 - likelihood field: ``log(z_hit N(d; 0, sigma^2) + z_rand / z_max)`` per cell, ``d`` the
   distance from the cell centre to the nearest wall.
 
-The measurement models and their numba kernels are in :mod:`localizers.beam_model`, the
+The measurement models and their numba kernels are in :mod:`localizers.mcl_lidar.beam_model`, the
 table and its cache in :mod:`localizers.range_table`; this module re-exports their public
 names.
 
 The parameters (:class:`LidarMCLParams`) and their choice in a world too large for the beam
 model's table (:data:`LARGE_MAP_PARAMS`, :func:`large_map_params`) are in
-:mod:`localizers.mcl_lidar_params`, the scan's checks in :func:`localizers.base.validated_scan`;
+:mod:`localizers.mcl_lidar.params`, the scan's checks in :func:`localizers.base.validated_scan`;
 this module re-exports them too, so that ``localizers.mcl_lidar`` stays the one place a user imports.
 
 Motion is integrated lazily, as ROS amcl does: :meth:`LidarMCL.predict` composes the
@@ -51,23 +51,22 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from core.geometry import compose, deskewed_scan, wrap_angle
 from localizers.base import (
     ConsistencyPromise,
     LandmarkMap,
+    LocalizerBase,
     MeasurementError,
     OdometryDelta,
     Overlay,
     PoseEstimate,
     ScanMeasurement,
-    checked_dt,
-    checked_odometry,
     require_reset,
     validated_scan,
     within_spread,
 )
-from localizers.beam_model import BeamModel, LikelihoodFieldModel, beam_likelihood, p_hit, p_max, p_rand, p_short
-from localizers.geometry import compose, deskewed_scan, wrap_angle
-from localizers.mcl_lidar_params import (
+from localizers.mcl_lidar.beam_model import BeamModel, LikelihoodFieldModel, beam_likelihood, p_hit, p_max, p_rand, p_short
+from localizers.mcl_lidar.params import (
     LARGE_MAP_PARAMS,
     MAX_TABLE_DIRECTIONS,
     LidarMCLParams,
@@ -141,7 +140,7 @@ def deskewed(
 ) -> tuple[Array, Array]:
     """The ``deskew`` option of the LIDAR localizers: ``(ranges, angles)`` of a swept scan whose beams
     were taken ``lags_s`` before its end, moved to the end pose by the step's odometry ``increment``
-    over ``dt_s`` (:func:`localizers.geometry.deskewed_scan`); unchanged without lags, with all lags 0
+    over ``dt_s`` (:func:`core.geometry.deskewed_scan`); unchanged without lags, with all lags 0
     or without motion.
 
     Raises:
@@ -200,7 +199,7 @@ def kld_resample(particles: Array, weights: Array, rng: np.random.Generator, par
     return idx[:count]
 
 
-class LidarMCL:
+class LidarMCL(LocalizerBase[LidarMCLParams]):
     """MCL on LIDAR scans against the map's walls (Probabilistic Robotics Table 8.2).
 
     Per due update: move every particle by the odometry composed since the last update
@@ -216,18 +215,14 @@ class LidarMCL:
     """
 
     name: ClassVar[str] = "mcl_lidar"
-    #: measured on this run: share 0.562, NEES median 5.6: the beam model counts every beam as independent, so
-    #: the cloud is narrower than the error (module docstring) (tests/localizers/test_consistency_promises.py).
-    #: Issue 30's room (people who see the robot, the 25 ms sweep): 0.390, NEES median 11.6. The crowd's other
-    #: paths do it, not the sweep: 0.622 with nobody seeing the robot, 0.292 with the sweep off, 0.378 with
-    #: deskew; so the promise went from 0.5 to 0.35
+    #: measured on this run (tests/localizers/test_consistency_promises.py), in the room with people who see the
+    #: robot and the 25 ms sweep: share 0.390, NEES median 11.6: the beam model counts every beam as independent, so
+    #: the cloud is narrower than the error (module docstring). The crowd's paths do it, not the sweep: 0.622 with
+    #: nobody seeing the robot, 0.292 with the sweep off, 0.378 with deskew; so the promise is 0.35
     consistency: ClassVar[ConsistencyPromise] = ConsistencyPromise("crowdloc/CrowdedRoom-v0", "random_walk", 500, 0.35)
 
     def __init__(self, landmarks: LandmarkMap, params: LidarMCLParams, *, dt_s: float) -> None:
-        self._dt = checked_dt(type(self).__name__, dt_s)
-        self._map = landmarks
-        self._step_limit_m = landmarks.step_limit_m
-        self._params = params
+        super().__init__(landmarks, params, dt_s=dt_s)
         self._alphas = np.asarray(params.alphas, dtype=np.float64)
         if params.model == "beam":  # refused here, not at the first scan: the table's size depends on the map only
             check_range_table_size(landmarks.bounds_m, params.table_resolution_m, params.table_directions, params.max_table_mb)
@@ -292,7 +287,7 @@ class LidarMCL:
     def predict(self, odometry: OdometryDelta) -> None:
         """Compose the increment into the motion not yet applied to the particles."""
         self._generator()
-        d = checked_odometry(self.name, odometry, self._step_limit_m)
+        d = self._checked_odometry(odometry)
         self._increment = d
         self._pending = compose(self._pending, d)
         self._travel_m += math.hypot(d[0], d[1])
@@ -308,7 +303,7 @@ class LidarMCL:
         stride = p.beam_stride
         if p.deskew:
             lags = None if measurement.beam_lags_s is None else np.asarray(measurement.beam_lags_s)
-            ranges, angles = deskewed(ranges, angles, max_range, lags, self._increment, self._dt, self.name)
+            ranges, angles = deskewed(ranges, angles, max_range, lags, self._increment, self._dt_s, self.name)
         ranges = np.ascontiguousarray(ranges[::stride])
         angles = np.ascontiguousarray(angles[::stride])
         used = ranges.size if p.model == "beam" else int(np.count_nonzero(ranges < max_range))
@@ -345,11 +340,6 @@ class LidarMCL:
         if n_inject == 0 and 1.0 / float(w @ w) >= p.resample_ess_fraction * n:
             return
         self._resample(rng, n_inject, (ranges, angles, max_range))
-
-    @property
-    def params(self) -> LidarMCLParams:
-        """The parameters it was made with."""
-        return self._params
 
     @property
     def estimate(self) -> PoseEstimate:
@@ -419,7 +409,7 @@ class LidarMCL:
     @property
     def dt_s(self) -> float:
         """The env's step, s."""
-        return self._dt
+        return self._dt_s
 
     # ------------------------------------------------------------------ internals
     def _generator(self) -> np.random.Generator:

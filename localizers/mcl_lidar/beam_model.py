@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from localizers.base import LandmarkMap
-from localizers.mcl_lidar_params import LidarMCLParams
+from localizers.mcl_lidar.params import LidarMCLParams
 from localizers.range_table import RangeTable, check_table_size, wall_distance_field
 
 Array = NDArray[np.float64]

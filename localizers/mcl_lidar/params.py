@@ -1,8 +1,8 @@
 """``mcl_lidar``'s parameters (:class:`LidarMCLParams`) and their choice in a world too large for the beam model.
 
-The parameters are checked when made (one :class:`~localizers.schema.ConfigError` per rule);
+The parameters are checked when made (one :class:`~core.schema.ConfigError` per rule);
 the filter that uses them is :mod:`localizers.mcl_lidar`, the measurement models
-:mod:`localizers.beam_model` (both import this module, it imports neither).
+:mod:`localizers.mcl_lidar.beam_model` (both import this module, it imports neither).
 
 Map size (measured on a synthetic 150 m x 100 m campus of 1,000 walls, one core): the
 likelihood field is the only map model a ``likelihood_field`` filter builds (the ray-cast
@@ -30,10 +30,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from core.schema import check, check_at_most, check_ranges
 from localizers.base import DEFAULT_MAX_SPREAD_M, check_max_spread
 from localizers.particles import MAX_PARTICLES, PARTICLE_MEMORY
 from localizers.range_table import MAX_TABLE_MB, RANGE_TABLE_ENTRY_BYTES, range_table_shape, table_megabytes
-from localizers.schema import check, check_at_most, check_ranges
 
 __all__ = ["LARGE_MAP_PARAMS", "MAX_TABLE_DIRECTIONS", "LidarMCLParams", "large_map_mcl", "large_map_params"]
 
@@ -86,7 +86,7 @@ class LidarMCLParams:
         table_directions: directions per cell of the ray-cast table (720: 0.5 deg).
         max_table_mb: the most memory (MB, per process) one map table may take: the ray-cast
             table (4 bytes per cell and direction) or the likelihood field (about 12 bytes a
-            cell). A table above it is refused with a :class:`~localizers.schema.ConfigError`
+            cell). A table above it is refused with a :class:`~core.schema.ConfigError`
             when the filter is made (the beam model's) or its field built, giving the estimate
             and what to change. The beam model's table of a 150 m x 100 m campus at 5 cm and 720
             directions would be 17 GB: in such a world the env wrapper picks
@@ -99,7 +99,7 @@ class LidarMCLParams:
         min_particles, max_particles: limits of the KLD set size.
         recovery: augmented MCL, random particles when the short-term likelihood average
             drops below the long-term one (Table 8.3), drawn from the scan (see
-            ``recovery_candidates``). On by default (ours, issue 19); off is the paper's plain
+            ``recovery_candidates``). On by default (ours); off is the paper's plain
             MCL, as its reproduction runs it.
         alpha_slow, alpha_fast: rates of the long- and short-term averages (kept with or
             without ``recovery``: they also tell when the filter is lost).
@@ -131,10 +131,10 @@ class LidarMCLParams:
             field 1.8e-12), with or without ``fastmath`` on the parallel variant (each particle
             is summed by one thread, in beam order, so it is not a thread-order reduction).
             Calls of one compiled kernel are deterministic; the pinned numbers use the serial one.
-        deskew: undo the motion of the robot during a swept scan before weighing it (issue 30; off in
+        deskew: undo the motion of the robot during a swept scan before weighing it (ours; off in
             the papers' reproductions, whose scans are taken as they come): each beam is moved to the
             pose at the scan's end by the step's odometry increment, a constant velocity across the step
-            assumed (:func:`localizers.geometry.deskewed_scan`), using the beam times the scan carries
+            assumed (:func:`core.geometry.deskewed_scan`), using the beam times the scan carries
             (:attr:`localizers.base.ScanMeasurement.beam_lags_s`, from a LIDAR's ``sweep_s``); a scan
             without them is used as it is.
     """

@@ -11,10 +11,10 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import envs  # noqa: F401
+from core.schema import ConfigError
+from envs.wrappers import LocalizationObservation, bearing_measurement, hypothesis_spread
 from localizers.base import Overlay, PoseEstimate
 from localizers.registry import LOCALIZERS
-from localizers.schema import ConfigError
-from localizers.wrappers import LocalizationObservation, bearing_measurement, hypothesis_spread
 from tests.envs.exact import EXACT
 
 BEARING_LOCALIZERS = sorted(name for name, s in LOCALIZERS.items() if s.measurement == "bearings")
@@ -265,7 +265,7 @@ def test_a_sensor_can_carry_the_bearings_under_another_key() -> None:
     assert b["estimate_valid"][0] == 1.0
 
 
-# --- observations of the wrong shape (issue 27: numpy's reshape or IndexError, or 27 values accepted) ----------
+# --- observations of the wrong shape (a named error, not numpy's reshape or IndexError, nor 27 values accepted) ---
 
 
 class _Cut(gym.ObservationWrapper):

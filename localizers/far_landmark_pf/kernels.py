@@ -2,7 +2,7 @@
 detection (eqs. (6)-(13)), the particles' weights under far emphasis (eq. (14)), the lost test's distances and the
 re-localization's position votes.
 
-They are the filter's cost (issue 31: a policy that leaves the route makes the filter search, and every frame
+They are the filter's cost (a policy that leaves the route makes the filter search, and every frame
 weighs 500 particles against the detections), so each skips work whose result nobody reads, and only that: the
 numbers are those of the plain loops, bit for bit (``tests/localizers/test_far_landmark_pf.py`` compares them with
 the plain kernels on random frames, and a seeded crowded campus run with its pinned estimates).

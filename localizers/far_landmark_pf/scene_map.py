@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from core.schema import ConfigError
 from localizers.base import EDGE_TYPES, LandmarkMap
 from localizers.range_table import write_atomically
-from localizers.schema import ConfigError
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]

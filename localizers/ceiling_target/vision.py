@@ -34,9 +34,9 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from core.geometry import undistort, wrap_angle
+from core.schema import check
 from localizers.base import MeasurementError
-from localizers.geometry import wrap_angle
-from localizers.schema import check
 
 Triple = tuple[float, float, float]
 
@@ -182,16 +182,6 @@ def fit_colour_range(
     )
 
 
-def undistort(xd: NDArray[np.float64], yd: NDArray[np.float64], k1: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Invert the radial lens model ``x_d = x_u (1 + k1 r_u^2)`` (normalized coordinates) by
-    fixed-point iteration: the camera's renderer and the pipeline share this one inverse."""
-    xu, yu = np.array(xd, dtype=np.float64), np.array(yd, dtype=np.float64)
-    for _ in range(20):
-        scale = 1.0 + k1 * (xu * xu + yu * yu)
-        xu, yu = xd / scale, yd / scale
-    return xu, yu
-
-
 @dataclass(frozen=True)
 class CameraIntrinsics:
     """What the pipeline needs of the camera (its metadata, plain numbers)."""
@@ -231,7 +221,7 @@ class CameraIntrinsics:
 
         ``metres_per_px > 0``: the paper's single calibration constant (pixels times a
         proportionality constant), no lens model; else the intrinsics, with the lens
-        distortion removed (:func:`undistort`) when ``undistort_points``.
+        distortion removed (:func:`core.geometry.undistort`) when ``undistort_points``.
         """
         p = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
         if metres_per_px > 0:
@@ -523,7 +513,7 @@ def colour_ranges(values: Mapping[str, ColourRange], needed: Iterable[str], sour
     return {name: values[name] for name in needed}
 
 
-# ---------------------------------------------------------------------------- the ceiling plan (ours, issue 27)
+# ---------------------------------------------------------------------------- the ceiling plan (ours)
 @dataclass(frozen=True)
 class CeilingPlan:
     """The white parts of the ceiling as built (a ceiling feature's ``plan`` map data), for the lost test.

@@ -226,3 +226,13 @@ def polyline_point(vertices_xy: NDArray[np.float64], arc_m: NDArray[np.float64],
     length = arc_m[k + 1] - arc_m[k]
     t = (s - arc_m[k]) / length if length > 0.0 else 0.0
     return np.asarray(vertices_xy[k] + t * (vertices_xy[k + 1] - vertices_xy[k]), dtype=np.float64)
+
+
+def undistort(xd: NDArray[np.float64], yd: NDArray[np.float64], k1: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Invert the radial lens model ``x_d = x_u (1 + k1 r_u^2)`` (normalized coordinates) by
+    fixed-point iteration: the camera's renderer and the pipeline share this one inverse."""
+    xu, yu = np.array(xd, dtype=np.float64), np.array(yd, dtype=np.float64)
+    for _ in range(20):
+        scale = 1.0 + k1 * (xu * xu + yu * yu)
+        xu, yu = xd / scale, yd / scale
+    return xu, yu

@@ -6,8 +6,8 @@
    (the one place the paper's bearing convention is converted);
 3. :class:`TrinocularRig` bundles the rig's numbers.
 
-The edges come from :mod:`localizers.stereo_edges` (whose pixel convention holds here);
-:mod:`localizers.stereo_vision` gathers both.
+The edges come from :mod:`envs.stereo.edges` (whose pixel convention holds here);
+:mod:`envs.stereo.vision` gathers both.
 
 **Frames.** The paper's stereo frame has its origin at the LEFT camera, ``x`` to the right
 and ``y`` forward; its bearing ``theta = atan(x / y)`` is measured from the forward axis,
@@ -15,9 +15,9 @@ positive to the right. crowdloc's robot frame has ``x`` forward and ``y`` to the
 bearings counter-clockwise from the heading (left positive). Only
 :func:`rig_range_bearing` converts between the two.
 
-**Errors.** As in :mod:`localizers.stereo_edges`: ValueError naming a bad argument,
+**Errors.** As in :mod:`envs.stereo.edges`: ValueError naming a bad argument,
 :class:`~localizers.base.MeasurementError` a malformed edge list,
-:class:`~localizers.schema.ConfigError` a bad :class:`TrinocularRig`.
+:class:`~core.schema.ConfigError` a bad :class:`TrinocularRig`.
 """
 
 from __future__ import annotations
@@ -30,9 +30,9 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from localizers.geometry import wrap_angle
-from localizers.schema import check, is_real
-from localizers.stereo_edges import EdgeList, check_edges, finite_array, shown
+from core.geometry import wrap_angle
+from core.schema import check, is_real
+from envs.stereo.edges import EdgeList, check_edges, finite_array, shown
 
 # ---------------------------------------------------------------------------------------
 # Trinocular matching

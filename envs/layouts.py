@@ -1,0 +1,276 @@
+"""Seeded layouts: a world's static scenery drawn from a generator, one layout per seed.
+
+A policy trained and tested on one map can learn that map instead of how to localize. A layout
+generator draws the parts of a world a localizer's map holds (where the landmarks stand, what
+misleads the camera) from a seed, so that a task can train on some layouts and be tested on
+others it never saw. Every number a layout does not vary stays the world's own, and without a
+layout (``layout=None``, the default) a world is exactly its YAML: every reproduction and the
+benchmark run the papers' layouts.
+
+``gym.make(id, layout=N)`` (or ``LocalizationEnv(..., layout=N)``) builds layout ``N`` of the
+world, before the keyword overrides (which apply on top). A layout is a function of its seed
+alone (:data:`LAYOUT_STREAM` keeps its draws apart from every episode's), so layout ``N`` is the
+same in every process, task and crowd.
+
+Generators (:func:`register_layout` adds one; :func:`layout_worlds` lists them):
+
+- ``robocup_crowded`` (:func:`soccer_field_layout`): the field's size, its eight landmarks'
+  kinds, names and radii, the number of distractors and everything that moves stay the paper's.
+  Varied: the goals' width (both alike, 1.5-2.5 m; the paper's is 2 m) and where each goal sits
+  on its end line (each on its own, at least 0.75 m from the corners); each corner pole moved
+  0-1 m along its side line, away from its corner; each distractor the likeness of any landmark,
+  on a random side of the field, 0.2-0.4 m beyond its line, of radius 0.1-0.15 m. The goalkeeper
+  keeps the goal on the far end line (``keeper_posts``).
+- ``ceiling_corridor`` (:func:`corridor_layout`): the field, the straight walls at the corridor
+  crowd's ``centre_x_m +- half_width_m``, the robot, its start under the first target, the last
+  target and the goal under it (the drive's length), the targets' colour codes, the sensors and the
+  crowd stay the paper's. Varied, on each side: 2-3 door recesses (0.9 m wide, 0.25 m deep) and 1-2
+  alcoves (1.6-2.4 m long, back to the field's edge) at random places, at least 0.5 m of wall
+  between two and from the field's ends; each target between the first and the last moved up to
+  1 m along the corridor; each exit sign beside a random one of those targets, 0.3-0.8 m before or
+  after it, on a random side; the light panels' pitch (1.8-3.0 m), the sprinklers' (3.0-4.2 m),
+  where each row starts, and the tile grid's origin. The standing groups find their places by the
+  walls of the layout.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import numbers
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from core.schema import ConfigError, replace_checked
+from envs.config import LandmarkConfig, WorldConfig
+from envs.sensors.bearing_camera import BearingCameraConfig
+
+#: the first word of every layout's seed sequence: no episode, crowd or sensor draws from it
+LAYOUT_STREAM = 0x1A70
+
+Generator = Callable[[WorldConfig, np.random.Generator], dict[str, Any]]
+_GENERATORS: dict[str, Generator] = {}
+
+
+def register_layout(world: str, generator: Generator) -> None:
+    """Make ``generator(config, rng) -> overrides`` the layout generator of the world named ``world``.
+
+    The overrides are a mapping of :class:`WorldConfig` fields, applied with the world's checks
+    (``landmarks``, ``sensors``, ``crowds``, ...)."""
+    _GENERATORS[world] = generator
+
+
+def layout_worlds() -> tuple[str, ...]:
+    """The names of the worlds that have a layout generator."""
+    return tuple(sorted(_GENERATORS))
+
+
+def checked_layout(layout: object, where: str = "layout") -> int:
+    """``layout`` as a seed (an int >= 0, not a bool), or a :class:`ConfigError` naming it."""
+    if isinstance(layout, bool) or not isinstance(layout, numbers.Integral) or int(layout) < 0:
+        raise ConfigError(f"{where} must be a layout seed, an integer >= 0, got {layout!r}")
+    return int(layout)
+
+
+def layout_world(config: WorldConfig, layout: int) -> WorldConfig:
+    """World ``config`` with layout ``layout`` drawn by its world's generator.
+
+    Raises:
+        ConfigError: for a bad seed, or a world without a generator (naming those that have one).
+    """
+    seed = checked_layout(layout)
+    generator = _GENERATORS.get(config.name)
+    if generator is None:
+        raise ConfigError(
+            f"layout={seed}: world {config.name!r} has no layout generator "
+            f"(worlds with one: {', '.join(layout_worlds()) or 'none'})"
+        )
+    rng = np.random.default_rng(np.random.SeedSequence([LAYOUT_STREAM, seed]))
+    return replace_checked(config, generator(config, rng), where=f"layout {seed} of world {config.name!r}")
+
+
+# ------------------------------------------------------------------------------------- soccer field
+
+#: the goals' width, m (both goals alike; the paper's field: 2 m)
+GOAL_WIDTH_M = (1.5, 2.5)
+#: the least distance from a goal post to the field's corner along the end line, m
+POST_FROM_CORNER_M = 0.75
+#: how far a corner pole moves along its side line, away from its corner, m
+CORNER_SHIFT_M = (0.0, 1.0)
+#: a distractor's distance beyond the field's line, m, and its radius, m
+DISTRACTOR_OUT_M = (0.2, 0.4)
+DISTRACTOR_RADIUS_M = (0.1, 0.15)
+
+
+def _soccer_parts(config: WorldConfig) -> tuple[tuple[float, float, float, float], list[LandmarkConfig], list[LandmarkConfig]]:
+    """The field's box (the landmarks' extent), its corner poles and its goal posts, or a ConfigError."""
+    xs = [lm.x_m for lm in config.landmarks]
+    ys = [lm.y_m for lm in config.landmarks]
+    box = (min(xs), min(ys), max(xs), max(ys))
+    corners = [lm for lm in config.landmarks if lm.x_m in (box[0], box[2]) and lm.y_m in (box[1], box[3])]
+    posts = [lm for lm in config.landmarks if lm not in corners and lm.y_m in (box[1], box[3])]
+    if len(corners) != 4 or len(posts) != 4 or len(config.landmarks) != 8:
+        raise ConfigError(
+            f"world {config.name!r}: the soccer layout needs 4 corner poles and 2 goals of 2 posts on the end lines "
+            f"(y = {box[1]:g} and y = {box[3]:g}), got landmarks {[lm.name for lm in config.landmarks]}"
+        )
+    return box, corners, posts
+
+
+def soccer_field_layout(config: WorldConfig, rng: np.random.Generator) -> dict[str, Any]:
+    """A soccer field's layout: the goals' width and places, the corner poles, the distractors (module docstring)."""
+    (x0, y0, x1, y1), corners, posts = _soccer_parts(config)
+    width = float(rng.uniform(*GOAL_WIDTH_M))
+    lo, hi = x0 + POST_FROM_CORNER_M + width / 2, x1 - POST_FROM_CORNER_M - width / 2
+    if lo > hi:
+        raise ConfigError(f"world {config.name!r}: a {width:.2f} m goal does not fit on a {x1 - x0:g} m end line")
+    centres = {y0: float(rng.uniform(lo, hi)), y1: float(rng.uniform(lo, hi))}
+    moved: dict[str, tuple[float, float]] = {}
+    for line in (y0, y1):
+        ends = sorted((lm for lm in posts if lm.y_m == line), key=lambda lm: lm.x_m)
+        moved[ends[0].name] = (centres[line] - width / 2, line)
+        moved[ends[1].name] = (centres[line] + width / 2, line)
+    for lm in corners:
+        shift = float(rng.uniform(*CORNER_SHIFT_M))
+        moved[lm.name] = (lm.x_m, lm.y_m + shift if lm.y_m == y0 else lm.y_m - shift)
+    landmarks = [{**dataclasses.asdict(lm), "x_m": moved[lm.name][0], "y_m": moved[lm.name][1]} for lm in config.landmarks]
+    overrides: dict[str, Any] = {"landmarks": landmarks}
+    for camera, sensor in config.sensors.items():
+        if not isinstance(sensor, BearingCameraConfig):
+            continue
+        names = [lm.name for lm in config.landmarks]
+        distractors = []
+        for _ in sensor.distractors:
+            side = int(rng.integers(4))  # below, right, above, left of the field
+            out = float(rng.uniform(*DISTRACTOR_OUT_M))
+            along = float(rng.uniform())
+            x, y = (
+                (x0 + along * (x1 - x0), y0 - out),
+                (x1 + out, y0 + along * (y1 - y0)),
+                (x0 + along * (x1 - x0), y1 + out),
+                (x0 - out, y0 + along * (y1 - y0)),
+            )[side]
+            distractors.append(
+                {"landmark": names[int(rng.integers(len(names)))], "x_m": x, "y_m": y,
+                 "radius_m": float(rng.uniform(*DISTRACTOR_RADIUS_M))}
+            )  # fmt: skip
+        overrides.setdefault("sensors", {})[camera] = {"distractors": distractors}
+    keeper = {
+        name: {"keeper_posts": [list(moved[p.name]) for p in sorted(posts, key=lambda lm: lm.x_m) if p.y_m == y1]}
+        for name, crowd in config.crowds.items()
+        if getattr(crowd, "keeper_posts", None) is not None
+    }
+    if keeper:
+        overrides["crowds"] = keeper
+    return overrides
+
+
+register_layout("robocup_crowded", soccer_field_layout)
+
+
+# ---------------------------------------------------------------------------------------- corridor
+
+#: a door recess: its width along the corridor and its depth into the wall, m (the paper's corridor: 0.9 x 0.25)
+RECESS_WIDTH_M = 0.9
+RECESS_DEPTH_M = 0.25
+#: an alcove's length along the corridor, m (its back is the field's edge; the paper's: 1.6 and 2 m)
+ALCOVE_LENGTH_M = (1.6, 2.4)
+#: door recesses and alcoves on each side (the paper's: 3 and 1 on the left, 2 and 2 on the right)
+RECESSES_PER_SIDE = (2, 3)
+ALCOVES_PER_SIDE = (1, 2)
+#: the least wall between two openings, and between an opening and the field's ends, m
+OPENING_GAP_M = 0.5
+#: how far each target between the first and the last moves along the corridor, m
+TARGET_SHIFT_M = 1.0
+#: a sign's distance along the corridor from the target it stands beside, m (the paper's: 0.6 and 0.4)
+SIGN_FROM_TARGET_M = (0.3, 0.8)
+#: the ceiling's light panel and sprinkler pitch, m (the paper's building: 2.4 and 3.6)
+LIGHT_PITCH_M = (1.8, 3.0)
+SPRINKLER_PITCH_M = (3.0, 4.2)
+
+_OPENING_TRIES = 1000
+
+
+def _corridor_parts(config: WorldConfig) -> tuple[Any, Any]:
+    """The world's corridor crowd and ceiling, or a ConfigError naming what is missing."""
+    from envs.crowds.corridor import CorridorConfig
+    from envs.features.ceiling import CeilingConfig
+
+    corridors = [c for c in config.crowds.values() if isinstance(c, CorridorConfig)]
+    ceilings = [f for f in config.features.values() if isinstance(f, CeilingConfig)]
+    if len(corridors) != 1 or len(ceilings) != 1 or len(ceilings[0].targets) < 2:
+        raise ConfigError(
+            f"world {config.name!r}: the corridor layout needs one corridor crowd (its walls' centre and width) "
+            f"and one ceiling with at least two targets"
+        )
+    return corridors[0], ceilings[0]
+
+
+def _openings(rng: np.random.Generator, y0: float, y1: float, lengths: list[float], where: str) -> list[tuple[float, float]]:
+    """Non-overlapping ``[start, end]`` spans of ``lengths`` (in their order) in ``[y0, y1]``, ``OPENING_GAP_M`` apart
+    and from the ends."""
+    for _ in range(_OPENING_TRIES):
+        spans: list[tuple[float, float]] = []
+        for length in lengths:
+            start = float(rng.uniform(y0 + OPENING_GAP_M, y1 - OPENING_GAP_M - length))
+            if all(start + length + OPENING_GAP_M <= a or b + OPENING_GAP_M <= start for a, b in spans):
+                spans.append((start, start + length))
+        if len(spans) == len(lengths):
+            return spans
+    raise ConfigError(f"{where}: {len(lengths)} openings of {sum(lengths):.1f} m in all do not fit in {y1 - y0:g} m")
+
+
+def corridor_layout(config: WorldConfig, rng: np.random.Generator) -> dict[str, Any]:
+    """A corridor's layout: its door recesses and alcoves, its inner targets, signs and ceiling pitch (module docstring)."""
+    corridor, ceiling = _corridor_parts(config)
+    x0, y0, x1, y1 = config.field_m
+    walls: list[list[float]] = []
+    for side in (-1.0, 1.0):
+        wall_x = corridor.centre_x_m + side * corridor.half_width_m
+        edge_x = x1 if side > 0 else x0
+        kinds = ["recess"] * int(rng.integers(RECESSES_PER_SIDE[0], RECESSES_PER_SIDE[1] + 1))
+        kinds += ["alcove"] * int(rng.integers(ALCOVES_PER_SIDE[0], ALCOVES_PER_SIDE[1] + 1))
+        kinds = [kinds[i] for i in rng.permutation(len(kinds))]
+        lengths = [RECESS_WIDTH_M if k == "recess" else float(rng.uniform(*ALCOVE_LENGTH_M)) for k in kinds]
+        spans = _openings(rng, y0, y1, lengths, f"world {config.name!r}, the {'right' if side > 0 else 'left'} wall")
+        cursor = y0
+        for (start, end), kind in sorted(zip(spans, kinds)):
+            walls.append([wall_x, cursor, wall_x, start])
+            if kind == "recess":
+                back = wall_x + side * RECESS_DEPTH_M
+                walls += [[wall_x, start, back, start], [back, start, back, end], [back, end, wall_x, end]]
+            else:
+                walls += [[wall_x, start, edge_x, start], [edge_x, end, wall_x, end]]
+            cursor = end
+        walls.append([wall_x, cursor, wall_x, y1])
+    targets = [dataclasses.asdict(t) for t in ceiling.targets]
+    for t in targets[1:-1]:
+        t["y_m"] = float(t["y_m"] + rng.uniform(-TARGET_SHIFT_M, TARGET_SHIFT_M))
+    inner = targets[1:-1] or targets
+    signs = []
+    for sign in ceiling.signs:
+        beside = inner[int(rng.integers(len(inner)))]
+        along = float(rng.uniform(*SIGN_FROM_TARGET_M)) * (1.0 if rng.random() < 0.5 else -1.0)
+        across = abs(sign.x_m) * (1.0 if rng.random() < 0.5 else -1.0)
+        signs.append({**dataclasses.asdict(sign), "x_m": across, "y_m": beside["y_m"] + along})
+    light_pitch = float(rng.uniform(*LIGHT_PITCH_M))
+    sprinkler_pitch = float(rng.uniform(*SPRINKLER_PITCH_M))
+    name = next(n for n, f in config.features.items() if f is ceiling)
+    return {
+        "walls": walls,
+        "features": {
+            name: {
+                "targets": targets,
+                "signs": signs,
+                "light_pitch_m": light_pitch,
+                "light_first_y_m": float(rng.uniform(0.0, light_pitch)),
+                "sprinkler_pitch_m": sprinkler_pitch,
+                "sprinkler_first_y_m": float(rng.uniform(0.0, sprinkler_pitch)),
+                "tile_origin_m": [float(rng.uniform(0.0, ceiling.tile_m)), float(rng.uniform(0.0, ceiling.tile_m))],
+            }
+        },
+    }
+
+
+register_layout("ceiling_corridor", corridor_layout)

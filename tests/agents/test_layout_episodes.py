@@ -1,0 +1,137 @@
+"""A task on seeded layouts (agents.rl.layout_episodes): disjoint splits, a layout per episode drawn
+from its seed, the layouts' tasks cached and bounded."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from agents.rl.config import load_train_config
+from agents.rl.layout_episodes import SPLITS, LayoutEpisodes, LayoutSplits, episode_layout
+from agents.rl.train import make_task_env, make_training_env
+from core.schema import ConfigError
+
+SPLIT_KEYS = {"train": [0, 1000], "validation": [1000, 1100], "test": [1100, 1200]}
+
+
+def _config(**changes: Any) -> Any:
+    return load_train_config("ppo_candidate_sets", {"layouts": {**SPLIT_KEYS, **changes}})
+
+
+def test_the_splits_of_a_config_are_disjoint_ranges_and_an_overlap_is_refused_naming_both() -> None:
+    config = _config()
+    assert isinstance(config.layouts, LayoutSplits)
+    seeds = {name: set(config.layouts.seeds(name)) for name in SPLITS}
+    assert len(seeds["train"]) == 1000 and len(seeds["validation"]) == 100 and len(seeds["test"]) == 100
+    assert not seeds["train"] & seeds["validation"] and not seeds["train"] & seeds["test"]
+    assert not seeds["validation"] & seeds["test"]
+    with pytest.raises(ConfigError, match=r"layouts.train \[0, 1000\] and layouts.test \[999, 1200\] overlap"):
+        _config(test=[999, 1200])
+    with pytest.raises(ConfigError, match=r"layouts.validation must be \[first, end\].*got \[5, 5\]"):
+        _config(validation=[5, 5])
+    with pytest.raises(ConfigError, match="unknown layout split 'tests'"):
+        config.layouts.seeds("tests")
+    with pytest.raises(ConfigError, match="not env_kwargs.layout"):
+        load_train_config("ppo_candidate_sets", {"env_kwargs.layout": 3})
+
+
+def test_every_shipped_config_with_layouts_keeps_its_splits_apart() -> None:
+    """What the shipped configs say is checked at load: loading every one proves none overlaps."""
+    from agents.rl.config import EXPERIMENT_DIR
+
+    for path in sorted(EXPERIMENT_DIR.glob("*.yaml")):
+        config = load_train_config(path)
+        if config.layouts is not None:
+            ranges = sorted(config.layouts.seeds(name) for name in SPLITS)
+            assert all(a.stop <= b.start for a, b in zip(ranges, ranges[1:])), path
+
+
+def test_an_episode_plays_the_layout_its_seed_draws_and_the_same_seed_replays_it() -> None:
+    config = _config()
+    env = make_task_env(config, 6, "test")
+    layouts, firsts = [], []
+    for seed in range(6):
+        obs, info = env.reset(seed=seed)
+        assert info["layout"] == episode_layout(config.layouts.seeds("test"), seed) and 1100 <= info["layout"] < 1200
+        world: Any = env.unwrapped.env.unwrapped  # the current layout's world
+        assert world.layout == info["layout"]
+        _, _, _, _, info = env.step(env.action_space.sample())
+        assert info["layout"] == world.layout
+        layouts.append(info["layout"])
+        firsts.append(obs)
+    assert len(set(layouts)) >= 4  # episodes spread over the split
+    again = make_task_env(config, 6, "test")
+    for seed in (3, 1):
+        obs, info = again.reset(seed=seed)
+        assert info["layout"] == layouts[seed]
+        for key in obs:
+            np.testing.assert_array_equal(obs[key], firsts[seed][key])
+    obs, info = again.reset(seed=0, options={"layout": 1150})
+    assert info["layout"] == 1150
+    with pytest.raises(ConfigError, match=r"layout=5 is not one of this task's layout seeds range\(1100, 1200\)"):
+        again.reset(seed=0, options={"layout": 5})
+
+
+def test_layouts_differ_where_their_generator_varies_them() -> None:
+    config = _config()
+    env = make_task_env(config, 6, "train")
+    maps = []
+    for layout in (0, 1):
+        env.reset(seed=0, options={"layout": layout})
+        maps.append(np.array([[m.x_m, m.y_m] for m in env.unwrapped.env.unwrapped.config.landmarks]))
+    assert maps[0].shape == maps[1].shape and not np.allclose(maps[0], maps[1])
+
+
+def test_the_cache_keeps_at_most_its_size_and_closes_what_it_drops() -> None:
+    closed: list[int] = []
+
+    class Task(gym.Env[Any, Any]):
+        observation_space = gym.spaces.Box(-1.0, 1.0, (2,))
+        action_space = gym.spaces.Discrete(2)
+
+        def __init__(self, layout: int) -> None:
+            self.layout = layout
+
+        def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+            return np.zeros(2, np.float32), {}
+
+        def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+            return np.zeros(2, np.float32), 0.0, False, False, {}
+
+        def close(self) -> None:
+            closed.append(self.layout)
+
+    env = LayoutEpisodes(Task, range(10, 20), cache_size=2)
+    for layout in (11, 12, 13, 12):
+        env.reset(seed=0, options={"layout": layout})
+    assert env.cached_layouts == (13, 12) and sorted(closed) == [10, 11]
+    env.close()
+    assert sorted(closed) == [10, 11, 12, 13]
+    with pytest.raises(ConfigError, match="cache_size must be >= 1, got 0"):
+        LayoutEpisodes(Task, range(3), cache_size=0)
+
+
+def test_training_plays_only_training_layouts() -> None:
+    config = _config()
+    env = make_training_env(config, 0)
+    seen = {env.reset()[1]["layout"] for _ in range(5)}
+    assert seen <= set(config.layouts.seeds("train")) and len(seen) >= 3
+    with pytest.raises(ConfigError, match="has no layouts"):
+        make_task_env(load_train_config("ppo_candidate_sets"), 6, "train")
+
+
+def test_a_replayed_training_episode_is_on_its_own_layout() -> None:
+    """crowdloc train's exact resume replays an env's unfinished episode: on the layout it was on."""
+    config = _config()
+    env = make_training_env(config, 1)
+    env.reset()
+    _, info = env.reset()
+    for _ in range(4):
+        _, _, _, _, info = env.step(env.action_space.sample())
+    position = env.position()
+    fresh = make_training_env(config, 1)
+    assert fresh.replay(position) == ""
+    assert fresh.env.unwrapped.layout == info["layout"]

@@ -1,0 +1,210 @@
+"""Seeded layouts (envs/layouts.py): the soccer field's and the corridor's generators, their bounds, and the keyword."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from core.schema import ConfigError
+from envs.config import load_world
+from envs.layouts import (
+    CORNER_SHIFT_M,
+    DISTRACTOR_OUT_M,
+    DISTRACTOR_RADIUS_M,
+    GOAL_WIDTH_M,
+    POST_FROM_CORNER_M,
+    layout_world,
+    layout_worlds,
+)
+
+SOCCER = load_world("robocup_crowded")
+CORNERS = ("L1", "L4", "L5", "L8")
+GOALS = (("L2", "L3"), ("L7", "L6"))  # (left post, right post) on y = 0 and on y = 5
+
+
+def _positions(config: object) -> dict[str, tuple[float, float]]:
+    return {lm.name: (lm.x_m, lm.y_m) for lm in config.landmarks}  # type: ignore[attr-defined]
+
+
+def test_no_layout_is_the_worlds_own() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0")
+    assert env.unwrapped.layout is None and env.unwrapped.config == SOCCER
+    env.close()
+
+
+def test_a_layout_is_its_seeds_alone_and_seeds_differ() -> None:
+    assert layout_world(SOCCER, 7) == layout_world(load_world("robocup_crowded"), 7)
+    drawn = [tuple(sorted(_positions(layout_world(SOCCER, seed)).values())) for seed in range(50)]
+    assert len(set(drawn)) == 50
+    assert _positions(layout_world(SOCCER, 0)) != _positions(SOCCER)
+
+
+@pytest.mark.parametrize("seed", range(0, 400, 7))
+def test_soccer_layouts_keep_what_the_paper_fixes_and_vary_within_their_bounds(seed: int) -> None:
+    world = layout_world(SOCCER, seed)
+    x0, y0, x1, y1 = 0.0, 0.0, 5.0, 5.0
+    # what stays: the field, the landmarks' names, kinds and radii, the distractors' count, the crowd
+    assert world.size_m == SOCCER.size_m and world.robot == SOCCER.robot
+    assert [(a.name, a.kind, a.radius_m) for a in world.landmarks] == [(a.name, a.kind, a.radius_m) for a in SOCCER.landmarks]
+    assert len(world.sensors["camera"].distractors) == len(SOCCER.sensors["camera"].distractors)
+    crowd, paper = world.crowds["soccer"], SOCCER.crowds["soccer"]
+    assert (crowd.count, crowd.max_count, crowd.speed_mps) == (paper.count, paper.max_count, paper.speed_mps)
+    at = _positions(world)
+    widths = []
+    for (left, right), line in zip(GOALS, (y0, y1), strict=True):
+        (xa, ya), (xb, yb) = at[left], at[right]
+        assert ya == yb == line
+        widths.append(xb - xa)
+        assert xa >= x0 + POST_FROM_CORNER_M - 1e-12 and xb <= x1 - POST_FROM_CORNER_M + 1e-12
+    assert math.isclose(widths[0], widths[1]) and GOAL_WIDTH_M[0] <= widths[0] <= GOAL_WIDTH_M[1]
+    for name in CORNERS:
+        (x, y), (px, py) = at[name], _positions(SOCCER)[name]
+        assert x == px and CORNER_SHIFT_M[0] <= abs(y - py) <= CORNER_SHIFT_M[1]
+        assert y0 <= y <= y1  # moved along its side line, into the field's length
+    for d in world.sensors["camera"].distractors:
+        beyond = max(x0 - d.x_m, d.x_m - x1, y0 - d.y_m, d.y_m - y1)
+        assert DISTRACTOR_OUT_M[0] - 1e-12 <= beyond <= DISTRACTOR_OUT_M[1] + 1e-12
+        assert DISTRACTOR_RADIUS_M[0] <= d.radius_m <= DISTRACTOR_RADIUS_M[1] and d.landmark in at
+    assert [tuple(p) for p in crowd.keeper_posts] == [at["L7"], at["L6"]]  # the keeper keeps the far goal
+
+
+def test_the_env_and_its_localizer_use_the_layout() -> None:
+    env = gym.make("crowdloc/RoboCupCrowded-v0", layout=3, localizer="candidate_sets", camera={"noise_std_rad": 0.0})
+    base = env.unwrapped
+    assert base.layout == 3
+    drawn = layout_world(SOCCER, 3)
+    want = np.array([[lm.x_m, lm.y_m] for lm in drawn.landmarks])
+    assert np.array_equal(base.landmark_map.positions_xy_m, want)
+    assert np.array_equal(env.get_wrapper_attr("localizer")._map.positions_xy_m, want)
+    assert base.config.sensors["camera"].noise_std_rad == 0.0  # the overrides apply on top
+    env.reset(seed=0)
+    for _ in range(20):
+        env.step(env.action_space.sample())
+    env.close()
+
+
+def test_a_layout_steps_the_same_for_the_same_seeds() -> None:
+    def run() -> list[float]:
+        env = gym.make("crowdloc/RoboCupCrowded-v0", layout=11, crowd_size=10)
+        env.reset(seed=5)
+        env.action_space.seed(5)
+        out = []
+        for _ in range(30):
+            obs, *_ = env.step(env.action_space.sample())
+            out += obs["landmarks"].tolist()
+        env.close()
+        return out
+
+    assert run() == run()
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, "3", True, [3]])
+def test_a_bad_layout_seed_is_refused_naming_it(bad: object) -> None:
+    with pytest.raises(ConfigError, match=r"layout must be a layout seed, an integer >= 0, got"):
+        gym.make("crowdloc/RoboCupCrowded-v0", layout=bad)
+
+
+def test_a_world_without_a_generator_says_which_have_one() -> None:
+    assert layout_worlds() == ("ceiling_corridor", "robocup_crowded")
+    with pytest.raises(
+        ConfigError, match=r"world 'crowded_room' has no layout generator \(worlds with one: ceiling_corridor, robocup_crowded\)"
+    ):
+        gym.make("crowdloc/CrowdedRoom-v0", layout=0)
+
+
+# ---------------------------------------------------------------------------------------- corridor
+
+CORRIDOR = load_world("ceiling_corridor")
+
+
+def _wall_runs(config: object, side: float) -> list[tuple[float, float, float]]:
+    """``(start, end, depth)`` of each run along the corridor where the first wall on ``side`` is not the
+    straight wall, read by casting rays from the centre line every 5 mm (as the corridor crowd reads it)."""
+    from core.raycast import cast_rays
+
+    seg_a, seg_b = config.wall_segments()  # type: ignore[attr-defined]
+    x0, y0, x1, y1 = config.field_m  # type: ignore[attr-defined]
+    ys = np.arange(y0 + 0.0025, y1, 0.005)
+    angle = np.array([0.0 if side > 0 else math.pi])
+    none = np.zeros((0, 2)), np.zeros(0)
+    depth = np.array([cast_rays(np.array([0.0, y]), angle, math.inf, seg_a, seg_b, *none)[0] for y in ys])
+    runs, start = [], None
+    for i, d in enumerate(depth):
+        opening = d > 1.0 + 1e-6
+        if opening and start is None:
+            start = i
+        if start is not None and (not opening or i == len(depth) - 1):
+            runs.append((float(ys[start]), float(ys[i - 1]), float(np.median(depth[start:i]))))
+            start = None
+    return runs
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_corridor_layouts_keep_the_drive_and_vary_the_walls_targets_and_ceiling(seed: int) -> None:
+    from envs.layouts import (
+        ALCOVE_LENGTH_M,
+        ALCOVES_PER_SIDE,
+        LIGHT_PITCH_M,
+        OPENING_GAP_M,
+        RECESS_DEPTH_M,
+        RECESS_WIDTH_M,
+        RECESSES_PER_SIDE,
+        SIGN_FROM_TARGET_M,
+        SPRINKLER_PITCH_M,
+        TARGET_SHIFT_M,
+    )
+
+    config = layout_world(CORRIDOR, seed)
+    assert (config.size_m, config.origin_m, config.robot, config.goal, config.sensors, config.crowds) == (
+        CORRIDOR.size_m, CORRIDOR.origin_m, CORRIDOR.robot, CORRIDOR.goal, CORRIDOR.sensors, CORRIDOR.crowds,
+    )  # fmt: skip
+    x0, y0, x1, y1 = config.field_m
+    for side in (-1.0, 1.0):
+        runs = _wall_runs(config, side)
+        recesses = [r for r in runs if abs(r[2] - (1.0 + RECESS_DEPTH_M)) < 1e-6]
+        alcoves = [r for r in runs if abs(r[2] - 1.6) < 1e-6]
+        assert len(recesses) + len(alcoves) == len(runs)
+        assert RECESSES_PER_SIDE[0] <= len(recesses) <= RECESSES_PER_SIDE[1]
+        assert ALCOVES_PER_SIDE[0] <= len(alcoves) <= ALCOVES_PER_SIDE[1]
+        assert all(abs(b - a - RECESS_WIDTH_M) < 0.01 for a, b, _ in recesses)
+        assert all(ALCOVE_LENGTH_M[0] - 0.01 <= b - a <= ALCOVE_LENGTH_M[1] + 0.01 for a, b, _ in alcoves)
+        starts = [a for a, _, _ in runs] + [y1 + OPENING_GAP_M]
+        ends = [y0 - OPENING_GAP_M] + [b for _, b, _ in runs]
+        assert all(s - e >= OPENING_GAP_M - 0.01 for s, e in zip(starts, ends))
+    ceiling, paper = config.features["ceiling"], CORRIDOR.features["ceiling"]
+    ys, paper_ys = [t.y_m for t in ceiling.targets], [t.y_m for t in paper.targets]
+    assert ys[0] == paper_ys[0] and ys[-1] == paper_ys[-1] == config.goal.y_m
+    assert all(abs(y - p) <= TARGET_SHIFT_M for y, p in zip(ys, paper_ys)) and ys != paper_ys
+    assert [(t.name, t.a, t.b, t.c) for t in ceiling.targets] == [(t.name, t.a, t.b, t.c) for t in paper.targets]
+    assert len(ceiling.signs) == len(paper.signs)
+    for sign in ceiling.signs:
+        assert abs(sign.x_m) == 0.5
+        assert min(abs(sign.y_m - y) for y in ys[1:-1]) <= SIGN_FROM_TARGET_M[1] + 1e-9
+        assert any(SIGN_FROM_TARGET_M[0] - 1e-9 <= abs(sign.y_m - y) <= SIGN_FROM_TARGET_M[1] + 1e-9 for y in ys[1:-1])
+    assert LIGHT_PITCH_M[0] <= ceiling.light_pitch_m <= LIGHT_PITCH_M[1]
+    assert SPRINKLER_PITCH_M[0] <= ceiling.sprinkler_pitch_m <= SPRINKLER_PITCH_M[1]
+    assert 0 <= ceiling.light_first_y_m < ceiling.light_pitch_m and 0 <= ceiling.sprinkler_first_y_m < ceiling.sprinkler_pitch_m
+
+
+def test_the_paper_corridor_reads_as_its_yaml_says() -> None:
+    """The wall reader of the test above, on the paper's corridor: 3 recesses and 1 alcove on the left,
+    2 and 2 on the right (one alcove at the field's start)."""
+    left, right = _wall_runs(CORRIDOR, -1.0), _wall_runs(CORRIDOR, 1.0)
+    assert [round(d, 2) for *_, d in left] == [1.25, 1.25, 1.6, 1.25]
+    assert [round(d, 2) for *_, d in right] == [1.6, 1.25, 1.6, 1.25]
+
+
+def test_the_corridor_env_and_its_localizer_use_the_layout() -> None:
+    env = gym.make("crowdloc/CeilingCorridor-v0", layout=4, localizer="ceiling_target", crowd_size=10)
+    env.reset(seed=2)
+    ceiling = env.unwrapped.config.features["ceiling"]
+    assert ceiling == layout_world(CORRIDOR, 4).features["ceiling"]
+    (targets,) = env.get_wrapper_attr("localizer")._targets.values()
+    np.testing.assert_allclose(targets.a_xy[:, 1], [t.y_m for t in ceiling.targets])
+    for _ in range(20):
+        env.step(env.action_space.sample())
+    env.close()
