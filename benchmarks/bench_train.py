@@ -11,12 +11,11 @@ a target of 500 steps/s on 2 cores. The soccer and room tasks are measured again
 belief map in the observation (``observation.belief_map``) and its CNN
 (:class:`agents.rl.extractor.BeliefMapExtractor`), against 1,000 steps/s.
 
-With the belief map, measured side by side on a busy machine (2 rollouts timed, 2026-12-07): the
-soccer task 1,868 env steps/s without the map and 602 with it, the room 496 and 300; the quiet
-figures without the map are in BENCHMARKS.md, and ``make bench`` on a quiet host gives the map's
-own. Of the soccer task's training with the map (cProfile, 3 rollouts, 5,400 env steps, on a busy
-machine) the CNN takes about 37 % (its forward passes 17 %, the updates' backward passes 20 %) and
-the envs 48 % (the map itself 76-148 us a step, docs/tasks.md). The convolutions are already
+With the belief map, on 2 otherwise idle cores (``--only training``, 2 rollouts timed, 2026-12-07):
+the soccer task 1,187 env steps/s (3,508 without the map in the same run), meeting its target; the
+room 634 (1,227 without), missing it. Of the soccer task's training with the map (cProfile, 3
+rollouts, 5,400 env steps, on a busy machine) the CNN takes about 37 % (its forward passes 17 %,
+the updates' backward passes 20 %) and the envs 48 % (the map itself 76-148 us a step, docs/tasks.md). The convolutions are already
 strided (a third of the cost of 3 x 3 convolutions with pooling, :mod:`agents.rl.extractor`); what
 remains of the CNN is mostly torch's cost per call on batches of 4 maps.
 
