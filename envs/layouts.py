@@ -192,19 +192,19 @@ SPRINKLER_PITCH_M = (3.0, 4.2)
 _OPENING_TRIES = 1000
 
 
-def _corridor_parts(config: WorldConfig) -> tuple[Any, Any]:
-    """The world's corridor crowd and ceiling, or a ConfigError naming what is missing."""
+def _corridor_parts(config: WorldConfig) -> tuple[Any, str, Any]:
+    """The world's corridor crowd, its ceiling's name and its ceiling, or a ConfigError naming what is missing."""
     from envs.crowds.corridor import CorridorConfig
     from envs.features.ceiling import CeilingConfig
 
     corridors = [c for c in config.crowds.values() if isinstance(c, CorridorConfig)]
-    ceilings = [f for f in config.features.values() if isinstance(f, CeilingConfig)]
-    if len(corridors) != 1 or len(ceilings) != 1 or len(ceilings[0].targets) < 2:
+    ceilings = [(n, f) for n, f in config.features.items() if isinstance(f, CeilingConfig)]
+    if len(corridors) != 1 or len(ceilings) != 1 or len(ceilings[0][1].targets) < 2:
         raise ConfigError(
             f"world {config.name!r}: the corridor layout needs one corridor crowd (its walls' centre and width) "
             f"and one ceiling with at least two targets"
         )
-    return corridors[0], ceilings[0]
+    return corridors[0], *ceilings[0]
 
 
 def _openings(rng: np.random.Generator, y0: float, y1: float, lengths: list[float], where: str) -> list[tuple[float, float]]:
@@ -223,7 +223,7 @@ def _openings(rng: np.random.Generator, y0: float, y1: float, lengths: list[floa
 
 def corridor_layout(config: WorldConfig, rng: np.random.Generator) -> dict[str, Any]:
     """A corridor's layout: its door recesses and alcoves, its inner targets, signs and ceiling pitch (module docstring)."""
-    corridor, ceiling = _corridor_parts(config)
+    corridor, name, ceiling = _corridor_parts(config)
     x0, y0, x1, y1 = config.field_m
     walls: list[list[float]] = []
     for side in (-1.0, 1.0):
@@ -256,7 +256,6 @@ def corridor_layout(config: WorldConfig, rng: np.random.Generator) -> dict[str, 
         signs.append({**dataclasses.asdict(sign), "x_m": across, "y_m": beside["y_m"] + along})
     light_pitch = float(rng.uniform(*LIGHT_PITCH_M))
     sprinkler_pitch = float(rng.uniform(*SPRINKLER_PITCH_M))
-    name = next(n for n, f in config.features.items() if f is ceiling)
     return {
         "walls": walls,
         "features": {

@@ -23,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 from core.schema import ConfigError, check
+from envs.layouts import checked_layout
 
 #: the split names, in the order their ranges must run
 SPLITS = ("train", "validation", "test")
@@ -123,7 +124,7 @@ class LayoutEpisodes(gym.Env[Any, Any]):
         layout = options.pop("layout", None)
         if layout is None:
             layout = episode_layout(self.seeds, episode_seed)
-        elif isinstance(layout, bool) or not isinstance(layout, (int, np.integer)) or int(layout) not in self.seeds:
+        elif checked_layout(layout, "reset option layout") not in self.seeds:
             raise ConfigError(f"reset option layout={layout!r} is not one of this task's layout seeds {self.seeds!r}")
         self.layout = int(layout)
         self.env = self._task(self.layout)
