@@ -172,6 +172,12 @@ def _add_eval(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "--episode-steps (the config's ppo.n_steps is its training episode's)",
     )
     ev.add_argument(
+        "--layout-split",
+        choices=("validation", "test"),
+        help="with a --conditions config that has layouts: the split whose layouts the episodes play on "
+        "(default: test; validation to choose between trained policies)",
+    )
+    ev.add_argument(
         "--env-set",
         action="append",
         default=[],
@@ -234,8 +240,15 @@ def _add_benchmark(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
         "results.csv (one row per world x localizer x policy x crowd size, with the protocol's name and digest), "
         "leaderboard.md (each localizer's crowd sensitivity, then one table per world) and plots/ under --out.",
     )
+    bench.add_argument("--track", choices=("localizers", "policies"), default="localizers",
+                       help="localizers (default): the protocol's league table of localizers; policies: fixed policies, "
+                       "belief_greedy and the shipped models ranked on each task's unseen test layouts "
+                       "(configs/policy_tracks/v1.yaml; --policies adds entrants: ppo:PATH.zip or plug-in policies)")  # fmt: skip
+    bench.add_argument("--tasks", nargs="+", metavar="CONFIG",
+                       help="with --track policies: the track's tasks to run (default: all of them)")  # fmt: skip
     bench.add_argument("--protocol", default=None,
-                       help="a shipped protocol name or a protocol YAML path (default: the newest shipped one)")  # fmt: skip
+                       help="a shipped protocol name or a protocol YAML path (default: the newest shipped one; "
+                       "with --track policies a track file, default v1)")  # fmt: skip
     bench.add_argument("--worlds", nargs="+", metavar="ENV_ID", help="env ids of the protocol (default: all of them)")
     bench.add_argument("--localizers", nargs="+", metavar="NAME",
                        help="registered localizers (default: every one; each runs where the world has its sensor)")  # fmt: skip

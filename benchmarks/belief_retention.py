@@ -40,6 +40,8 @@ SETTINGS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("KLD-sampling from 5000 (100..5000)", {"kld": True, "n_particles": 5000}),
     ("30 beams (amcl's max_beams: beam_stride 36)", {"beam_stride": 36}),
     ("5000 particles, 30 beams", {"n_particles": 5000, "beam_stride": 36}),
+    ("first scan draws from 20000 poses (global_candidates)", {"global_candidates": 20_000}),
+    ("first scan draws from 100000 poses (global_candidates)", {"global_candidates": 100_000}),
 )
 CHECK_S = (1.0, 3.0)
 HELD_M, HELD_RAD, HELD_MASS = 0.5, math.radians(20.0), 0.05
@@ -86,12 +88,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=50, help="seeds per crowd size (default 50)")
     parser.add_argument("--crowds", type=int, nargs="+", default=[0, 16, 30], help="crowd sizes (default 0 16 30)")
+    parser.add_argument("--settings", type=int, nargs="+", help="the settings to run, by index (default: all)")
     args = parser.parse_args()
     head = " | ".join(f"truth held at {c:g} s | on a twin at {c:g} s" for c in CHECK_S)
     print(f"{ENV_ID}, prior none, spin; {args.seeds} seeds per crowd; shares of seeds\n")
     print(f"| mcl_lidar | crowd | {head} | s per run |")
     print("|---|---:|" + "---:|" * (2 * len(CHECK_S)) + "---:|")
-    for label, overrides in SETTINGS:
+    for index, (label, overrides) in enumerate(SETTINGS):
+        if args.settings is not None and index not in args.settings:
+            continue
         for crowd in args.crowds:
             t0 = time.perf_counter()
             rows = np.array([run(overrides, crowd, seed) for seed in range(args.seeds)], dtype=float)

@@ -14,7 +14,7 @@ from importlib.resources import files
 from pathlib import Path
 
 #: the kinds of shipped configs, one folder each
-KINDS = ("worlds", "localizers", "experiments", "tuning", "rl_zoo3", "benchmark")
+KINDS = ("worlds", "localizers", "experiments", "tuning", "rl_zoo3", "benchmark", "policy_tracks")
 
 
 def path(*parts: str) -> Path:

@@ -18,9 +18,12 @@ Generators (:func:`register_layout` adds one; :func:`layout_worlds` lists them):
   kinds, names and radii, the number of distractors and everything that moves stay the paper's.
   Varied: the goals' width (both alike, 1.5-2.5 m; the paper's is 2 m) and where each goal sits
   on its end line (each on its own, at least 0.75 m from the corners); each corner pole moved
-  0-1 m along its side line, away from its corner; each distractor the likeness of any landmark,
-  on a random side of the field, 0.2-0.4 m beyond its line, of radius 0.1-0.15 m. The goalkeeper
-  keeps the goal on the far end line (``keeper_posts``).
+  0-1 m along its side line, away from its corner; each distractor the likeness of a random
+  landmark, standing as the paper's do by the one it imitates: beyond a field line that landmark
+  stands on, 0.2-0.4 m out, 0.3-1 m along the line from it, of radius 0.1-0.15 m (a likeness
+  of a post behind the far goal would report bearings no real field gives: the paper's
+  false detections are things of a landmark's colour near it). The goalkeeper keeps the goal on
+  the far end line (``keeper_posts``).
 - ``ceiling_corridor`` (:func:`corridor_layout`): the field, the straight walls at the corridor
   crowd's ``centre_x_m +- half_width_m``, the robot, its start under the first target, the last
   target and the goal under it (the drive's length), the targets' colour codes, the sensors and the
@@ -101,6 +104,8 @@ CORNER_SHIFT_M = (0.0, 1.0)
 #: a distractor's distance beyond the field's line, m, and its radius, m
 DISTRACTOR_OUT_M = (0.2, 0.4)
 DISTRACTOR_RADIUS_M = (0.1, 0.15)
+#: a distractor's distance along the field line from the landmark it imitates, m (the paper's field: 0.4 to 0.8)
+DISTRACTOR_ALONG_M = (0.3, 1.0)
 
 
 def _soccer_parts(config: WorldConfig) -> tuple[tuple[float, float, float, float], list[LandmarkConfig], list[LandmarkConfig]]:
@@ -142,19 +147,16 @@ def soccer_field_layout(config: WorldConfig, rng: np.random.Generator) -> dict[s
         names = [lm.name for lm in config.landmarks]
         distractors = []
         for _ in sensor.distractors:
-            side = int(rng.integers(4))  # below, right, above, left of the field
+            name = names[int(rng.integers(len(names)))]
+            lx, ly = moved[name]
+            # the field lines the imitated landmark stands on: below, right, above, left of the field
+            lines = [i for i, on in enumerate((ly == y0, lx == x1, ly == y1, lx == x0)) if on]
+            side = lines[int(rng.integers(len(lines)))]
             out = float(rng.uniform(*DISTRACTOR_OUT_M))
-            along = float(rng.uniform())
-            x, y = (
-                (x0 + along * (x1 - x0), y0 - out),
-                (x1 + out, y0 + along * (y1 - y0)),
-                (x0 + along * (x1 - x0), y1 + out),
-                (x0 - out, y0 + along * (y1 - y0)),
-            )[side]
-            distractors.append(
-                {"landmark": names[int(rng.integers(len(names)))], "x_m": x, "y_m": y,
-                 "radius_m": float(rng.uniform(*DISTRACTOR_RADIUS_M))}
-            )  # fmt: skip
+            shift = float(rng.uniform(*DISTRACTOR_ALONG_M)) * (1.0 if rng.random() < 0.5 else -1.0)
+            ax, ay = min(max(lx + shift, x0), x1), min(max(ly + shift, y0), y1)  # along its line, within the field's length
+            x, y = ((ax, y0 - out), (x1 + out, ay), (ax, y1 + out), (x0 - out, ay))[side]
+            distractors.append({"landmark": name, "x_m": x, "y_m": y, "radius_m": float(rng.uniform(*DISTRACTOR_RADIUS_M))})
         overrides.setdefault("sensors", {})[camera] = {"distractors": distractors}
     keeper = {
         name: {"keeper_posts": [list(moved[p.name]) for p in sorted(posts, key=lambda lm: lm.x_m) if p.y_m == y1]}
@@ -273,3 +275,182 @@ def corridor_layout(config: WorldConfig, rng: np.random.Generator) -> dict[str, 
 
 
 register_layout("ceiling_corridor", corridor_layout)
+
+
+# -------------------------------------------------------------------------------------------- room
+
+#: the middle of the room kept clear for the robot: its start region grown by this much, m (the task's square runs there)
+ROOM_CLEAR_M = 0.8
+#: a queue's line: its distance from its side wall, m (the paper's room: 0.5 on both sides)
+QUEUE_FROM_WALL_M = (0.4, 0.9)
+#: the queues' heads: their distance from the top wall, m (0.5)
+QUEUE_HEAD_FROM_WALL_M = (0.4, 1.1)
+#: the distance between two people in a queue, m (0.4); less where the longest queue would reach the bottom wall
+QUEUE_SPACING_M = (0.35, 0.5)
+#: the door's leaf: its length, m (0.8), and its angle to the wall it is hinged on, rad (90 deg)
+DOOR_LEAF_M = (0.7, 0.9)
+DOOR_ANGLE_RAD = (np.pi / 3, 2 * np.pi / 3)
+#: the legs of the bevelled corner, m (0.4)
+BEVEL_M = (0.3, 0.6)
+#: the least gap between two pieces (furniture, door, bevel), and between a piece and the people's places and paths, m
+ROOM_GAP_M = 0.2
+#: the occupancy grid the placement is checked on, m a cell
+_ROOM_GRID_M = 0.05
+_ROOM_TRIES = 200
+
+
+class _RoomGrid:
+    """Cell centres of a room's floor, and what is taken: the places of the room's pieces checked against each other."""
+
+    def __init__(self, field_m: tuple[float, float, float, float]) -> None:
+        x0, y0, x1, y1 = field_m
+        xs = np.arange(x0 + _ROOM_GRID_M / 2, x1, _ROOM_GRID_M)
+        ys = np.arange(y0 + _ROOM_GRID_M / 2, y1, _ROOM_GRID_M)
+        self.x, self.y = np.meshgrid(xs, ys, indexing="ij")
+        self.field = field_m
+        self.taken = np.zeros(self.x.shape, dtype=bool)
+
+    def box(self, cx: float, cy: float, length: float, depth: float, angle: float, grow: float = 0.0) -> np.ndarray:
+        c, s = np.cos(angle), np.sin(angle)
+        u = (self.x - cx) * c + (self.y - cy) * s
+        v = -(self.x - cx) * s + (self.y - cy) * c
+        return (np.abs(u) <= length / 2 + grow) & (np.abs(v) <= depth / 2 + grow)
+
+    def capsule(self, a: tuple[float, float], b: tuple[float, float], radius: float) -> np.ndarray:
+        ex, ey = b[0] - a[0], b[1] - a[1]
+        length2 = ex * ex + ey * ey
+        t = np.zeros(self.x.shape) if length2 == 0 else np.clip(((self.x - a[0]) * ex + (self.y - a[1]) * ey) / length2, 0, 1)
+        return np.hypot(self.x - (a[0] + t * ex), self.y - (a[1] + t * ey)) <= radius
+
+    def polygon(self, corners: list[tuple[float, float]], grow: float) -> np.ndarray:
+        """A convex polygon (counter-clockwise corners) grown by ``grow``."""
+        inside = np.ones(self.x.shape, dtype=bool)
+        near = np.zeros(self.x.shape, dtype=bool)
+        for a, b in zip(corners, corners[1:] + corners[:1]):
+            inside &= (b[0] - a[0]) * (self.y - a[1]) - (b[1] - a[1]) * (self.x - a[0]) >= 0
+            near |= self.capsule(a, b, grow)
+        return inside | near
+
+    def place(self, mask: np.ndarray, grow_mask: np.ndarray | None = None) -> bool:
+        """Take ``grow_mask`` (default ``mask``) if ``mask`` is free; whether it was."""
+        if (mask & self.taken).any():
+            return False
+        self.taken |= mask if grow_mask is None else grow_mask
+        return True
+
+    def inside(self, corners: np.ndarray) -> bool:
+        x0, y0, x1, y1 = self.field
+        return bool(np.all(corners[:, 0] >= x0) and np.all(corners[:, 0] <= x1) and np.all(corners[:, 1] >= y0)
+                    and np.all(corners[:, 1] <= y1))  # fmt: skip
+
+
+def _room_parts(config: WorldConfig) -> tuple[str, Any]:
+    """The world's queues crowd (its name and config), or a ConfigError naming what is missing."""
+    from envs.crowds.queues import QueuesConfig
+
+    queues = [(n, c) for n, c in config.crowds.items() if isinstance(c, QueuesConfig)]
+    if len(queues) != 1 or config.robot.start_region_m is None or len(config.walls) != 2:
+        raise ConfigError(
+            f"world {config.name!r}: the room layout needs one queues crowd, a robot start region and two walls "
+            f"besides the room's own (a bevelled corner, then a door's leaf)"
+        )
+    return queues[0]
+
+
+def _box_corners(cx: float, cy: float, length: float, depth: float, angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    local = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * [length / 2, depth / 2]
+    return np.array([cx, cy]) + local @ np.array([[c, s], [-s, c]])
+
+
+def _room_queues(config: WorldConfig, queues: Any, rng: np.random.Generator, grid: _RoomGrid) -> dict[str, float]:
+    """The queues' lines, heads and spacing; marks their places and the heads' walks (at the largest crowd) taken."""
+    x0, y0, x1, y1 = config.field_m
+    left = x0 + float(rng.uniform(*QUEUE_FROM_WALL_M))
+    right = x1 - float(rng.uniform(*QUEUE_FROM_WALL_M))
+    head = y1 - float(rng.uniform(*QUEUE_HEAD_FROM_WALL_M))
+    slots = -(-queues.max_count // 2)  # a queue's places at the largest crowd (a walking head takes the last)
+    lowest = y0 + queues.radius_m + ROOM_GAP_M
+    most = (head - lowest) / max(slots - 1, 1)
+    if most < QUEUE_SPACING_M[0]:
+        raise ConfigError(f"world {config.name!r}: {slots} people a queue do not fit between y = {head:.2f} and the bottom wall")
+    spacing = float(rng.uniform(QUEUE_SPACING_M[0], min(QUEUE_SPACING_M[1], most)))
+    tail = head - (slots - 1) * spacing
+    grow = queues.radius_m + ROOM_GAP_M
+    for x, other in ((left, right), (right, left)):
+        grid.taken |= grid.capsule((x, head), (x, tail), grow)  # the queue itself
+        corners = sorted(
+            [(x, head), (other, head), (other, tail)],
+            key=lambda p: np.arctan2(p[1] - (head + 2 * tail) / 3, p[0] - (x + 2 * other) / 3),
+        )
+        grid.taken |= grid.polygon(corners, grow)  # a head's walk to any place of the other queue
+    return {"left_x_m": left, "right_x_m": right, "head_y_m": head, "spacing_m": spacing}
+
+
+def room_layout(config: WorldConfig, rng: np.random.Generator) -> dict[str, Any]:
+    """A room's layout: its queues, its door, its bevelled corner and where its furniture stands (module docstring)."""
+    name, queues = _room_parts(config)
+    x0, y0, x1, y1 = config.field_m
+    corners = {(x0, y0): (1, 1), (x1, y0): (-1, 1), (x1, y1): (-1, -1), (x0, y1): (1, -1)}
+    for _ in range(_ROOM_TRIES):
+        grid = _RoomGrid(config.field_m)
+        sx0, sy0, sx1, sy1 = config.robot.start_region_m  # type: ignore[misc]
+        g = ROOM_CLEAR_M
+        grid.taken |= grid.box((sx0 + sx1) / 2, (sy0 + sy1) / 2, sx1 - sx0 + 2 * g, sy1 - sy0 + 2 * g, 0.0)
+        crowd = _room_queues(config, queues, rng, grid)
+        # the bevel: a corner cut by a segment of legs a, b
+        (cx, cy), (dx, dy) = list(corners.items())[int(rng.integers(4))]
+        a, b = float(rng.uniform(*BEVEL_M)), float(rng.uniform(*BEVEL_M))
+        bevel = [cx + dx * a, cy, cx, cy + dy * b]
+        cut = [(cx, cy), (cx + dx * a, cy), (cx, cy + dy * b)]
+        if not grid.place(grid.polygon(cut if dx * dy > 0 else cut[::-1], ROOM_GAP_M)):
+            continue
+        # the door: hinged on a wall, 0.5 m or more from the corners, its leaf standing into the room
+        wall = int(rng.integers(4))  # bottom, right, top, left
+        leaf = float(rng.uniform(*DOOR_LEAF_M))
+        angle = float(rng.uniform(*DOOR_ANGLE_RAD))
+        along = float(rng.uniform(0.5, (x1 - x0 if wall % 2 == 0 else y1 - y0) - 0.5))
+        hinge, inward = [((x0 + along, y0), 0.0), ((x1, y0 + along), np.pi / 2), ((x1 - along, y1), np.pi),
+                         ((x0, y1 - along), -np.pi / 2)][wall]  # fmt: skip
+        tip = (hinge[0] + leaf * np.cos(inward + angle), hinge[1] + leaf * np.sin(inward + angle))
+        if not grid.place(grid.capsule(hinge, tip, ROOM_GAP_M)):
+            continue
+        furniture = _room_furniture(config, rng, grid)
+        if furniture is not None:
+            return {"walls": [bevel, [*hinge, *tip]], "furniture": furniture, "crowds": {name: crowd}}
+    raise ConfigError(f"world {config.name!r}: no room layout found in {_ROOM_TRIES} tries (the pieces do not fit)")
+
+
+def _room_furniture(config: WorldConfig, rng: np.random.Generator, grid: _RoomGrid) -> list[dict[str, Any]] | None:
+    """Each piece placed: a box with its back to a random wall, a table anywhere free; None if one finds no place."""
+    x0, y0, x1, y1 = config.field_m
+    placed = []
+    for piece in config.furniture:
+        for _ in range(_ROOM_TRIES):
+            length, depth = piece.size_m
+            if piece.kind == "box":
+                wall = int(rng.integers(4))  # bottom, right, top, left: the piece's back against it
+                angle = (0.0, np.pi / 2, np.pi, -np.pi / 2)[wall]
+                span = (x1 - x0 if wall % 2 == 0 else y1 - y0) - length
+                along = float(rng.uniform(0.0, span)) + length / 2
+                cx, cy = [(x0 + along, y0 + depth / 2), (x1 - depth / 2, y0 + along), (x1 - along, y1 - depth / 2),
+                          (x0 + depth / 2, y1 - along)][wall]  # fmt: skip
+            else:
+                angle = float(rng.choice([0.0, np.pi / 2]))
+                cx, cy = float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1))
+            offset = float(np.hypot(*piece.map_offset_m))  # the map's copy: as far off as the world's, any way
+            turn = float(rng.uniform(-np.pi, np.pi))
+            ox, oy = offset * np.cos(turn), offset * np.sin(turn)
+            corners = _box_corners(cx, cy, length, depth, angle)
+            if not (grid.inside(corners) and grid.inside(corners + [ox, oy])):
+                continue
+            if grid.place(grid.box(cx, cy, length, depth, angle), grid.box(cx, cy, length, depth, angle, ROOM_GAP_M)):
+                placed.append({**dataclasses.asdict(piece), "x_m": cx, "y_m": cy, "angle_rad": angle,
+                               "map_offset_m": [ox, oy]})  # fmt: skip
+                break
+        else:
+            return None
+    return placed
+
+
+register_layout("crowded_room", room_layout)

@@ -233,6 +233,7 @@ class LocalizationEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32
             segments[:, 0:4],
             features,
             wall_heights_m=segments[:, 4:6],
+            disk_cache=self.layout is None,  # a layout's tables are built in memory (core.types.LandmarkMap)
         )
 
     @property

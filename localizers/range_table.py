@@ -212,7 +212,8 @@ def build_range_table(
 
     The grid covers the map bounds (``ceil(extent / resolution)`` cells a side). The table is
     stored as ``<cache>/range_table_<sha256>.npy``, written atomically, and loaded
-    memory-mapped (read-only); a cache that cannot be read or written is logged and skipped.
+    memory-mapped (read-only); a cache that cannot be read or written is logged and skipped. A map
+    with ``disk_cache`` False (a seeded layout's) has its table built in memory, never written.
 
     Args:
         landmarks: the map (its ``walls_m`` and ``bounds_m``).
@@ -228,9 +229,9 @@ def build_range_table(
     xmin, ymin, xmax, ymax = landmarks.bounds_m
     nx, ny, _ = shape = check_range_table_size(landmarks.bounds_m, resolution_m, directions, max_mb)
     key = range_table_key(landmarks.walls_m, landmarks.bounds_m, resolution_m, directions, max_range_m)
-    path = (cache or cache_dir()) / f"range_table_{key}.npy"
+    path = (cache or cache_dir()) / f"range_table_{key}.npy" if landmarks.disk_cache else None
     meta = ((xmin, ymin), float(resolution_m), float(max_range_m), key)
-    if path.is_file():
+    if path is not None and path.is_file():
         try:
             # memory-mapped, read-only: envs in several processes share one copy of the table
             ranges = np.asarray(np.load(path, mmap_mode="r", allow_pickle=False))
@@ -245,10 +246,11 @@ def build_range_table(
         float(xmin), float(ymin), float(resolution_m), nx, ny, int(directions), float(max_range_m),
         np.ascontiguousarray(walls[:, :2]), np.ascontiguousarray(walls[:, 2:]),
     )  # fmt: skip
-    try:
-        write_atomically(path, lambda tmp: np.save(tmp, ranges))
-    except OSError as exc:
-        _log.warning("could not cache the range table in %s: %s", path.parent, exc)
+    if path is not None:
+        try:
+            write_atomically(path, lambda tmp: np.save(tmp, ranges))
+        except OSError as exc:
+            _log.warning("could not cache the range table in %s: %s", path.parent, exc)
     ranges.setflags(write=False)
     return RangeTable(ranges, *meta, loaded=False)
 

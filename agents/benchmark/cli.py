@@ -14,8 +14,43 @@ from agents.common.output_folder import open_output_folder
 from agents.common.sweep import run_tasks
 from core.schema import check
 
+#: what the policy track writes under --out
+POLICY_TRACK_OUTPUTS = ("policy_leaderboard.md", "*/episodes.csv", "*/summary.csv", "*/summary.md", "*/run.json",
+                        "*/plots/*.png", "*/tum/*.tum")  # fmt: skip
 
-def run_cli(args: Any) -> BenchmarkPlan:
+
+def run_policy_track_cli(args: Any) -> Path:
+    """``crowdloc benchmark --track policies``: the track's tasks, their entrants and ``--policies`` on top,
+    every spec checked and ``--out`` made ready before any episode runs.
+
+    Raises:
+        ConfigError: options of the localizer track (``--worlds``, ``--localizers``, ``--resume``), an unknown
+            task, an entrant a task cannot run, or an ``--out`` that is not empty (without ``--overwrite``).
+    """
+    from agents.benchmark.policy_track import DEFAULT_TRACK, load_policy_track, run_policy_track, task_spec
+
+    for flag in ("worlds", "localizers"):
+        check(getattr(args, flag, None) is None, f"--{flag} belongs to the localizer track; the policy track runs --tasks")
+    check(not getattr(args, "resume", False), "--track policies does not resume: run it again with --overwrite")
+    load_plugins(tuple(args.plugins or ()))
+    track = load_policy_track(args.protocol or DEFAULT_TRACK)
+    for name in args.tasks or track.tasks:  # every entrant checked before the first episode
+        task_spec(track, name, args.policies or (), seeds=args.seeds, quick=args.quick)
+    out = Path(args.out)
+    with open_output_folder(
+        out, POLICY_TRACK_OUTPUTS, command="crowdloc benchmark --track policies", overwrite=bool(args.overwrite)
+    ):
+        start = time.perf_counter()
+        written = run_policy_track(track, out, tasks=args.tasks, entrants=args.policies or (), seeds=args.seeds,
+                                   quick=args.quick, workers=args.workers, progress=not args.no_progress,
+                                   ray_address=getattr(args, "ray_address", None))  # fmt: skip
+    print(written["leaderboard"].read_text())
+    quick = " (quick: not comparable with a full run)" if args.quick else ""
+    print(f"{track.name}{quick}: {time.perf_counter() - start:.0f} s; wrote {out}/ (policy_leaderboard.md, one folder per task)")
+    return Path(written["leaderboard"])
+
+
+def run_cli(args: Any) -> BenchmarkPlan | Path:
     """Import the plug-ins, read the protocol, plan, check ``--out``, run every episode (each into
     the journal as it finishes; with ``--resume`` only those the journal lacks), write.
 
@@ -24,6 +59,9 @@ def run_cli(args: Any) -> BenchmarkPlan:
             policy, a bad seed count, an ``--out`` that is not empty (without ``--overwrite`` or
             ``--resume``), or a journal of another run, all before any episode runs.
     """
+    if getattr(args, "track", "localizers") == "policies":
+        return run_policy_track_cli(args)
+    check(getattr(args, "tasks", None) is None, "--tasks belongs to the policy track (--track policies)")
     plugins = tuple(args.plugins or ())
     load_plugins(plugins)
     protocol = load_protocol(args.protocol or DEFAULT_PROTOCOL)

@@ -49,9 +49,19 @@ def spec_from_args(args: Any) -> EvalSpec:
               f"--env-id {args.env_id} differs from the env of --conditions {args.conditions} ({trained.env_id})")  # fmt: skip
         # the config's conditions include its localizer, unless --localizers names others
         conditions = task_conditions(trained)
+        split = getattr(args, "layout_split", None)
+        if trained.layouts is not None:
+            conditions["layouts"] = getattr(trained.layouts, split or "test")
+        check(split is None or trained.layouts is not None,
+              f"--layout-split {split}: the --conditions config {args.conditions} has no layouts")  # fmt: skip
+    else:
+        check(getattr(args, "layout_split", None) is None, "--layout-split needs --conditions (a config with layouts)")
     conditions["env_kwargs"] = merge_nested(conditions.get("env_kwargs", {}), nest(parse_overrides(args.env_set)))
     chosen = {k: v for k, v in given.items() if v is not None}
-    localizer_params = nest(parse_overrides(getattr(args, "localizer_set", []), "--localizer-set"))
+    given_params = nest(parse_overrides(getattr(args, "localizer_set", []), "--localizer-set"))
+    localizer_params = merge_nested(conditions.pop("localizer_params", {}), given_params)  # --localizer-set on top
+    localizers = chosen.get("localizers") or conditions.get("localizers") or ()
+    localizer_params = {k: v for k, v in localizer_params.items() if k in localizers or k in given_params}
     return EvalSpec(**{k: v for k, v in {**conditions, **chosen}.items() if v is not None}, seeds=args.seeds,
                     first_seed=args.first_seed, episode_steps=args.episode_steps, kidnap=kidnap_from_args(args),
                     localizer_params=localizer_params)  # fmt: skip

@@ -159,7 +159,9 @@ class _Recorder:
 
 def rollout(spec: EvalSpec, cell: Cell, frame_every: int = 0) -> Rollout:
     """Play one episode of ``cell``; with ``frame_every > 0`` also render every that many steps."""
-    env = spec.make_env(cell.policy, cell.localizer, cell.crowd_size, "rgb_array" if frame_every else None)
+    env = spec.make_env(
+        cell.policy, cell.localizer, cell.crowd_size, "rgb_array" if frame_every else None, spec.layout_of(cell.seed)
+    )
     act = _make_policy(spec, cell, env)
     obs, info = env.reset(seed=cell.seed)
     base = env.unwrapped

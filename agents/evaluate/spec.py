@@ -84,6 +84,10 @@ class EvalSpec:
         bootstrap_seed: seeds the bootstrap's generator.
         kidnap: carry the robot away mid-episode and score the recovery
             (:mod:`agents.evaluate.kidnap`); None: no kidnapping.
+        layouts: layout seeds ``[first, end]`` (a training config's ``layouts`` split, ``envs.layouts``):
+            each seed's episode is on layout :func:`agents.rl.layout_episodes.episode_layout` of the
+            range, the same for every policy and localizer (so their results pair); None: the
+            world's own layout.
         localizer_params: per localizer of the grid, overrides of its parameters (its
             ``configs/localizers/NAME.yaml``), e.g. ``{"mcl_lidar": {"deskew": True}}``
             (``crowdloc eval --localizer-set mcl_lidar.deskew=true``).
@@ -110,8 +114,18 @@ class EvalSpec:
     route: RouteConfig = field(default_factory=RouteConfig)
     observation: ObservationConfig = field(default_factory=ObservationConfig)
     action: ActionConfig = field(default_factory=ActionConfig)
+    layouts: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
+        if self.layouts is not None:
+            check(isinstance(self.layouts, Sequence) and len(self.layouts) == 2 and all(is_int(v) for v in self.layouts)
+                  and 0 <= self.layouts[0] < self.layouts[1],
+                  f"layouts must be [first, end] layout seeds with 0 <= first < end, got {self.layouts!r}")  # fmt: skip
+            object.__setattr__(self, "layouts", (int(self.layouts[0]), int(self.layouts[1])))
+            check("layout" not in self.env_kwargs, "give the layout seeds as layouts, not env_kwargs.layout")
+            from envs.layouts import layout_world
+
+            layout_world(self.world(), self.layouts[0])  # a world without a generator is refused here, naming those with one
         for name in ("policies", "localizers", "crowd_sizes"):  # lists from Python callers become tuples
             object.__setattr__(self, name, tuple(getattr(self, name)))
         self._check_grid()
@@ -165,12 +179,24 @@ class EvalSpec:
         finally:
             env.close()
 
-    def make_env(self, policy: str, localizer: str, crowd_size: int | None, render_mode: str | None = None) -> gym.Env[Any, Any]:
-        """The env of one cell of the grid: the world under these conditions with ``localizer``, the
-        active-localization reward on :attr:`route` and, for a trained (``ppo:``) ``policy``, the
-        task's :attr:`observation` (:func:`agents.rl.train.task_wrappers`, as in training)."""
+    def layout_of(self, seed: int) -> int | None:
+        """The layout the episode of env seed ``seed`` plays on (None: the world's own)."""
+        if self.layouts is None:
+            return None
+        from agents.rl.layout_episodes import episode_layout
+
+        return episode_layout(range(*self.layouts), seed)
+
+    def make_env(
+        self, policy: str, localizer: str, crowd_size: int | None, render_mode: str | None = None, layout: int | None = None
+    ) -> gym.Env[Any, Any]:
+        """The env of one cell of the grid: the world (on ``layout``, a :meth:`layout_of`) under these
+        conditions with ``localizer``, the active-localization reward on :attr:`route` and, for a
+        trained (``ppo:``) ``policy``, the task's :attr:`observation` (:func:`agents.rl.train.task_wrappers`,
+        as in training)."""
         env = gym.make(
             self.env_id,
+            layout=layout,
             crowd_size=crowd_size,
             localizer=localizer,
             localizer_params=self.localizer_params.get(localizer),
@@ -344,9 +370,12 @@ def task_conditions(trained: TrainConfig) -> dict[str, Any]:
     """The :class:`EvalSpec` fields a training config fixes: its env and conditions, reward, route,
     what its policy observes and what its action means, and its localizer (``crowdloc eval
     --conditions``, the demo's world tasks)."""
-    return {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward,
-            "route": trained.route, "observation": trained.observation, "action": trained.action,
-            "localizers": (trained.localizer,)}  # fmt: skip
+    conditions = {"env_id": trained.env_id, "env_kwargs": dict(trained.env_kwargs), "reward": trained.reward,
+                  "route": trained.route, "observation": trained.observation, "action": trained.action,
+                  "localizers": (trained.localizer,)}  # fmt: skip
+    if trained.localizer_params:  # the localizer as it was trained with
+        conditions["localizer_params"] = {trained.localizer: dict(trained.localizer_params)}
+    return conditions
 
 
 def check_observation_space(policy: str, expected: spaces.Space[Any], given: spaces.Space[Any],

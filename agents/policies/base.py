@@ -7,6 +7,7 @@ module too, which imports none of them.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -101,3 +102,29 @@ def sonar_cones(count: int, directions_rad: ArrayLike, halfwidth_rad: float) -> 
 def check_command(name: str, value: float) -> None:
     if not (is_real(value) and -1.0 <= value <= 1.0):
         raise ValueError(f"{name} must be a number in [-1, 1] (action units), got {value!r}")
+
+
+def arc_end_poses(poses: NDArray[np.float64], speeds_mps: NDArray[np.float64], turn_rates_rps: NDArray[np.float64],
+                  horizon_s: float) -> NDArray[np.float64]:  # fmt: skip
+    """``(C, K, 3)``: each of ``K`` poses ``(K, 3)`` after each of ``C`` motions (a forward speed and a turn rate
+    held ``horizon_s``), along the exact arc."""
+    v = np.asarray(speeds_mps, dtype=np.float64)[:, None]
+    w = np.asarray(turn_rates_rps, dtype=np.float64)[:, None]
+    turn = w * horizon_s
+    straight = np.abs(turn) < 1e-9
+    safe_w = np.where(straight, 1.0, w)
+    dx = np.where(straight, v * horizon_s, v / safe_w * np.sin(turn))
+    dy = np.where(straight, 0.0, v / safe_w * (1.0 - np.cos(turn)))
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)[None]
+    c, s = np.cos(p[..., 2]), np.sin(p[..., 2])
+    return np.stack([p[..., 0] + c * dx - s * dy, p[..., 1] + s * dx + c * dy, p[..., 2] + turn], axis=-1)
+
+
+def sonar_blocked(observation: Observation, directions_rad: ArrayLike, clearance_m: float) -> NDArray[np.bool_]:
+    """Which travel directions (relative to the heading) the sonar finds obstructed: a sonar cone within
+    45 deg of it reads closer than ``clearance_m``. Without a sonar nothing is obstructed."""
+    directions = np.asarray(directions_rad, dtype=np.float64)
+    if "sonar" not in observation:
+        return np.zeros(directions.shape, dtype=bool)
+    ranges = np.asarray(observation["sonar"], dtype=np.float64)
+    return np.any(sonar_cones(ranges.shape[0], directions, math.pi / 4) & (ranges < clearance_m), axis=-1)

@@ -41,7 +41,8 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
-from agents.policies.base import FixedPolicy, Observation, check_command, read_estimate, sonar_cones
+from agents.policies.base import FixedPolicy, Observation, arc_end_poses, check_command, read_estimate, sonar_blocked, sonar_cones
+from agents.policies.belief_greedy import BeliefGreedy
 from agents.policies.navigation import CorridorFollower
 from agents.policies.paths import EXP1_VERTICES, command_actions, polygon_commands
 from agents.policies.route_following import LookThenRoute, RouteFollower, range_sensor_kwargs, route_points
@@ -282,11 +283,7 @@ class _MapPolicy(FixedPolicy):
         ``clearance_m``. Sensors are spread evenly from the heading counter-clockwise (the
         ``sonar`` observation's layout). Without a sonar nothing is obstructed.
         """
-        directions = np.asarray(directions_rad, dtype=np.float64)
-        if "sonar" not in observation:
-            return np.zeros(directions.shape, dtype=bool)
-        ranges = np.asarray(observation["sonar"], dtype=np.float64)
-        return np.any(sonar_cones(ranges.shape[0], directions, math.pi / 4) & (ranges < self.clearance_m), axis=-1)
+        return sonar_blocked(observation, directions_rad, self.clearance_m)
 
     def _inside(self, xy: NDArray[np.float64], margin: float = 0.4) -> NDArray[np.bool_]:
         xmin, ymin, xmax, ymax = self.landmarks.bounds_m
@@ -382,14 +379,7 @@ class GreedyInformationGain(_MapPolicy):
         """``(C, 3)`` poses after each candidate motion held for ``horizon_s`` (exact arcs)."""
         v = self.candidates[:, 0] * self.max_speed_mps
         w = self.candidates[:, 1] * self.max_turn_rate_rps
-        t = self.horizon_s
-        turn = w * t
-        straight = np.abs(turn) < 1e-9
-        safe_w = np.where(straight, 1.0, w)
-        dx = np.where(straight, v * t, v / safe_w * np.sin(turn))
-        dy = np.where(straight, 0.0, v / safe_w * (1.0 - np.cos(turn)))
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        return np.stack([pose[0] + c * dx - s * dy, pose[1] + s * dx + c * dy, pose[2] + turn], axis=1)
+        return arc_end_poses(pose, v, w, self.horizon_s)[:, 0]
 
     def _act(self, observation: Observation) -> NDArray[np.float64]:
         pose = self._estimate(observation)
@@ -425,6 +415,10 @@ def make_policy(name: str, env: Any, seed: int | None = None, **kwargs: Any) -> 
         raise ValueError(f"unknown policy {name!r}; fixed policies: {', '.join(sorted(FIXED_POLICIES))}")
     if name == "patrol":
         return PatrolPath.exp1(env, **kwargs)
+    if name == "belief_greedy":
+        from agents.policies.belief_greedy import make_belief_greedy
+
+        return make_belief_greedy(env, seed, **kwargs)
     if name in ("landmark_seeking", "greedy_info_gain"):
         cam = base.config.sensor_of_type("bearing_camera")
         assert cam is None or isinstance(cam, BearingCameraConfig)
@@ -504,6 +498,7 @@ FIXED_POLICIES: dict[str, Any] = {
     "corridor_follower": CorridorFollower,
     "route_follower": RouteFollower,
     "look_then_route": LookThenRoute,
+    "belief_greedy": BeliefGreedy,
 }
 
 

@@ -240,6 +240,7 @@ class LidarMCL(LocalizerBase[LidarMCLParams]):
         self._updates = 0
         self._valid = False
         self._averages = LikelihoodAverages(params.alpha_slow, params.alpha_fast)
+        self._global = False  # set by reset: a start without a prior
         self._cache: tuple[Array, Array] | None = None
 
     # ------------------------------------------------------------------ map models
@@ -269,6 +270,7 @@ class LidarMCL(LocalizerBase[LidarMCLParams]):
         self._rng = rng
         p = self._params
         n = p.n_particles
+        self._global = prior is None or not prior.valid  # global localization: no prior (global_candidates)
         if prior is None or not prior.valid:
             self._particles = uniform_poses(self._map.bounds_m, n, rng)
             self._valid = False
@@ -317,12 +319,19 @@ class LidarMCL(LocalizerBase[LidarMCLParams]):
         if self._loglik.shape[0] != n:
             self._loglik = np.empty(n)
         ll = self._loglik
+        drawn_ll = None
+        if self._global and p.global_candidates:  # the first scan proposes the particles (params)
+            self._particles, drawn_ll = self._drawn_by_scan(n, p.global_candidates, (ranges, angles, max_range), rng)
+            self._set_uniform_weights(n)
+        self._global = False
         self._log_likelihood(self._particles, ranges, angles, max_range, ll)
         self._updates += 1
         self._valid = True
         self._cache = None
         log_w = self._log_w
         log_w += ll
+        if drawn_ll is not None:  # importance weight: the scan over what proposed them
+            log_w -= drawn_ll
         peak = float(log_w.max())
         w = self._weights
         np.subtract(log_w, peak, out=w)
@@ -444,18 +453,25 @@ class LidarMCL(LocalizerBase[LidarMCLParams]):
         else:
             self.likelihood_field().log_likelihood(particles, ranges, angles, max_range, out, parallel=p.parallel)
 
-    def _injected(self, count: int, scan: tuple[Array, Array, float], rng: np.random.Generator) -> Array:
-        """``(3, count)`` particles drawn from ``recovery_candidates`` uniform poses in
-        proportion to their likelihood under the (strided) scan."""
+    def _drawn_by_scan(
+        self, count: int, candidates: int, scan: tuple[Array, Array, float], rng: np.random.Generator
+    ) -> tuple[Array, Array]:
+        """``(3, count)`` particles drawn from ``candidates`` uniform poses in proportion to their
+        likelihood under the scan (every ``recovery_beam_stride``-th beam), and that log-likelihood of each."""
         p = self._params
-        pool = uniform_poses(self._map.bounds_m, p.recovery_candidates, rng)
+        pool = uniform_poses(self._map.bounds_m, candidates, rng)
         ranges, angles, max_range = scan
         stride = p.recovery_beam_stride
         ll = np.empty(pool.shape[1])
         self._log_likelihood(pool, np.ascontiguousarray(ranges[::stride]), np.ascontiguousarray(angles[::stride]), max_range, ll)
         w = np.exp(ll - ll.max())
         w /= w.sum()
-        return pool[:, systematic_resample(w, count, rng)]
+        idx = systematic_resample(w, count, rng)
+        return pool[:, idx], ll[idx]
+
+    def _injected(self, count: int, scan: tuple[Array, Array, float], rng: np.random.Generator) -> Array:
+        """``(3, count)`` particles drawn from ``recovery_candidates`` poses by the scan (:meth:`_drawn_by_scan`)."""
+        return self._drawn_by_scan(count, self._params.recovery_candidates, scan, rng)[0]
 
     def _resample(self, rng: np.random.Generator, n_inject: int, scan: tuple[Array, Array, float]) -> None:
         p = self._params

@@ -30,7 +30,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from core.schema import check, check_at_most, check_ranges
+from core.schema import check, check_at_most, check_ranges, is_int
 from localizers.base import DEFAULT_MAX_SPREAD_M, check_max_spread
 from localizers.particles import MAX_PARTICLES, PARTICLE_MEMORY
 from localizers.range_table import MAX_TABLE_MB, RANGE_TABLE_ENTRY_BYTES, range_table_shape, table_megabytes
@@ -112,6 +112,13 @@ class LidarMCLParams:
             never land near the pose in a room, so the book's injection does not recover).
             Only done when particles are injected.
         recovery_beam_stride: the beam stride of that weighing.
+        global_candidates: global localization (a start without a prior): at the first update
+            the particle set is drawn from this many poses uniform over the map bounds, in
+            proportion to their likelihood under the scan (every ``recovery_beam_stride``-th
+            beam), and weighed by the rest of the scan; 0 (the default): the uniform particles
+            are weighed as they are. A thousand uniform particles leave about two within 0.5 m
+            and 20 deg of the pose in a 7 m room, so a pose turned 90 or 180 deg about the
+            room's centre often wins the first scan (ours, as ``recovery_candidates``).
         max_spread_m: no pose is claimed while the position spread exceeds this (ours).
         min_range_m, min_informative_fraction: a scan in which fewer than this fraction of the
             (strided) beams read a range in ``(min_range_m, max_range)`` carries no information
@@ -174,6 +181,7 @@ class LidarMCLParams:
     lost_ratio: float = 0.9
     recovery_candidates: int = 20_000
     recovery_beam_stride: int = 8
+    global_candidates: int = 0
     max_spread_m: float = DEFAULT_MAX_SPREAD_M
     min_range_m: float = 0.1
     min_informative_fraction: float = 0.1
@@ -221,7 +229,9 @@ class LidarMCLParams:
         check_at_most(
             self,
             name,
-            dict.fromkeys(("n_particles", "min_particles", "max_particles", "recovery_candidates"), MAX_PARTICLES),
+            dict.fromkeys(
+                ("n_particles", "min_particles", "max_particles", "recovery_candidates", "global_candidates"), MAX_PARTICLES
+            ),
             PARTICLE_MEMORY,
         )
         check(self.beam_stride >= 1, f"{name}.beam_stride must be >= 1, got {self.beam_stride!r}")
@@ -248,6 +258,8 @@ class LidarMCLParams:
         )
         check(0.0 <= self.lost_ratio <= 1.0, f"{name}.lost_ratio must be in [0, 1] (0: never lost), got {self.lost_ratio!r}")
         check(self.recovery_candidates >= 1, f"{name}.recovery_candidates must be >= 1, got {self.recovery_candidates!r}")
+        check(is_int(self.global_candidates) and self.global_candidates >= 0,
+              f"{name}.global_candidates must be an integer >= 0 (0: off), got {self.global_candidates!r}")  # fmt: skip
         check(self.recovery_beam_stride >= 1, f"{name}.recovery_beam_stride must be >= 1, got {self.recovery_beam_stride!r}")
         check_max_spread(name, self.max_spread_m)
         check(

@@ -45,7 +45,7 @@ def test_every_shipped_config_with_layouts_keeps_its_splits_apart() -> None:
     for path in sorted(EXPERIMENT_DIR.glob("*.yaml")):
         config = load_train_config(path)
         if config.layouts is not None:
-            ranges = sorted(config.layouts.seeds(name) for name in SPLITS)
+            ranges = sorted((config.layouts.seeds(name) for name in SPLITS), key=lambda r: r.start)
             assert all(a.stop <= b.start for a, b in zip(ranges, ranges[1:])), path
 
 
@@ -135,3 +135,64 @@ def test_a_replayed_training_episode_is_on_its_own_layout() -> None:
     fresh = make_training_env(config, 1)
     assert fresh.replay(position) == ""
     assert fresh.env.unwrapped.layout == info["layout"]
+
+
+def test_an_evaluation_on_a_layout_split_plays_each_seed_on_its_layout_for_every_policy() -> None:
+    from agents.evaluate.episode import rollout
+    from agents.evaluate.spec import Cell, EvalSpec
+
+    spec = EvalSpec(policies=("spin", "random_walk"), crowd_sizes=(6,), seeds=3, episode_steps=20, layouts=(1100, 1200))
+    seeds = spec.eval_seeds
+    layouts = [spec.layout_of(seed) for seed in seeds]
+    assert layouts == [episode_layout(range(1100, 1200), seed) for seed in seeds]
+    assert all(1100 <= layout < 1200 for layout in layouts)
+    for policy in spec.policies:
+        env = spec.make_env(policy, "candidate_sets", 6, layout=layouts[0])
+        assert env.unwrapped.layout == layouts[0]
+        env.close()
+    first = rollout(spec, Cell("spin", "candidate_sets", 6, seeds[0]))
+    own = rollout(
+        EvalSpec(policies=("spin",), crowd_sizes=(6,), seeds=3, episode_steps=20), Cell("spin", "candidate_sets", 6, seeds[0])
+    )
+    assert first.context.landmark_map.positions_xy_m.tolist() != own.context.landmark_map.positions_xy_m.tolist()
+    assert EvalSpec(policies=("spin",), crowd_sizes=(6,)).layout_of(seeds[0]) is None
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"layouts": (5, 5)}, r"layouts must be \[first, end\] layout seeds with 0 <= first < end, got \(5, 5\)"),
+        ({"layouts": (0, 10), "env_id": "crowdloc/RoboCupStatic-v0"}, "world 'robocup_static' has no layout generator"),
+        ({"layouts": (0, 10), "env_kwargs": {"layout": 3}}, "not env_kwargs.layout"),
+    ],
+)
+def test_a_bad_evaluation_layout_range_is_refused_naming_it(kwargs: dict[str, Any], message: str) -> None:
+    from agents.evaluate.spec import EvalSpec
+
+    with pytest.raises(ConfigError, match=message):
+        EvalSpec(policies=("spin",), crowd_sizes=(2,), **kwargs)
+
+
+def test_eval_conditions_of_a_layout_config_default_to_its_test_split(capsys: pytest.CaptureFixture[str]) -> None:
+    from agents.cli import build_parser
+    from agents.evaluate.cli import spec_from_args
+
+    parser = build_parser()
+    base = ["eval", "--conditions", "ppo_candidate_sets_layouts", "--policies", "spin", "--crowd-sizes", "6", "--seeds", "1"]
+    config = load_train_config("ppo_candidate_sets_layouts")
+    assert spec_from_args(parser.parse_args(base)).layouts == config.layouts.test
+    assert spec_from_args(parser.parse_args([*base, "--layout-split", "validation"])).layouts == config.layouts.validation
+    plain = ["eval", "--conditions", "ppo_candidate_sets", "--policies", "spin", "--crowd-sizes", "6", "--layout-split", "test"]
+    with pytest.raises(ConfigError, match="--layout-split test: the --conditions config ppo_candidate_sets has no layouts"):
+        spec_from_args(parser.parse_args(plain))
+
+
+def test_eval_conditions_carry_the_configs_localizer_parameters_under_the_command_lines() -> None:
+    from agents.cli import build_parser
+    from agents.evaluate.cli import spec_from_args
+
+    parser = build_parser()
+    base = ["eval", "--conditions", "ppo_room_lidar_layouts", "--policies", "spin", "--crowd-sizes", "16", "--seeds", "1"]
+    assert spec_from_args(parser.parse_args(base)).localizer_params == {"mcl_lidar": {"global_candidates": 100000}}
+    given = spec_from_args(parser.parse_args([*base, "--localizer-set", "mcl_lidar.global_candidates=0"]))
+    assert given.localizer_params == {"mcl_lidar": {"global_candidates": 0}}

@@ -27,7 +27,13 @@ def test_the_policies_say_which_worlds_they_run_in() -> None:
     corridor = load_world("ceiling_corridor")  # no bearing camera; a sonar and a ceiling
     assert runnable_policies(corridor) == ["random_walk", "spin", "stop_and_go", "patrol", "corridor_follower"]
     campus = load_world("stereo_campus")  # no bearing camera; a route
-    assert runnable_policies(campus) == ["random_walk", "spin", "stop_and_go", "patrol", "route_follower", "look_then_route"]
+    assert runnable_policies(campus) == [
+        "random_walk", "spin", "stop_and_go", "patrol", "route_follower", "look_then_route", "belief_greedy"
+    ]  # fmt: skip
+    assert FIXED_POLICIES["belief_greedy"].unmet_need(corridor) == (
+        "a bearing_camera or lidar sensor",
+        "its sensors: odometry, sonar, camera",
+    )
     assert FIXED_POLICIES["corridor_follower"].unmet_need(load_world("crowded_room")) == (
         "a sonar sensor",
         "its sensors: odometry, lidar",

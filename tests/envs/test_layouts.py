@@ -13,6 +13,7 @@ from core.schema import ConfigError
 from envs.config import load_world
 from envs.layouts import (
     CORNER_SHIFT_M,
+    DISTRACTOR_ALONG_M,
     DISTRACTOR_OUT_M,
     DISTRACTOR_RADIUS_M,
     GOAL_WIDTH_M,
@@ -69,6 +70,12 @@ def test_soccer_layouts_keep_what_the_paper_fixes_and_vary_within_their_bounds(s
         beyond = max(x0 - d.x_m, d.x_m - x1, y0 - d.y_m, d.y_m - y1)
         assert DISTRACTOR_OUT_M[0] - 1e-12 <= beyond <= DISTRACTOR_OUT_M[1] + 1e-12
         assert DISTRACTOR_RADIUS_M[0] <= d.radius_m <= DISTRACTOR_RADIUS_M[1] and d.landmark in at
+        # by the landmark it imitates: out from a line that landmark is on, at most DISTRACTOR_ALONG_M along it
+        lx, ly = at[d.landmark]
+        if y0 <= d.y_m <= y1:  # beyond a side line: the landmark is on it
+            assert lx == (x0 if d.x_m < x0 else x1) and abs(d.y_m - ly) <= DISTRACTOR_ALONG_M[1] + 1e-12
+        else:  # beyond an end line
+            assert ly == (y0 if d.y_m < y0 else y1) and abs(d.x_m - lx) <= DISTRACTOR_ALONG_M[1] + 1e-12
     assert [tuple(p) for p in crowd.keeper_posts] == [at["L7"], at["L6"]]  # the keeper keeps the far goal
 
 
@@ -109,11 +116,12 @@ def test_a_bad_layout_seed_is_refused_naming_it(bad: object) -> None:
 
 
 def test_a_world_without_a_generator_says_which_have_one() -> None:
-    assert layout_worlds() == ("ceiling_corridor", "robocup_crowded")
+    assert layout_worlds() == ("ceiling_corridor", "crowded_room", "robocup_crowded")
     with pytest.raises(
-        ConfigError, match=r"world 'crowded_room' has no layout generator \(worlds with one: ceiling_corridor, robocup_crowded\)"
+        ConfigError,
+        match=r"world 'robocup_static' has no layout generator \(worlds with one: ceiling_corridor, crowded_room, robocup_crowded\)",
     ):
-        gym.make("crowdloc/CrowdedRoom-v0", layout=0)
+        gym.make("crowdloc/RoboCupStatic-v0", layout=0)
 
 
 # ---------------------------------------------------------------------------------------- corridor
@@ -208,3 +216,104 @@ def test_the_corridor_env_and_its_localizer_use_the_layout() -> None:
     for _ in range(20):
         env.step(env.action_space.sample())
     env.close()
+
+
+# -------------------------------------------------------------------------------------------- room
+
+ROOM = load_world("crowded_room")
+
+
+def _footprint(piece: object) -> np.ndarray:
+    """A piece's four corners where it stands (its rotated rectangle)."""
+    c, s = math.cos(piece.angle_rad), math.sin(piece.angle_rad)  # type: ignore[attr-defined]
+    half = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * np.asarray(piece.size_m) / 2  # type: ignore[attr-defined]
+    return np.array([piece.x_m, piece.y_m]) + half @ np.array([[c, s], [-s, c]])  # type: ignore[attr-defined]
+
+
+def _segment_point_distance(a: np.ndarray, b: np.ndarray, p: np.ndarray) -> float:
+    t = np.clip(np.dot(p - a, b - a) / max(np.dot(b - a, b - a), 1e-12), 0.0, 1.0)
+    return float(np.linalg.norm(p - (a + t * (b - a))))
+
+
+def _rect_distance(corners: np.ndarray, p: np.ndarray) -> float:
+    """Distance from ``p`` to a convex quadrilateral (0 inside)."""
+    edges = list(zip(corners, np.roll(corners, -1, axis=0)))
+    cross = [(b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) for a, b in edges]
+    if all(c >= 0 for c in cross) or all(c <= 0 for c in cross):
+        return 0.0
+    return min(_segment_point_distance(a, b, p) for a, b in edges)
+
+
+@pytest.mark.parametrize("seed", range(0, 300, 11))
+def test_room_layouts_keep_the_room_and_clear_the_robot_and_the_queues(seed: int) -> None:
+    from envs.layouts import BEVEL_M, QUEUE_FROM_WALL_M, QUEUE_HEAD_FROM_WALL_M, QUEUE_SPACING_M, ROOM_CLEAR_M
+
+    world = layout_world(ROOM, seed)
+    # what stays: the room, the robot, the sensors, the pieces' kinds, sizes and heights, the crowd's numbers
+    assert world.size_m == ROOM.size_m and world.robot == ROOM.robot and world.sensors == ROOM.sensors
+    assert [(f.name, f.kind, f.size_m, f.height_m) for f in world.furniture] == [
+        (f.name, f.kind, f.size_m, f.height_m) for f in ROOM.furniture
+    ]
+    for piece, paper in zip(world.furniture, ROOM.furniture, strict=True):
+        assert math.isclose(math.hypot(*piece.map_offset_m), math.hypot(*paper.map_offset_m), abs_tol=1e-12)
+    q, paper_q = world.crowds["queues"], ROOM.crowds["queues"]
+    assert (q.count, q.max_count, q.radius_m, q.step_period_s) == (
+        paper_q.count,
+        paper_q.max_count,
+        paper_q.radius_m,
+        paper_q.step_period_s,
+    )
+    assert QUEUE_FROM_WALL_M[0] <= q.left_x_m <= QUEUE_FROM_WALL_M[1]
+    assert QUEUE_FROM_WALL_M[0] <= 7.0 - q.right_x_m <= QUEUE_FROM_WALL_M[1]
+    assert QUEUE_HEAD_FROM_WALL_M[0] <= 7.0 - q.head_y_m <= QUEUE_HEAD_FROM_WALL_M[1]
+    assert QUEUE_SPACING_M[0] <= q.spacing_m <= QUEUE_SPACING_M[1]
+    slots = np.arange(math.ceil(q.max_count / 2))
+    places = [np.array([x, q.head_y_m - k * q.spacing_m]) for x in (q.left_x_m, q.right_x_m) for k in slots]
+    assert min(p[1] for p in places) >= q.radius_m  # the longest queue ends inside the room
+    clear = np.array(ROOM.robot.start_region_m) + np.array([-1, -1, 1, 1]) * ROOM_CLEAR_M
+    for piece in world.furniture:
+        corners = _footprint(piece)
+        assert np.all(corners >= -1e-9) and np.all(corners <= 7.0 + 1e-9)  # inside the room
+        # out of the robot's middle (the task's square) and off every queue place at the largest crowd
+        assert np.all(corners[:, 0] <= clear[0] + 0.03) or np.all(corners[:, 0] >= clear[2] - 0.03) or np.all(
+            corners[:, 1] <= clear[1] + 0.03) or np.all(corners[:, 1] >= clear[3] - 0.03)  # fmt: skip
+        assert min(_rect_distance(corners, p) for p in places) >= q.radius_m + 0.1
+        if piece.kind == "box":  # its back against a wall
+            assert min(corners[:, 0].min(), corners[:, 1].min(), 7.0 - corners[:, 0].max(), 7.0 - corners[:, 1].max()) < 1e-9
+    for a, b in [(a, b) for i, a in enumerate(world.furniture) for b in world.furniture[i + 1 :]]:
+        assert min(_rect_distance(_footprint(a), p) for p in _footprint(b)) > 0.1  # apart
+    bevel, door = (np.asarray(w) for w in world.walls)
+    for leg in (abs(bevel[0] - bevel[2]), abs(bevel[1] - bevel[3])):  # a corner cut: one end on each of its walls
+        assert BEVEL_M[0] <= leg <= BEVEL_M[1]
+    for end in (bevel[:2], bevel[2:]):  # both ends on the room's walls
+        assert min(end[0], end[1], 7.0 - end[0], 7.0 - end[1]) < 1e-9
+    hinge, tip = door[:2], door[2:]
+    assert min(hinge[0], hinge[1], 7.0 - hinge[0], 7.0 - hinge[1]) < 1e-9 and 0.7 <= np.linalg.norm(tip - hinge) <= 0.9
+    assert min(_segment_point_distance(hinge, tip, p) for p in places) >= q.radius_m + 0.1
+
+
+def test_room_layouts_differ_and_the_room_env_runs_on_one() -> None:
+    drawn = {tuple((f.x_m, f.y_m) for f in layout_world(ROOM, seed).furniture) for seed in range(40)}
+    assert len(drawn) == 40
+    env = gym.make("crowdloc/CrowdedRoom-v0", layout=5, localizer="mcl_lidar", crowd_size=30)
+    env.reset(seed=1)
+    walls = env.get_wrapper_attr("localizer")._map.walls_m
+    assert any(np.allclose(w, layout_world(ROOM, 5).walls[1]) for w in walls)  # the localizer's map has the layout's door
+    for _ in range(40):
+        env.step(env.action_space.sample())
+    env.close()
+
+
+def test_a_layouts_range_table_is_built_in_memory_and_the_worlds_own_is_cached(tmp_path, monkeypatch) -> None:
+    from localizers.range_table import CACHE_ENV, build_range_table
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    own = gym.make("crowdloc/CrowdedRoom-v0").unwrapped.landmark_map
+    drawn = gym.make("crowdloc/CrowdedRoom-v0", layout=2).unwrapped.landmark_map
+    assert own.disk_cache and not drawn.disk_cache
+    kwargs = {"resolution_m": 0.25, "directions": 16, "max_range_m": 30.0}
+    table = build_range_table(drawn, **kwargs)
+    assert list(tmp_path.iterdir()) == [] and not table.loaded
+    assert not build_range_table(drawn, **kwargs).loaded  # built again: nothing kept on disk
+    build_range_table(own, **kwargs)
+    assert len(list(tmp_path.iterdir())) == 1 and build_range_table(own, **kwargs).loaded

@@ -187,6 +187,7 @@ SIZES = [
     ("mcl_lidar", {"n_particles": 10**9}, "LidarMCLParams.n_particles", "memory"),
     ("mcl_lidar", {"max_particles": 10**9}, "LidarMCLParams.max_particles", "memory"),
     ("mcl_lidar", {"recovery_candidates": 10**9}, "LidarMCLParams.recovery_candidates", "memory"),
+    ("mcl_lidar", {"global_candidates": 10**9}, "LidarMCLParams.global_candidates", "memory"),
     ("mcl_lidar", {"table_directions": 10**6}, "LidarMCLParams.table_directions", "beam step"),
     ("far_point_mcl", {"mcl": {"n_particles": 10**9}}, "LidarMCLParams.n_particles", "memory"),
     ("far_point_mcl", {"filter": {"max_points": 10**9}}, "ScanFilterParams.max_points", "memory"),
