@@ -9,13 +9,14 @@ is a config key, ``vec_env``; both give the same weights). The other worlds' tas
 room, the corridor, the campus) are measured the same way, each its shipped config, against
 a target of 500 steps/s on 2 cores. The soccer and room tasks are measured again with a 4 x 32 x 32
 belief map in the observation (``observation.belief_map``) and its CNN
-(:class:`agents.rl.extractor.BeliefMapExtractor`), against 1,000 steps/s.
+(:class:`agents.rl.extractor.BeliefMapExtractor`), against 1,000 steps/s, and the map's own cost per
+step on four localizers' beliefs (:func:`belief_map_costs`).
 
-With the belief map, on 2 otherwise idle cores (``--only training``, 2 rollouts timed, 2026-12-07):
-the soccer task 1,187 env steps/s (3,508 without the map in the same run), meeting its target; the
-room 634 (1,227 without), missing it. Of the soccer task's training with the map (cProfile, 3
+With the belief map, on 2 cores (``make bench``, 2 rollouts timed, 2026-12-07): the soccer task 1,273
+env steps/s (3,557 without the map in the same run), meeting its target; the room 759 (1,333 without),
+missing it. Of the soccer task's training with the map (cProfile, 3
 rollouts, 5,400 env steps, on a busy machine) the CNN takes about 37 % (its forward passes 17 %,
-the updates' backward passes 20 %) and the envs 48 % (the map itself 76-148 us a step, docs/tasks.md). The convolutions are already
+the updates' backward passes 20 %) and the envs 48 % (the map itself 70-152 us a step, BENCHMARKS.md). The convolutions are already
 strided (a third of the cost of 3 x 3 convolutions with pooling, :mod:`agents.rl.extractor`); what
 remains of the CNN is mostly torch's cost per call on batches of 4 maps.
 
@@ -49,6 +50,48 @@ WORLD_TASK_TARGET = 500  # env steps/s on 2 cores
 BELIEF_TASKS = ("ppo_candidate_sets", "ppo_room_lidar")
 BELIEF_MAP = {"cells": 32, "heading_bins": 4, "frame": "estimate", "extent_m": 4.0}
 BELIEF_TARGET = 1000  # env steps/s on 2 cores
+
+
+#: the localizers whose belief map's cost is measured, and the world each runs in
+BELIEF_MAP_LOCALIZERS = (
+    ("mcl_bearing", "crowdloc/RoboCupCrowded-v0"),
+    ("candidate_sets", "crowdloc/RoboCupCrowded-v0"),
+    ("kalman", "crowdloc/RoboCupCrowded-v0"),
+    ("mcl_lidar", "crowdloc/CrowdedRoom-v0"),
+)
+
+
+def belief_map_costs(quick: bool = False) -> list[Result]:
+    """The belief map's cost per step (``agents.rl.belief_map.belief_map`` on the localizer's overlay, one
+    core), median and 99th percentile over the steps of a random drive with a known start."""
+    import time
+
+    import gymnasium as gym
+    import numpy as np
+
+    import agents  # noqa: F401  (registers the ids)
+    from agents.rl.belief_map import BeliefMapConfig, belief_map
+
+    config = BeliefMapConfig(**BELIEF_MAP)
+    steps = 100 if quick else 600
+    results = []
+    for name, env_id in BELIEF_MAP_LOCALIZERS:
+        env = gym.make(env_id, localizer=name, prior="start")
+        env.reset(seed=0)
+        env.action_space.seed(0)
+        localizer = env.get_wrapper_attr("localizer")
+        bounds = env.unwrapped.landmark_map.bounds_m
+        times = []
+        for _ in range(steps):
+            env.step(env.action_space.sample())
+            start = time.perf_counter()
+            belief_map(config, localizer.overlay(), localizer.estimate, bounds)
+            times.append(time.perf_counter() - start)
+        env.close()
+        us = np.asarray(times) * 1e6
+        label = f"belief map 4 x 32 x 32 of {name} ({env_id.split('/')[1]}): overlay and histogram per step"
+        results.append(Result("belief map", label, float(np.median(us)), "us", f"p99 {np.percentile(us, 99):.0f}"))
+    return results
 
 
 def run_all(quick: bool = False) -> list[Result]:
@@ -105,7 +148,7 @@ def run_all(quick: bool = False) -> list[Result]:
         label = f"PPO, {name} ({config.localizer}) with a 4 x 32 x 32 belief map and its CNN, {config.n_envs} envs in-process"
         target = f">= {BELIEF_TARGET:,}"
         results.append(Result("training", label, rate, "env steps/s", f"{timed} rollouts timed", target, rate >= BELIEF_TARGET))
-    return results
+    return results + belief_map_costs(quick)
 
 
 def _steps_per_second(training: Any, config: Any) -> float:
