@@ -323,13 +323,16 @@ class _RoomGrid:
         return np.hypot(self.x - (a[0] + t * ex), self.y - (a[1] + t * ey)) <= radius
 
     def polygon(self, corners: list[tuple[float, float]], grow: float) -> np.ndarray:
-        """A convex polygon (counter-clockwise corners) grown by ``grow``."""
-        inside = np.ones(self.x.shape, dtype=bool)
+        """A convex polygon (its corners in either turning order) grown by ``grow``."""
+        left = np.ones(self.x.shape, dtype=bool)
+        right = np.ones(self.x.shape, dtype=bool)
         near = np.zeros(self.x.shape, dtype=bool)
         for a, b in zip(corners, corners[1:] + corners[:1]):
-            inside &= (b[0] - a[0]) * (self.y - a[1]) - (b[1] - a[1]) * (self.x - a[0]) >= 0
+            cross = (b[0] - a[0]) * (self.y - a[1]) - (b[1] - a[1]) * (self.x - a[0])
+            left &= cross >= 0
+            right &= cross <= 0
             near |= self.capsule(a, b, grow)
-        return inside | near
+        return left | right | near
 
     def place(self, mask: np.ndarray, grow_mask: np.ndarray | None = None) -> bool:
         """Take ``grow_mask`` (default ``mask``) if ``mask`` is free; whether it was."""
@@ -357,10 +360,16 @@ def _room_parts(config: WorldConfig) -> tuple[str, Any]:
     return queues[0]
 
 
-def _box_corners(cx: float, cy: float, length: float, depth: float, angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    local = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * [length / 2, depth / 2]
-    return np.array([cx, cy]) + local @ np.array([[c, s], [-s, c]])
+#: the room's walls in the order a layout draws them (bottom, right, top, left), and the direction into the room
+#: turned from each one's own run along it
+_WALL_TURN_RAD = (0.0, np.pi / 2, np.pi, -np.pi / 2)
+
+
+def _wall_point(field_m: tuple[float, float, float, float], wall: int, along: float, inset: float = 0.0) -> tuple[float, float]:
+    """The point ``along`` metres along wall ``wall`` (counter-clockwise round the room from its start) and ``inset``
+    metres into the room."""
+    x0, y0, x1, y1 = field_m
+    return [(x0 + along, y0 + inset), (x1 - inset, y0 + along), (x1 - along, y1 - inset), (x0 + inset, y1 - along)][wall]
 
 
 def _room_queues(config: WorldConfig, queues: Any, rng: np.random.Generator, grid: _RoomGrid) -> dict[str, float]:
@@ -379,11 +388,7 @@ def _room_queues(config: WorldConfig, queues: Any, rng: np.random.Generator, gri
     grow = queues.radius_m + ROOM_GAP_M
     for x, other in ((left, right), (right, left)):
         grid.taken |= grid.capsule((x, head), (x, tail), grow)  # the queue itself
-        corners = sorted(
-            [(x, head), (other, head), (other, tail)],
-            key=lambda p: np.arctan2(p[1] - (head + 2 * tail) / 3, p[0] - (x + 2 * other) / 3),
-        )
-        grid.taken |= grid.polygon(corners, grow)  # a head's walk to any place of the other queue
+        grid.taken |= grid.polygon([(x, head), (other, head), (other, tail)], grow)  # a head's walk to the other queue
     return {"left_x_m": left, "right_x_m": right, "head_y_m": head, "spacing_m": spacing}
 
 
@@ -403,15 +408,14 @@ def room_layout(config: WorldConfig, rng: np.random.Generator) -> dict[str, Any]
         a, b = float(rng.uniform(*BEVEL_M)), float(rng.uniform(*BEVEL_M))
         bevel = [cx + dx * a, cy, cx, cy + dy * b]
         cut = [(cx, cy), (cx + dx * a, cy), (cx, cy + dy * b)]
-        if not grid.place(grid.polygon(cut if dx * dy > 0 else cut[::-1], ROOM_GAP_M)):
+        if not grid.place(grid.polygon(cut, ROOM_GAP_M)):
             continue
         # the door: hinged on a wall, 0.5 m or more from the corners, its leaf standing into the room
         wall = int(rng.integers(4))  # bottom, right, top, left
         leaf = float(rng.uniform(*DOOR_LEAF_M))
         angle = float(rng.uniform(*DOOR_ANGLE_RAD))
         along = float(rng.uniform(0.5, (x1 - x0 if wall % 2 == 0 else y1 - y0) - 0.5))
-        hinge, inward = [((x0 + along, y0), 0.0), ((x1, y0 + along), np.pi / 2), ((x1 - along, y1), np.pi),
-                         ((x0, y1 - along), -np.pi / 2)][wall]  # fmt: skip
+        hinge, inward = _wall_point(config.field_m, wall, along), _WALL_TURN_RAD[wall]
         tip = (hinge[0] + leaf * np.cos(inward + angle), hinge[1] + leaf * np.sin(inward + angle))
         if not grid.place(grid.capsule(hinge, tip, ROOM_GAP_M)):
             continue
@@ -430,23 +434,20 @@ def _room_furniture(config: WorldConfig, rng: np.random.Generator, grid: _RoomGr
             length, depth = piece.size_m
             if piece.kind == "box":
                 wall = int(rng.integers(4))  # bottom, right, top, left: the piece's back against it
-                angle = (0.0, np.pi / 2, np.pi, -np.pi / 2)[wall]
+                angle = _WALL_TURN_RAD[wall]
                 span = (x1 - x0 if wall % 2 == 0 else y1 - y0) - length
-                along = float(rng.uniform(0.0, span)) + length / 2
-                cx, cy = [(x0 + along, y0 + depth / 2), (x1 - depth / 2, y0 + along), (x1 - along, y1 - depth / 2),
-                          (x0 + depth / 2, y1 - along)][wall]  # fmt: skip
+                cx, cy = _wall_point(config.field_m, wall, float(rng.uniform(0.0, span)) + length / 2, depth / 2)
             else:
                 angle = float(rng.choice([0.0, np.pi / 2]))
                 cx, cy = float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1))
             offset = float(np.hypot(*piece.map_offset_m))  # the map's copy: as far off as the world's, any way
             turn = float(rng.uniform(-np.pi, np.pi))
-            ox, oy = offset * np.cos(turn), offset * np.sin(turn)
-            corners = _box_corners(cx, cy, length, depth, angle)
-            if not (grid.inside(corners) and grid.inside(corners + [ox, oy])):
+            moved = dataclasses.replace(piece, x_m=cx, y_m=cy, angle_rad=angle,
+                                        map_offset_m=(offset * np.cos(turn), offset * np.sin(turn)))  # fmt: skip
+            if not (grid.inside(moved.footprint()) and grid.inside(moved.footprint(in_map=True))):
                 continue
             if grid.place(grid.box(cx, cy, length, depth, angle), grid.box(cx, cy, length, depth, angle, ROOM_GAP_M)):
-                placed.append({**dataclasses.asdict(piece), "x_m": cx, "y_m": cy, "angle_rad": angle,
-                               "map_offset_m": [ox, oy]})  # fmt: skip
+                placed.append(dataclasses.asdict(moved))
                 break
         else:
             return None

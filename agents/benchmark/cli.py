@@ -27,22 +27,20 @@ def run_policy_track_cli(args: Any) -> Path:
         ConfigError: options of the localizer track (``--worlds``, ``--localizers``, ``--resume``), an unknown
             task, an entrant a task cannot run, or an ``--out`` that is not empty (without ``--overwrite``).
     """
-    from agents.benchmark.policy_track import DEFAULT_TRACK, load_policy_track, run_policy_track, task_spec
+    from agents.benchmark.policy_track import DEFAULT_TRACK, load_policy_track, run_policy_track, track_specs
 
     for flag in ("worlds", "localizers"):
         check(getattr(args, flag, None) is None, f"--{flag} belongs to the localizer track; the policy track runs --tasks")
     check(not getattr(args, "resume", False), "--track policies does not resume: run it again with --overwrite")
     load_plugins(tuple(args.plugins or ()))
     track = load_policy_track(args.protocol or DEFAULT_TRACK)
-    for name in args.tasks or track.tasks:  # every entrant checked before the first episode
-        task_spec(track, name, args.policies or (), seeds=args.seeds, quick=args.quick)
+    specs = track_specs(track, args.tasks, args.policies or (), seeds=args.seeds, quick=args.quick)
     out = Path(args.out)
     with open_output_folder(
         out, POLICY_TRACK_OUTPUTS, command="crowdloc benchmark --track policies", overwrite=bool(args.overwrite)
     ):
         start = time.perf_counter()
-        written = run_policy_track(track, out, tasks=args.tasks, entrants=args.policies or (), seeds=args.seeds,
-                                   quick=args.quick, workers=args.workers, progress=not args.no_progress,
+        written = run_policy_track(track, specs, out, quick=args.quick, workers=args.workers, progress=not args.no_progress,
                                    ray_address=getattr(args, "ray_address", None))  # fmt: skip
     print(written["leaderboard"].read_text())
     quick = " (quick: not comparable with a full run)" if args.quick else ""

@@ -161,19 +161,20 @@ def leaderboard_markdown(track: PolicyTrack, results: dict[str, EvalResult], qui
     return "\n".join(lines)
 
 
-def run_policy_track(
-    track: PolicyTrack, out: Path, *, tasks: Sequence[str] | None = None, entrants: Sequence[str] = (),
-    seeds: int | None = None, quick: bool = False, workers: int | None = None, progress: bool = True,
-    ray_address: str | None = None,
-) -> dict[str, Any]:  # fmt: skip
-    """Evaluate each task (all of the track's by default) and write ``policy_leaderboard.md`` and each task's
-    ``crowdloc eval`` outputs under ``out/<task>/``; returns the written paths and the results.
+def track_specs(track: PolicyTrack, tasks: Sequence[str] | None = None, entrants: Sequence[str] = (), *,
+                seeds: int | None = None, quick: bool = False) -> dict[str, EvalSpec]:  # fmt: skip
+    """:func:`task_spec` of each task (all of the track's by default): every entrant checked before any episode."""
+    return {name: task_spec(track, name, entrants, seeds=seeds, quick=quick) for name in tasks or track.tasks}
 
-    Every spec is built (and every entrant checked) before any episode runs."""
+
+def run_policy_track(
+    track: PolicyTrack, specs: dict[str, EvalSpec], out: Path, *, quick: bool = False, workers: int | None = None,
+    progress: bool = True, ray_address: str | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """Evaluate each task's spec (:func:`track_specs`) and write ``policy_leaderboard.md`` and each task's
+    ``crowdloc eval`` outputs under ``out/<task>/``; returns the written paths and the results."""
     from agents.evaluate.outputs import write_outputs
 
-    names = list(tasks or track.tasks)
-    specs = {name: task_spec(track, name, entrants, seeds=seeds, quick=quick) for name in names}
     results = {}
     written: dict[str, Any] = {}
     for name, spec in specs.items():

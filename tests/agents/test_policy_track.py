@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import agents  # noqa: F401
-from agents.benchmark.policy_track import load_policy_track, ranking, run_policy_track, task_spec
+from agents.benchmark.policy_track import load_policy_track, ranking, run_policy_track, task_spec, track_specs
 from agents.cli import build_parser, main
 from agents.policies import FIXED_POLICIES
 from agents.policies.base import FixedPolicy
@@ -56,8 +56,8 @@ class _Still(FixedPolicy):
 def test_a_users_policy_enters_the_table_ranked_by_return(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(FIXED_POLICIES, "still", _Still)
     track = load_policy_track()
-    written = run_policy_track(track, tmp_path, tasks=["ppo_candidate_sets_layouts"], entrants=["still"], quick=True,
-                               workers=1, progress=False)  # fmt: skip
+    specs = track_specs(track, ["ppo_candidate_sets_layouts"], ["still"], quick=True)
+    written = run_policy_track(track, specs, tmp_path, quick=True, workers=1, progress=False)
     result = written["results"]["ppo_candidate_sets_layouts"]
     assert "still" in result.spec.policies
     for _, rows in ranking(result):

@@ -223,13 +223,6 @@ def test_the_corridor_env_and_its_localizer_use_the_layout() -> None:
 ROOM = load_world("crowded_room")
 
 
-def _footprint(piece: object) -> np.ndarray:
-    """A piece's four corners where it stands (its rotated rectangle)."""
-    c, s = math.cos(piece.angle_rad), math.sin(piece.angle_rad)  # type: ignore[attr-defined]
-    half = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * np.asarray(piece.size_m) / 2  # type: ignore[attr-defined]
-    return np.array([piece.x_m, piece.y_m]) + half @ np.array([[c, s], [-s, c]])  # type: ignore[attr-defined]
-
-
 def _segment_point_distance(a: np.ndarray, b: np.ndarray, p: np.ndarray) -> float:
     t = np.clip(np.dot(p - a, b - a) / max(np.dot(b - a, b - a), 1e-12), 0.0, 1.0)
     return float(np.linalg.norm(p - (a + t * (b - a))))
@@ -272,7 +265,7 @@ def test_room_layouts_keep_the_room_and_clear_the_robot_and_the_queues(seed: int
     assert min(p[1] for p in places) >= q.radius_m  # the longest queue ends inside the room
     clear = np.array(ROOM.robot.start_region_m) + np.array([-1, -1, 1, 1]) * ROOM_CLEAR_M
     for piece in world.furniture:
-        corners = _footprint(piece)
+        corners = piece.footprint()
         assert np.all(corners >= -1e-9) and np.all(corners <= 7.0 + 1e-9)  # inside the room
         # out of the robot's middle (the task's square) and off every queue place at the largest crowd
         assert np.all(corners[:, 0] <= clear[0] + 0.03) or np.all(corners[:, 0] >= clear[2] - 0.03) or np.all(
@@ -281,7 +274,7 @@ def test_room_layouts_keep_the_room_and_clear_the_robot_and_the_queues(seed: int
         if piece.kind == "box":  # its back against a wall
             assert min(corners[:, 0].min(), corners[:, 1].min(), 7.0 - corners[:, 0].max(), 7.0 - corners[:, 1].max()) < 1e-9
     for a, b in [(a, b) for i, a in enumerate(world.furniture) for b in world.furniture[i + 1 :]]:
-        assert min(_rect_distance(_footprint(a), p) for p in _footprint(b)) > 0.1  # apart
+        assert min(_rect_distance(a.footprint(), p) for p in b.footprint()) > 0.1  # apart
     bevel, door = (np.asarray(w) for w in world.walls)
     for leg in (abs(bevel[0] - bevel[2]), abs(bevel[1] - bevel[3])):  # a corner cut: one end on each of its walls
         assert BEVEL_M[0] <= leg <= BEVEL_M[1]
