@@ -34,6 +34,16 @@ Generators (:func:`register_layout` adds one; :func:`layout_worlds` lists them):
   after it, on a random side; the light panels' pitch (1.8-3.0 m), the sprinklers' (3.0-4.2 m),
   where each row starts, and the tile grid's origin. The standing groups find their places by the
   walls of the layout.
+- ``crowded_room`` (:func:`room_layout`): the queues, the bevelled corner, the door and where each
+  piece of furniture stands, placed on an occupancy grid so that each keeps clear of the others,
+  the queues' places and walks, and the middle (docs/environments.md#layouts gives the bounds).
+- ``stereo_campus`` (:func:`campus_layout`): the campus, its road, lanes, walkways, parking strip,
+  route, goal, robot, sensors and crowd stay the paper's. Varied: each building's footprint moved in
+  from each side of its box by up to 3 m (at most a fifth of its size; the same shape on the smaller
+  box, its doors on the same sides), its height (8-22 m, the paper's range), the façades shuffled
+  among the buildings with their horizontal sizes scaled alike by 0.8-1.25, and each lamp, pole and
+  tree moved up to 4 m along the path it lines to a place clear of the paths, buildings, parked cars
+  and the fence. Its scene map is a drive on the layout (``agents.experiments.scene_maps``).
 """
 
 from __future__ import annotations
@@ -455,3 +465,141 @@ def _room_furniture(config: WorldConfig, rng: np.random.Generator, grid: _RoomGr
 
 
 register_layout("crowded_room", room_layout)
+
+
+# ------------------------------------------------------------------------------------------ campus
+
+#: the paper's buildings: 8-22 m tall, m
+BUILDING_HEIGHT_M = (8.0, 22.0)
+#: each side of a building's footprint moved in by up to this much, m (and by at most BUILDING_INSET_SHARE of its depth)
+BUILDING_INSET_M = 3.0
+BUILDING_INSET_SHARE = 0.2
+#: the façades' horizontal sizes (panels, pilasters, window pitch and width) times this factor
+FACADE_SCALE = (0.8, 1.25)
+#: each lamp, utility pole and tree moved up to this much along the path it lines (the nearest walkway or lane), m
+ALONG_PATH_M = 4.0
+#: the least gap between a moved pole or tree and a walkway's or lane's edge, a building, a parked car or the fence, m
+CAMPUS_GAP_M = 0.3
+#: half a road lane's width, m (3.5 m lanes)
+LANE_HALF_WIDTH_M = 1.75
+_CAMPUS_TRIES = 20
+
+
+def _campus_parts(config: WorldConfig) -> tuple[Any, tuple[str, Any], tuple[str, Any] | None, tuple[str, Any] | None]:
+    """The world's campus crowd and its buildings', poles' and trees' features (name, config), or a ConfigError."""
+    from envs.crowds.campus.config import CampusConfig
+    from envs.features.scenery import BuildingsConfig, PolesConfig, TreesConfig
+
+    def one(kind: type) -> list[tuple[str, Any]]:
+        return [(n, f) for n, f in config.features.items() if isinstance(f, kind)]
+
+    campus = [c for c in config.crowds.values() if isinstance(c, CampusConfig)]
+    buildings, poles, trees = one(BuildingsConfig), one(PolesConfig), one(TreesConfig)
+    if len(campus) != 1 or len(buildings) != 1 or len(poles) > 1 or len(trees) > 1:
+        raise ConfigError(
+            f"world {config.name!r}: the campus layout needs one campus crowd (its walkways and lanes), one buildings "
+            f"feature and at most one poles and one trees feature"
+        )
+    return campus[0], buildings[0], poles[0] if poles else None, trees[0] if trees else None
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    e = b - a
+    t = float(np.clip(np.dot(p - a, e) / np.dot(e, e), 0.0, 1.0))
+    return float(np.hypot(*(p - (a + t * e))))
+
+
+class _CampusGround:
+    """Where a lamp, pole or tree may stand on a campus: off its walkways, lanes, buildings and parked cars."""
+
+    def __init__(self, config: WorldConfig, campus: Any, footprints: list[np.ndarray]) -> None:
+        from envs.bodies import CarConfig
+
+        car = CarConfig()
+        self.paths = [(np.asarray(w.points_m, dtype=np.float64), 0.5 * w.width_m) for w in campus.walkways]
+        self.paths += [(np.asarray(lane.points_m, dtype=np.float64), LANE_HALF_WIDTH_M) for lane in campus.lanes]
+        self.parked = [np.asarray(p[:2], dtype=np.float64) for p in campus.parked]
+        self.car_radius = 0.5 * float(np.hypot(car.length_m, car.width_m))
+        self.footprints = footprints
+        self.field = config.field_m
+
+    def direction(self, p: np.ndarray) -> np.ndarray:
+        """The unit direction of the path segment nearest ``p``."""
+        best, out = np.inf, np.array([1.0, 0.0])
+        for points, _ in self.paths:
+            for a, b in zip(points[:-1], points[1:]):
+                d = _segment_distance(p, a, b)
+                if d < best:
+                    best, out = d, (b - a) / np.hypot(*(b - a))
+        return out
+
+    def free(self, p: np.ndarray, radius: float) -> bool:
+        x0, y0, x1, y1 = self.field
+        r = radius + CAMPUS_GAP_M
+        if not (x0 + r <= p[0] <= x1 - r and y0 + r <= p[1] <= y1 - r):
+            return False
+        for points, half in self.paths:
+            if any(_segment_distance(p, a, b) < half + r for a, b in zip(points[:-1], points[1:])):
+                return False
+        if any(np.hypot(*(p - c)) < self.car_radius + r for c in self.parked):
+            return False
+        for corners in self.footprints:
+            edges = np.roll(corners, -1, axis=0) - corners
+            cross = edges[:, 0] * (p[1] - corners[:, 1]) - edges[:, 1] * (p[0] - corners[:, 0])
+            if np.all(cross >= 0) or min(_segment_distance(p, a, b) for a, b in zip(corners, np.roll(corners, -1, 0))) < r:
+                return False
+        return True
+
+    def moved(self, item: Any, radius: float, rng: np.random.Generator) -> dict[str, Any]:
+        """``item`` (a pole or tree) moved along its path to a free place, or where it stood if none is found."""
+        at = np.array([item.x_m, item.y_m], dtype=np.float64)
+        along = self.direction(at)
+        for _ in range(_CAMPUS_TRIES):
+            p = at + float(rng.uniform(-ALONG_PATH_M, ALONG_PATH_M)) * along
+            if self.free(p, radius):
+                return {**dataclasses.asdict(item), "x_m": float(p[0]), "y_m": float(p[1])}
+        return dataclasses.asdict(item)
+
+
+def _inset_footprint(corners: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``corners`` mapped from their bounding box onto that box with each side moved in (a convex shape stays convex)."""
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    size = hi - lo
+    cap = np.minimum(BUILDING_INSET_M, BUILDING_INSET_SHARE * size)
+    new_lo = lo + rng.uniform(0.0, 1.0, 2) * cap
+    new_hi = hi - rng.uniform(0.0, 1.0, 2) * cap
+    return new_lo + (corners - lo) * (new_hi - new_lo) / size
+
+
+def _scaled_facade(facade: Any, scale: float) -> dict[str, Any]:
+    out = dataclasses.asdict(facade)
+    for key in ("panel_m", "column_pitch_m", "column_width_m", "window_pitch_m"):
+        out[key] = float(out[key] * scale)
+    out["window_size_m"] = [float(out["window_size_m"][0] * scale), float(out["window_size_m"][1])]
+    return out
+
+
+def campus_layout(config: WorldConfig, rng: np.random.Generator) -> dict[str, Any]:
+    """A campus's layout: its buildings' footprints, heights and façades, where its lamps, poles and trees stand."""
+    campus, (b_name, buildings), poles, trees = _campus_parts(config)
+    facades = [b.facade or buildings.facade for b in buildings.items]  # shuffled among the buildings
+    order = rng.permutation(len(facades))
+    items = []
+    for building, k in zip(buildings.items, order):
+        corners = _inset_footprint(building.corners, rng)
+        items.append({
+            **dataclasses.asdict(building),
+            "footprint_m": [[float(x), float(y)] for x, y in corners],
+            "height_m": float(rng.uniform(*BUILDING_HEIGHT_M)),
+            "facade": _scaled_facade(facades[k], float(rng.uniform(*FACADE_SCALE))),
+        })  # fmt: skip
+    features: dict[str, Any] = {b_name: {"items": items}}
+    ground = _CampusGround(config, campus, [np.asarray(b["footprint_m"]) for b in items])
+    if poles is not None:
+        features[poles[0]] = {"items": [ground.moved(p, p.radius_m, rng) for p in poles[1].items]}
+    if trees is not None:
+        features[trees[0]] = {"items": [ground.moved(t, t.trunk_radius_m, rng) for t in trees[1].items]}
+    return {"features": features}
+
+
+register_layout("stereo_campus", campus_layout)

@@ -28,6 +28,7 @@ import hashlib
 import json
 import logging
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -243,15 +244,31 @@ def default_drive(env: LocalizationEnv) -> tuple[WorldConfig, MappingDrive]:
 
 def default_map_path(env: LocalizationEnv) -> Path:
     """Where the world's default scene map is cached: named by the world, its geometry, camera and drive
-    (:func:`drive_fingerprint`; a world whose crowd, LIDAR or camera timing changed gets a new map)."""
+    (:func:`drive_fingerprint`; a world whose crowd, LIDAR or camera timing changed gets a new map). A seeded
+    layout's map goes to the ``layouts`` folder beside them, which keeps the :data:`LAYOUT_MAPS_KEPT` last used."""
     _, meta = _camera(env)
     camera, conditions = _short_hash(camera_signature(meta)), drive_fingerprint(*default_drive(env))
-    return cache_dir() / "scene_maps" / f"{env.config.name}-{world_fingerprint(env)}-{camera}-{conditions}.npz"
+    folder = cache_dir() / "scene_maps" / ("layouts" if env.layout is not None else "")
+    return folder / f"{env.config.name}-{world_fingerprint(env)}-{camera}-{conditions}.npz"
+
+
+#: how many seeded layouts' scene maps the cache keeps (about 100 KB each): the least recently used go first
+LAYOUT_MAPS_KEPT = 256
+
+
+def _keep_recent(folder: Path, keep: int) -> None:
+    """Delete all but the ``keep`` most recently used scene maps in ``folder`` (a layout map cache: every
+    ``.npz`` in it was written by :func:`default_scene_map`)."""
+    maps = sorted(folder.glob("*.npz"), key=lambda p: p.stat().st_mtime if p.exists() else 0.0, reverse=True)
+    for old in maps[keep:]:
+        old.unlink(missing_ok=True)
 
 
 def default_scene_map(env: LocalizationEnv) -> Path:
     """The world's default scene map (seed 0, the crowd size of the world's file), made and cached on first use,
-    and made again (saying so) when the cached file cannot be read (left truncated by a writer of an older version)."""
+    and made again (saying so) when the cached file cannot be read (left truncated by a writer of an older version).
+    A seeded layout's map is made by its own drive (the layout's world, the same conditions) and cached among
+    the layouts' maps, of which the :data:`LAYOUT_MAPS_KEPT` last used stay."""
     path = default_map_path(env)
     if path.is_file():
         try:
@@ -260,8 +277,12 @@ def default_scene_map(env: LocalizationEnv) -> Path:
             _log.warning("the cached default scene map cannot be read, making it again: %s", exc)
             path.unlink(missing_ok=True)
     if not path.is_file():
-        _log.warning("making the default scene map of %s (the route driven once; cached in %s)", env.config.name, path)
-        build_scene_map(*default_drive(env), progress=True).save(path)
+        if env.layout is None:
+            _log.warning("making the default scene map of %s (the route driven once; cached in %s)", env.config.name, path)
+        build_scene_map(*default_drive(env), progress=env.layout is None).save(path)
+    if env.layout is not None:
+        os.utime(path)  # used now: the cache keeps the last used
+        _keep_recent(path.parent, LAYOUT_MAPS_KEPT)
     return path
 
 

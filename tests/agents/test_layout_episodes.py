@@ -196,3 +196,22 @@ def test_eval_conditions_carry_the_configs_localizer_parameters_under_the_comman
     assert spec_from_args(parser.parse_args(base)).localizer_params == {"mcl_lidar": {"global_candidates": 100000}}
     given = spec_from_args(parser.parse_args([*base, "--localizer-set", "mcl_lidar.global_candidates=0"]))
     assert given.localizer_params == {"mcl_lidar": {"global_candidates": 0}}
+
+
+def test_the_campus_task_trains_on_layouts_each_with_its_own_scene_map(tmp_path, monkeypatch) -> None:
+    from localizers.range_table import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    config = load_train_config("ppo_campus_stereo_layouts")
+    env = make_training_env(config, 1)
+    seen = []
+    for _ in range(2):
+        obs, info = env.reset()
+        assert obs["belief_map"].shape == (4, 32, 32) and abs(float(obs["belief_map"].sum()) - 1.0) < 1e-4
+        for _ in range(3):
+            obs, _, _, _, info = env.step(env.action_space.sample())
+        seen.append(info["layout"])
+    assert len(set(seen)) == 2 and set(seen) <= set(config.layouts.seeds("train"))
+    built = set(seen) | {config.layouts.seeds("train")[0]}  # and the first layout's: the wrapper's spaces come from it
+    assert len(list((tmp_path / "scene_maps" / "layouts").glob("stereo_campus-*.npz"))) == len(built)
+    env.close()

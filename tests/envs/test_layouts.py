@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import os
 
 import gymnasium as gym
 import numpy as np
@@ -12,11 +14,18 @@ import envs  # noqa: F401
 from core.schema import ConfigError
 from envs.config import load_world
 from envs.layouts import (
+    ALONG_PATH_M,
+    BUILDING_HEIGHT_M,
+    BUILDING_INSET_M,
+    BUILDING_INSET_SHARE,
+    CAMPUS_GAP_M,
     CORNER_SHIFT_M,
     DISTRACTOR_ALONG_M,
     DISTRACTOR_OUT_M,
     DISTRACTOR_RADIUS_M,
+    FACADE_SCALE,
     GOAL_WIDTH_M,
+    LANE_HALF_WIDTH_M,
     POST_FROM_CORNER_M,
     layout_world,
     layout_worlds,
@@ -116,10 +125,10 @@ def test_a_bad_layout_seed_is_refused_naming_it(bad: object) -> None:
 
 
 def test_a_world_without_a_generator_says_which_have_one() -> None:
-    assert layout_worlds() == ("ceiling_corridor", "crowded_room", "robocup_crowded")
+    assert layout_worlds() == ("ceiling_corridor", "crowded_room", "robocup_crowded", "stereo_campus")
     with pytest.raises(
         ConfigError,
-        match=r"world 'robocup_static' has no layout generator \(worlds with one: ceiling_corridor, crowded_room, robocup_crowded\)",
+        match=r"world 'robocup_static' has no layout generator \(worlds with one: ceiling_corridor, crowded_room, robocup_crowded, stereo_campus\)",
     ):
         gym.make("crowdloc/RoboCupStatic-v0", layout=0)
 
@@ -310,3 +319,111 @@ def test_a_layouts_range_table_is_built_in_memory_and_the_worlds_own_is_cached(t
     assert not build_range_table(drawn, **kwargs).loaded  # built again: nothing kept on disk
     build_range_table(own, **kwargs)
     assert len(list(tmp_path.iterdir())) == 1 and build_range_table(own, **kwargs).loaded
+
+
+# ------------------------------------------------------------------------------------------ campus
+
+CAMPUS = load_world("stereo_campus")
+
+
+def _dense(points: object, step: float = 0.02) -> np.ndarray:
+    """A polyline sampled every ``step`` metres (the check below measures against these samples)."""
+    pts = np.asarray(points, dtype=np.float64)
+    out = [np.linspace(a, b, max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)) for a, b in zip(pts[:-1], pts[1:])]
+    return np.concatenate(out)
+
+
+def _inside_convex(corners: np.ndarray, p: np.ndarray, grow: float) -> bool:
+    """Whether ``p`` is within ``grow`` of a convex polygon, by its edge half-planes moved out by ``grow``
+    (a rounded corner counts as in: the check is the stricter for it)."""
+    edges = np.roll(corners, -1, axis=0) - corners
+    normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1) / np.linalg.norm(edges, axis=1)[:, None]  # outward (ccw)
+    return bool(np.all(np.einsum("ij,ij->i", p - corners, normals) <= grow))
+
+
+@pytest.mark.parametrize("seed", range(0, 120, 10))
+def test_campus_layouts_keep_the_route_and_the_crowd_and_vary_the_buildings_and_poles(seed: int) -> None:
+    world = layout_world(CAMPUS, seed)
+    # what stays: the field, the robot, the goal, the route, the crowd (walkways, lanes, parked cars)
+    assert (world.size_m, world.robot, world.goal, world.crowds) == (CAMPUS.size_m, CAMPUS.robot, CAMPUS.goal, CAMPUS.crowds)
+    assert world.features["route"] == CAMPUS.features["route"] and world.sensors == CAMPUS.sensors
+    paper, drawn = CAMPUS.features["buildings"].items, world.features["buildings"].items
+    assert [(b.name, b.doors) for b in drawn] == [(b.name, b.doors) for b in paper]
+    facades = []
+    for a, b in zip(paper, drawn, strict=True):
+        lo, hi = a.corners.min(axis=0), a.corners.max(axis=0)
+        cap = np.minimum(BUILDING_INSET_M, BUILDING_INSET_SHARE * (hi - lo)) + 1e-9
+        moved_in = np.concatenate([b.corners.min(axis=0) - lo, hi - b.corners.max(axis=0)])
+        assert np.all(moved_in >= -1e-9) and np.all(moved_in <= np.tile(cap, 2)), (a.name, moved_in)
+        assert len(b.corners) == len(a.corners) and BUILDING_HEIGHT_M[0] <= b.height_m <= BUILDING_HEIGHT_M[1]
+        # the same shape on its new box: each corner at the same share of the box
+        share_a = (a.corners - lo) / (hi - lo)
+        share_b = (b.corners - b.corners.min(axis=0)) / (b.corners.max(axis=0) - b.corners.min(axis=0))
+        np.testing.assert_allclose(share_a, share_b, atol=1e-9)
+        facades.append(b.facade)
+    # the façades: the paper's, shuffled among the buildings, each one's horizontal sizes scaled alike
+    used = set()
+    for f in facades:
+        twins = [k for k, g in enumerate(paper) if g.facade.wall_rgb == f.wall_rgb and k not in used]
+        assert twins, f.wall_rgb
+        used.add(twins[0])
+        g = paper[twins[0]].facade
+        widths = [(g.column_pitch_m, f.column_pitch_m), (g.window_pitch_m, f.window_pitch_m), (g.panel_m, f.panel_m),
+                  (g.column_width_m, f.column_width_m), (g.window_size_m[0], f.window_size_m[0])]  # fmt: skip
+        scales = {round(new / old, 9) for old, new in widths if old > 0}
+        assert len(scales) == 1 and FACADE_SCALE[0] <= scales.pop() <= FACADE_SCALE[1]
+        assert (f.floor_m, f.window_size_m[1], f.sill_m) == (g.floor_m, g.window_size_m[1], g.sill_m)
+    # poles and trees: the paper's, each at most ALONG_PATH_M from its place and clear of paths, buildings, cars
+    campus = CAMPUS.crowds["campus"]
+    paths = [(_dense(w.points_m), w.width_m / 2) for w in campus.walkways]
+    paths += [(_dense(lane.points_m), LANE_HALF_WIDTH_M) for lane in campus.lanes]
+    for feature, radius in (("poles", "radius_m"), ("trees", "trunk_radius_m")):
+        for a, b in zip(CAMPUS.features[feature].items, world.features[feature].items, strict=True):
+            assert dataclasses.replace(b, x_m=a.x_m, y_m=a.y_m) == a
+            p, r = np.array([b.x_m, b.y_m]), getattr(b, radius)
+            if np.hypot(b.x_m - a.x_m, b.y_m - a.y_m) == 0:
+                continue  # no free place found along its path: where the paper has it
+            assert np.hypot(b.x_m - a.x_m, b.y_m - a.y_m) <= ALONG_PATH_M + 1e-9
+            for samples, half in paths:
+                assert np.min(np.linalg.norm(samples - p, axis=1)) >= half + r + CAMPUS_GAP_M - 0.02
+            assert not any(_inside_convex(g.corners, p, r + CAMPUS_GAP_M - 1e-6) for g in drawn)
+            assert all(np.hypot(x - b.x_m, y - b.y_m) > 2.3 + r for x, y, _ in campus.parked)
+
+
+def test_campus_layouts_differ() -> None:
+    drawn = {tuple(b.height_m for b in layout_world(CAMPUS, seed).features["buildings"].items) for seed in range(20)}
+    assert len(drawn) == 20
+    moved = [np.hypot(a.x_m - b.x_m, a.y_m - b.y_m) for a, b in
+             zip(CAMPUS.features["poles"].items, layout_world(CAMPUS, 3).features["poles"].items)]  # fmt: skip
+    assert sum(m > 0 for m in moved) > len(moved) // 2
+
+
+def test_a_campus_layout_gets_its_own_scene_map_in_a_bounded_cache(tmp_path, monkeypatch) -> None:
+    """The localizer's map of a layout is a drive on that layout, cached among the layouts' maps, of which the
+    last used LAYOUT_MAPS_KEPT stay; the world's own map is not one of them."""
+    import agents  # noqa: F401  (far_landmark_pf's default map)
+    from agents.experiments import scene_maps
+    from localizers.far_landmark_pf.scene_map import SceneMap
+    from localizers.range_table import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    folder = tmp_path / "scene_maps" / "layouts"
+    folder.mkdir(parents=True)
+    own = tmp_path / "scene_maps" / "stereo_campus-own.npz"
+    own.write_bytes(b"the world's own")
+    for k in range(3):  # older layout maps
+        (folder / f"stereo_campus-old{k}.npz").write_bytes(b"old")
+        os.utime(folder / f"stereo_campus-old{k}.npz", (1000.0 + k, 1000.0 + k))
+    monkeypatch.setattr(scene_maps, "LAYOUT_MAPS_KEPT", 2)
+    env = gym.make("crowdloc/StereoCampus-v0", layout=4, localizer="far_landmark_pf")
+    path = scene_maps.default_map_path(env.unwrapped)
+    assert path.parent == folder and path.is_file()
+    assert sorted(p.name for p in folder.iterdir()) == sorted([path.name, "stereo_campus-old2.npz"])  # the newest old one
+    assert own.read_bytes() == b"the world's own"
+    scenes = SceneMap.load(path)
+    assert scenes.fingerprint == scene_maps.world_fingerprint(env.unwrapped)
+    assert scenes.fingerprint != scene_maps.world_fingerprint(gym.make("crowdloc/StereoCampus-v0").unwrapped)
+    env.reset(seed=0)
+    for _ in range(20):
+        env.step(np.zeros(2))
+    env.close()

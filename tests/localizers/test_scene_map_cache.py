@@ -56,7 +56,7 @@ def test_an_unreadable_default_map_is_made_again(
     monkeypatch.setattr(scene_maps, "default_map_path", lambda env: path)
     monkeypatch.setattr(scene_maps, "build_scene_map", lambda *args, **kwargs: built.append(args) or _map("campus"))
     monkeypatch.setattr(scene_maps, "default_drive", lambda env: (env.config, scene_maps.MappingDrive(crowd_size=0)))
-    env = SimpleNamespace(config=SimpleNamespace(name="campus"), file_crowd_size=0)
+    env = SimpleNamespace(config=SimpleNamespace(name="campus"), file_crowd_size=0, layout=None)
     with caplog.at_level(logging.WARNING, logger=scene_maps.__name__):
         assert scene_maps.default_scene_map(env) == path  # type: ignore[arg-type]
     assert len(built) == 1 and SceneMap.load(path).world == "campus"
