@@ -16,7 +16,7 @@ from core.schema import check
 
 #: what the policy track writes under --out
 POLICY_TRACK_OUTPUTS = ("policy_leaderboard.md", "*/episodes.csv", "*/summary.csv", "*/summary.md", "*/run.json",
-                        "*/plots/*.png", "*/tum/*.tum")  # fmt: skip
+                        "*/verdict.md", "*/verdict.csv", "*/plots/*.png", "*/tum/*.tum")  # fmt: skip
 
 
 def run_policy_track_cli(args: Any) -> Path:

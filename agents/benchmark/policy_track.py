@@ -96,6 +96,13 @@ def model_path(name: str) -> Path:
     return crowdloc_models.path(f"{name}.zip")
 
 
+def shipped_model(track: PolicyTrack, task: str, spec: EvalSpec) -> str | None:
+    """The policy of ``spec`` that is ``task``'s first shipped model (``ppo:models/<name>.zip``), or None when
+    none of its models is shipped."""
+    names = [f"{PPO_PREFIX}{model_path(m)}" for m in track.tasks[task].models]
+    return next((p for p in spec.policies if p in names), None)
+
+
 def task_spec(track: PolicyTrack, task: str, entrants: Sequence[str] = (), *, seeds: int | None = None,
               quick: bool = False) -> EvalSpec:  # fmt: skip
     """The evaluation of one task of the track: its fixed policies, its shipped models (those present), then
@@ -172,14 +179,21 @@ def run_policy_track(
     progress: bool = True, ray_address: str | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """Evaluate each task's spec (:func:`track_specs`) and write ``policy_leaderboard.md`` and each task's
-    ``crowdloc eval`` outputs under ``out/<task>/``; returns the written paths and the results."""
+    ``crowdloc eval`` outputs under ``out/<task>/``, with the paired verdict on the task's shipped model
+    against its best fixed policy (``verdict.md``, ``verdict.csv``; :func:`shipped_model`) where it has one;
+    returns the written paths and the results."""
     from agents.evaluate.outputs import write_outputs
+
+    from agents.evaluate.paired import paired_verdict, write_verdict
 
     results = {}
     written: dict[str, Any] = {}
     for name, spec in specs.items():
         results[name] = evaluate(spec, workers=workers, ray_address=ray_address, progress=progress)
         written[name] = write_outputs(results[name], out / name, gif=False)
+        shipped = shipped_model(track, name, spec)
+        if shipped is not None:
+            written[name].update(write_verdict(paired_verdict(results[name], shipped), spec, out / name))
     board = out / "policy_leaderboard.md"
     board.write_text(leaderboard_markdown(track, results, quick) + "\n")
     return {"leaderboard": board, "tasks": written, "results": results}

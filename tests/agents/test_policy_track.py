@@ -67,6 +67,20 @@ def test_a_users_policy_enters_the_table_ranked_by_return(tmp_path: Path, monkey
     board = written["leaderboard"].read_text()
     assert "| still |" in board and "quick: not comparable" in board
     assert (tmp_path / "ppo_candidate_sets_layouts" / "episodes.csv").is_file()
+    # the shipped model's paired verdict against the best fixed policy of the same episodes
+    verdict = (tmp_path / "ppo_candidate_sets_layouts" / "verdict.md").read_text()
+    assert "paired verdict on ppo:ppo_candidate_sets_layouts" in verdict and "| candidate_sets | 6 |" in verdict
+
+
+def test_a_task_without_its_shipped_model_has_no_verdict(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from agents.benchmark import policy_track
+
+    monkeypatch.setattr(policy_track, "model_path", lambda name: tmp_path / "absent.zip")
+    track = load_policy_track()
+    specs = track_specs(track, ["ppo_candidate_sets_layouts"], quick=True)
+    assert policy_track.shipped_model(track, "ppo_candidate_sets_layouts", specs["ppo_candidate_sets_layouts"]) is None
+    run_policy_track(track, specs, tmp_path / "out", quick=True, workers=1, progress=False)
+    assert not (tmp_path / "out" / "ppo_candidate_sets_layouts" / "verdict.md").exists()
 
 
 @pytest.mark.parametrize(
