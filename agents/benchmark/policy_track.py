@@ -183,7 +183,6 @@ def run_policy_track(
     against its best fixed policy (``verdict.md``, ``verdict.csv``; :func:`shipped_model`) where it has one;
     returns the written paths and the results."""
     from agents.evaluate.outputs import write_outputs
-
     from agents.evaluate.paired import paired_verdict, write_verdict
 
     results = {}
