@@ -43,6 +43,12 @@ if TYPE_CHECKING:
 STANDING_FILL = (150, 95, 165)  # standing people, to tell them from the walkers (PEOPLE_FILL)
 _PLACE_GAP_M = 0.05  # free space left between people placed at a reset or a re-entry
 _PLACE_TRIES = 1000  # random spots tried per group before giving up
+
+
+class _NoRoom(RuntimeError):
+    """A standing group found no free spot by the walls."""
+
+
 _ENTRY_TRIES = 12  # spots across the corridor tried for a walker coming back in, this step
 _GROUP_TURN_RAD = math.radians(20.0)  # a group's ring is turned at random by up to this much
 _PASS_GAP_M = 0.1  # walkers stepping aside pass this far clear of the one in their way
@@ -339,8 +345,7 @@ class CorridorCrowd(Crowd):
         c = self.c
         self._clear_state()
         # standing groups first (they need the room by the walls), then the walkers around them
-        for g, size in enumerate(self.sizes):
-            self.group_centre[g], self.spot[self.group_of == g] = self._place_group(rng, g, size, taken)
+        self._place_groups(rng, taken)
         w = self.walkers
         walkers = self.free_positions(rng, w, c.radius_m, taken, box=self.walk_box)
         plus = int(math.floor(c.plus_y_share * w))
@@ -361,6 +366,21 @@ class CorridorCrowd(Crowd):
                 for yi in y
             ]
         )
+
+    def _place_groups(self, rng: np.random.Generator, taken: Taken) -> None:
+        """Every standing group by a wall, in its listed order; where one finds no room (a smaller group took the
+        only recess or alcove a larger one fits in), all of them again, the largest first, drawing on."""
+        before = len(taken)
+        orders = [list(range(len(self.sizes))), sorted(range(len(self.sizes)), key=lambda g: -self.sizes[g])]
+        for attempt, order in enumerate(orders):
+            try:
+                for g in order:
+                    self.group_centre[g], self.spot[self.group_of == g] = self._place_group(rng, g, self.sizes[g], taken)
+                return
+            except _NoRoom:
+                del taken[before:]
+                if attempt == len(orders) - 1:
+                    raise
 
     def _place_group(
         self, rng: np.random.Generator, g: int, size: int, taken: Taken
@@ -388,7 +408,7 @@ class CorridorCrowd(Crowd):
                 continue
             taken += [(float(px), float(py), r) for px, py in people]
             return np.array([c.centre_x_m + side * centre_u, gy]), people
-        raise RuntimeError(
+        raise _NoRoom(
             f"world {self.world_config.name!r}: no room by the walls for standing group {g} ({size} people) of crowd "
             f"{self.name!r}; ask for fewer or smaller groups (groups, group_sizes) or a narrower clear_half_width_m"
         )

@@ -227,6 +227,20 @@ def test_the_corridor_env_and_its_localizer_use_the_layout() -> None:
     env.close()
 
 
+@pytest.mark.parametrize(("layout", "seed"), [(5, 4), (53, 2)])
+def test_a_corridor_whose_small_group_takes_the_only_fitting_alcove_places_the_large_ones_first(layout: int, seed: int) -> None:
+    """On these layouts the listed order leaves a group of three no alcove (a pair took it): the groups are placed
+    again, the largest first, and every one stands by a wall off the robot's lane."""
+    env = gym.make("crowdloc/CeilingCorridor-v0", layout=layout, crowd_size=40)
+    env.reset(seed=seed)
+    crowds = env.unwrapped.world.crowds
+    crowd = crowds["corridor"] if isinstance(crowds, dict) else next(c for c in crowds if c.name == "corridor")
+    env.close()
+    corridor = CORRIDOR.crowds["corridor"]
+    assert crowd.spot.shape[0] == sum(crowd.sizes) >= 8
+    assert np.all(np.abs(crowd.spot[:, 0] - corridor.centre_x_m) - corridor.radius_m >= corridor.clear_half_width_m)
+
+
 # -------------------------------------------------------------------------------------------- room
 
 ROOM = load_world("crowded_room")
@@ -427,3 +441,4 @@ def test_a_campus_layout_gets_its_own_scene_map_in_a_bounded_cache(tmp_path, mon
     for _ in range(20):
         env.step(np.zeros(2))
     env.close()
+
