@@ -441,4 +441,3 @@ def test_a_campus_layout_gets_its_own_scene_map_in_a_bounded_cache(tmp_path, mon
     for _ in range(20):
         env.step(np.zeros(2))
     env.close()
-
