@@ -13,7 +13,11 @@ obstructed, or whose end lies off the map (by the belief's mean), is not taken. 
 ``REPLAN_S`` (0.2 s) and holds the motion between, sooner when the sonar blocks a held drive.
 
 What is predicted is the localizer's sensor: a bearing camera's landmark bearings (in its field of
-view and range) or a LIDAR's ranges to the map's walls at ``beams`` directions over its scan.
+view and range), a LIDAR's ranges to the map's walls at ``beams`` directions over its scan, or a
+stereo pair's bearings to the far landmarks of the scene map (``far_landmark_pf``'s: the landmarks
+of the scenes it would match, those recorded nearest the hypotheses' mean, in the cameras' field of
+view between the localizer's ``min_range_m`` and the sensor's ``max_range_m``; the buildings'
+occlusion and the edges' types are not predicted).
 The policy never reads the true pose: only the localizer's belief, the sonar and the map.
 """
 
@@ -34,6 +38,7 @@ from core.schema import ConfigError, check
 
 if TYPE_CHECKING:
     from envs.config import WorldConfig
+    from localizers.far_landmark_pf.scene_map import SceneMap
 
 #: a hypothesis seeing a landmark (or a wall within range) where another sees none: this log-likelihood
 MISMATCH_LOGLIK = math.log(0.1)
@@ -44,17 +49,39 @@ REPLAN_S = 0.2
 Predict = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
 
+def bearings_seen(
+    landmarks_xy: NDArray[np.float64], poses: NDArray[np.float64], fov_rad: float, max_range_m: float, min_range_m: float = 0.0
+) -> NDArray[np.float64]:
+    """``(K, L)``: each landmark's bearing from each of ``poses`` (K, 3), NaN out of view or of
+    ``[min_range_m, max_range_m]``."""
+    lm = np.asarray(landmarks_xy, dtype=np.float64).reshape(-1, 2)
+    offsets = lm[None, :, :] - poses[:, None, :2]
+    bearing = wrap_angle(np.arctan2(offsets[..., 1], offsets[..., 0]) - poses[:, 2:3])
+    distance = np.linalg.norm(offsets, axis=-1)
+    seen = (distance <= max_range_m) & (distance >= min_range_m)
+    if fov_rad < 2 * math.pi:
+        seen &= in_field_of_view(poses[:, None, :2], poses[:, 2:3], lm[None], fov_rad)
+    return np.where(seen, bearing, np.nan)
+
+
 def bearing_predictor(landmarks_xy: NDArray[np.float64], fov_rad: float, max_range_m: float) -> Predict:
     """``predict(poses (K, 3)) -> (K, L)``: each landmark's bearing from each pose, NaN out of view or range."""
     lm = np.asarray(landmarks_xy, dtype=np.float64)
+    return lambda poses: bearings_seen(lm, poses, fov_rad, max_range_m)
+
+
+def scene_bearing_predictor(
+    scenes: SceneMap, count: int, radius_m: float, fov_rad: float, min_range_m: float, max_range_m: float
+) -> Predict:
+    """``predict(poses (K, 3)) -> (K, M)``: each pose's bearing to the landmarks of the ``count``
+    scenes recorded nearest the poses' mean (within ``radius_m``), NaN out of view or of
+    ``[min_range_m, max_range_m]``. Only the landmarks some pose sees are kept (of the ~300 the
+    scenes hold, most lie outside the cameras' 60 deg); ``(K, 0)`` where none is seen."""
 
     def predict(poses: NDArray[np.float64]) -> NDArray[np.float64]:
-        offsets = lm[None, :, :] - poses[:, None, :2]
-        bearing = wrap_angle(np.arctan2(offsets[..., 1], offsets[..., 0]) - poses[:, 2:3])
-        seen = np.linalg.norm(offsets, axis=-1) <= max_range_m
-        if fov_rad < 2 * math.pi:
-            seen &= in_field_of_view(poses[:, None, :2], poses[:, 2:3], lm[None], fov_rad)
-        return np.where(seen, bearing, np.nan)
+        _, xy, _ = scenes.landmarks_near(poses[:, :2].mean(axis=0), count, radius_m)
+        bearings = bearings_seen(xy, poses, fov_rad, max_range_m, min_range_m)
+        return bearings[:, np.isfinite(bearings).any(axis=0)]
 
     return predict
 
@@ -106,9 +133,9 @@ class BeliefGreedy(FixedPolicy):
 
     @classmethod
     def unmet_need(cls, world: WorldConfig) -> tuple[str, str] | None:
-        """A world without a bearing camera or a LIDAR (the sensors it predicts) lacks what it needs."""
-        if world.sensor_of_type("bearing_camera") is None and world.sensor_of_type("lidar") is None:
-            return "a bearing_camera or lidar sensor", f"its sensors: {', '.join(world.sensors) or 'none'}"
+        """A world without a bearing camera, a LIDAR or a stereo pair (the sensors it predicts) lacks what it needs."""
+        if all(world.sensor_of_type(kind) is None for kind in ("bearing_camera", "lidar", "stereo_camera")):
+            return "a bearing_camera, lidar or stereo_camera sensor", f"its sensors: {', '.join(world.sensors) or 'none'}"
         return None
 
     def __init__(
@@ -199,7 +226,7 @@ class BeliefGreedy(FixedPolicy):
 
 
 def make_belief_greedy(env: Any, seed: int | None = None, **kwargs: Any) -> BeliefGreedy:
-    """:class:`BeliefGreedy` on ``env``'s localizer and its sensor (a bearing camera or a LIDAR).
+    """:class:`BeliefGreedy` on ``env``'s localizer and its sensor (a bearing camera, a LIDAR or a stereo pair).
 
     Raises:
         ConfigError: an env without a localizer, or whose localizer reads neither sensor.
@@ -219,6 +246,7 @@ def make_belief_greedy(env: Any, seed: int | None = None, **kwargs: Any) -> Beli
 
     kind = measurement_in(localizer.name, meta)
     camera = config.sensor_of_type("bearing_camera")
+    stereo = config.sensor_of_type("stereo_camera")
     lidar = next(((n, m) for n, m in meta.items() if m["type"] == "lidar"), None)
     if kind == "bearings" and camera is not None:
         predict = bearing_predictor(lmap.positions_xy_m, camera.fov_rad, camera.max_range_m)
@@ -231,8 +259,13 @@ def make_belief_greedy(env: Any, seed: int | None = None, **kwargs: Any) -> Beli
         picked = angles[np.linspace(0, len(angles) - 1, beams).round().astype(int)]
         walls = sensor_map(lmap, lidar[1]).walls_m
         predict, std, circular = range_predictor(walls, picked, float(lidar[1]["max_range_m"])), 0.2, False
+    elif kind == "stereo_edges" and stereo is not None and getattr(localizer, "scenes", None) is not None:
+        p = localizer.params
+        fov = 2.0 * math.atan(0.5 * stereo.width_px / stereo.focal_px)
+        predict = scene_bearing_predictor(localizer.scenes, p.scenes, p.scene_radius_m, fov, p.min_range_m, stereo.max_range_m)
+        std, circular = max(p.sigma_theta_rad, 0.02), True
     else:
-        raise ConfigError(f"belief_greedy predicts a bearing camera's or a LIDAR's readings; localizer {localizer.name!r} "
+        raise ConfigError(f"belief_greedy predicts a bearing camera's, a LIDAR's or a stereo pair's readings; localizer {localizer.name!r} "
                           f"reads {kind!r} in world {config.name!r}")  # fmt: skip
     kwargs.setdefault("max_speed_mps", config.robot.max_speed_mps)
     kwargs.setdefault("max_turn_rate_rps", config.robot.max_turn_rate_rps)

@@ -12,8 +12,15 @@ from gymnasium import spaces
 
 import agents  # noqa: F401
 from agents.policies import make_policy
-from agents.policies.belief_greedy import BeliefGreedy, bearing_predictor, expected_entropy, range_predictor
+from agents.policies.belief_greedy import (
+    BeliefGreedy,
+    bearing_predictor,
+    expected_entropy,
+    range_predictor,
+    scene_bearing_predictor,
+)
 from core.schema import ConfigError
+from localizers.far_landmark_pf.scene_map import SceneMap
 
 BOX = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
 
@@ -66,6 +73,7 @@ def test_its_action_is_the_beliefs_not_the_truths() -> None:
         ("crowdloc/RoboCupCrowded-v0", "candidate_sets", {"camera": {"fov_rad": math.pi / 2}, "prior": "none"}),
         ("crowdloc/RoboCupCrowded-v0", "mcl_bearing", {"prior": "none"}),
         ("crowdloc/CrowdedRoom-v0", "mcl_lidar", {"prior": "none"}),
+        ("crowdloc/StereoCampus-v0", "far_landmark_pf", {}),
     ],
 )
 def test_it_drives_a_world_on_its_localizers_sensor_the_same_for_the_same_seed(env_id: str, localizer: str, kwargs: dict) -> None:
@@ -91,6 +99,24 @@ def test_the_range_predictor_reads_the_walls() -> None:
     ranges = predict(np.array([[1.0, 1.0, 0.0], [3.0, 1.0, 0.0]]))
     np.testing.assert_allclose(ranges[0], [np.nan, np.nan])  # 3 m and 3 m: at the maximum, nothing read
     np.testing.assert_allclose(ranges[1], [1.0, np.nan])
+
+
+def test_the_scene_predictor_reads_the_landmarks_of_the_scenes_nearest_the_hypotheses() -> None:
+    """Scene 0 at the origin holds landmarks 10 m east and 10 m north, scene 1 (50 m east, facing
+    north) one 5 m ahead of it: a 60 deg camera sees each from the pose facing it, the landmarks no
+    pose sees are left out, and hypotheses by scene 1 read scene 1's landmark alone."""
+    scenes = SceneMap(poses=np.array([[0.0, 0.0, 0.0], [50.0, 0.0, math.pi / 2]]), first=np.array([0, 2, 3]),
+                      types=np.array([0, 1, 0]), relative_xy=np.array([[10.0, 0.0], [0.0, 10.0], [5.0, 0.0]]),
+                      world="test", fingerprint="test")  # fmt: skip
+    predict = scene_bearing_predictor(scenes, 1, 10.0, math.radians(60.0), 1.0, 100.0)
+    facing = predict(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, math.pi / 2]]))
+    np.testing.assert_allclose(facing, [[0.0, np.nan], [np.nan, 0.0]], atol=1e-12)
+    askew = predict(np.array([[0.0, 0.0, 0.2], [0.0, 0.0, 0.2]]))  # only the east one in view, 0.2 rad to the right
+    np.testing.assert_allclose(askew, [[-0.2], [-0.2]], atol=1e-12)
+    assert predict(np.array([[9.5, 0.0, 0.0]])).shape == (1, 0)  # 0.5 m from the east one: nearer than min_range_m
+    by_scene_1 = predict(np.array([[50.0, 1.0, math.pi / 2 + 0.1]]))  # scene 1's landmark at (50, 5), 4 m ahead
+    np.testing.assert_allclose(by_scene_1, [[-0.1]], atol=1e-12)
+    assert predict(np.array([[25.0, 0.0, 0.0]])).shape == (1, 0)  # no scene within 10 m
 
 
 def test_without_a_localizer_it_says_what_it_needs() -> None:

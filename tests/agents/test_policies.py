@@ -31,7 +31,7 @@ def test_the_policies_say_which_worlds_they_run_in() -> None:
         "random_walk", "spin", "stop_and_go", "patrol", "route_follower", "look_then_route", "belief_greedy"
     ]  # fmt: skip
     assert FIXED_POLICIES["belief_greedy"].unmet_need(corridor) == (
-        "a bearing_camera or lidar sensor",
+        "a bearing_camera, lidar or stereo_camera sensor",
         "its sensors: odometry, sonar, camera",
     )
     assert FIXED_POLICIES["corridor_follower"].unmet_need(load_world("crowded_room")) == (
